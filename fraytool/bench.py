@@ -1,0 +1,81 @@
+"""`fraytool bench`: median milliseconds per frame and the split by stage.
+
+The first frame pays numba compilation (or loading it from the cache); it is timed apart as
+compile_s and left out of the median. Frames are exported to a temporary folder so the export
+stage is measured as a real run pays it.
+"""
+from __future__ import annotations
+
+import json
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from fraytool.io.frame_store import FrameStore
+from fraytool.scene import load_scene, scene_hash
+from fraytool.sim.simulation import Simulation
+
+DEFAULT_FRAMES = 48
+
+
+def bench_simulation(spec, frames: int = DEFAULT_FRAMES, out_dir: Path | None = None) -> dict:
+    """Simulate `frames` frames after a warm-up frame; returns the bench figures."""
+    t0 = time.perf_counter()
+    sim = Simulation(spec)
+    with tempfile.TemporaryDirectory() as tmp:
+        store = FrameStore(Path(out_dir or tmp))
+        store.start(sim.model, scene_hash(spec), {"scene": spec.name})
+        sim.advance_frame()  # compiles (or loads from cache) every kernel the scene uses
+        compile_s = time.perf_counter() - t0
+        sim.solver.reset_timers()
+        per_frame, export_s = [], []
+        for _ in range(frames):
+            t = time.perf_counter()
+            record = sim.advance_frame()
+            t_sim = time.perf_counter()
+            store.write_frame(record, sim.state)
+            t_end = time.perf_counter()
+            per_frame.append(t_sim - t)
+            export_s.append(t_end - t_sim)
+    stages = {k: 1e3 * v / frames for k, v in sim.solver.stage_s.items() if v > 0.0}
+    stages["export"] = 1e3 * statistics.median(export_s)
+    return {
+        "scene": spec.name,
+        "masses": int(sim.state.particle_active.sum()),
+        "springs": int(sim.state.spring_alive.sum()),
+        "frames": frames,
+        "steps_per_frame": spec.time.steps_per_frame,
+        "ms_per_frame": 1e3 * statistics.median(per_frame),
+        "stages": stages,
+        "compile_s": compile_s,
+        "strain_iterations_max": sim.solver.strain_iterations_max,
+        "summary": sim.summary(),
+    }
+
+
+def bench_command(args) -> int:
+    spec = load_scene(args.scene)
+    frames = args.frames or DEFAULT_FRAMES
+    result = bench_simulation(spec, frames)
+    if args.render:
+        from fraytool.render.bench import render_stage_timings
+
+        result["render_stages"] = render_stage_timings(spec, frames=min(frames, 10))
+        result["render_ms_per_frame"] = sum(result["render_stages"].values())
+    if args.json:
+        print(json.dumps({k: v for k, v in result.items() if k != "summary"}))
+        return 0
+    out = sys.stdout
+    print(f"scene {result['scene']}: {result['masses']} masses, {result['springs']} springs, "
+          f"{frames} frames x {spec.time.steps_per_frame} steps", file=out)
+    print(f"simulation: {result['ms_per_frame']:.2f} ms per frame (median); "
+          f"compile/cache load {result['compile_s']:.2f} s (first frame, not in the median)", file=out)
+    for name, ms in result["stages"].items():
+        print(f"  {name:18s} {ms:8.2f} ms/frame", file=out)
+    if "render_stages" in result:
+        print(f"render: {result['render_ms_per_frame']:.2f} ms per frame", file=out)
+        for name, ms in result["render_stages"].items():
+            print(f"  {name:18s} {ms:8.2f} ms/frame", file=out)
+    return 0

@@ -1,0 +1,178 @@
+"""The `fraytool` command: simulate, render, check, bench, study.
+
+Exit codes: 0 success, 1 failed run (unstable simulation, no GL context, I/O), 2 bad input
+(scene file or flags). Errors print one clear message, never a traceback.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Optional, Sequence
+
+from fraytool import __version__
+from fraytool.errors import FraytoolError, InputError
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse that exits 2 through our error path (usage errors are bad input)."""
+
+    def error(self, message: str):  # noqa: D102
+        self.print_usage(sys.stderr)
+        print(f"{self.prog}: error: {message}", file=sys.stderr)
+        raise SystemExit(2)
+
+
+def _positive_int(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
+    return v
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = _Parser(prog="fraytool", description="Woven cloth tearing with frayed edges: simulate and render.")
+    p.add_argument("--version", action="version", version=f"fraytool {__version__}")
+    sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    sub.required = True
+
+    s = sub.add_parser("simulate", help="simulate a scene and write frame records (.npz)")
+    s.add_argument("scene", help="scene file (TOML), or the name of a shipped scene")
+    s.add_argument("-o", "--out", type=Path, help="output folder (default outputs/<scene name>/)")
+    s.add_argument("--frames", type=_positive_int, help="number of frames (default: the scene's)")
+    s.add_argument("--resume", action="store_true", help="continue from the last complete frame")
+    s.add_argument("--json", action="store_true", help="print a JSON summary on stdout at the end")
+
+    c = sub.add_parser("check", help="validate a scene and print derived figures")
+    c.add_argument("scene")
+    c.add_argument("--run", action="store_true", help="also run the scene's own [checks]")
+    c.add_argument("--json", action="store_true")
+
+    b = sub.add_parser("bench", help="time the simulation (and rendering) per stage")
+    b.add_argument("scene")
+    b.add_argument("--frames", type=_positive_int, default=None, help="frames to time (default 20)")
+    b.add_argument("--render", action="store_true", help="also time the render stages")
+    b.add_argument("--json", action="store_true")
+
+    r = sub.add_parser("render", help="simulate (or reuse frames) and render PNG / MP4")
+    r.add_argument("scene")
+    r.add_argument("-o", "--out", type=Path, help="output folder (default outputs/<scene name>/)")
+    r.add_argument("--frames", metavar="START:END[:STEP]", help="frame range to render (END exclusive)")
+    r.add_argument("--resolution", metavar="WxH", help="image size, e.g. 1280x720 (even numbers)")
+    r.add_argument("--samples", type=int, help="MSAA samples (clamped to what the GL context supports)")
+    r.add_argument("--png", action="store_true", help="also write a numbered PNG sequence in <out>/png/")
+    r.add_argument("--no-mp4", action="store_true", help="do not write the MP4")
+    r.add_argument("--wireframe", choices=("off", "only", "beside"), nargs="?", const="beside", default="off",
+                   help="springs as lines, base model purple, yarn level blue (Fig. 8); default 'beside'")
+    r.add_argument("--camera-position", metavar="X,Y,Z", help="override [camera] position_m")
+    r.add_argument("--camera-target", metavar="X,Y,Z", help="override [camera] target_m")
+    r.add_argument("--fov", type=float, help="override [camera] fov_deg")
+    r.add_argument("-v", "--verbose", action="store_true", help="print the GL renderer and version")
+
+    st = sub.add_parser("study", help="error against run time, or stability sweeps")
+    st.add_argument("scene")
+    st.add_argument("-o", "--out", type=Path, help="output folder (default outputs/<scene name>/)")
+    st.add_argument("--stability", action="store_true", help="sweep stiff and extreme cases instead")
+    st.add_argument("--quick", action="store_true", help="fewer settings, for a fast look")
+    return p
+
+
+def _load(path: str):
+    from fraytool.scene import load_scene
+
+    return load_scene(path)
+
+
+def cmd_simulate(args) -> int:
+    from fraytool.run import default_out_dir, simulate_to_disk
+
+    spec = _load(args.scene)
+    out = args.out or default_out_dir(spec)
+    summary = simulate_to_disk(spec, out, frames=args.frames, resume=args.resume)
+    if args.json:
+        print(json.dumps(summary))
+    else:
+        print(f"wrote {summary['frames']} frames to {out / 'frames'}", file=sys.stderr)
+    return 0
+
+
+def cmd_check(args) -> int:
+    from fraytool.run import check_step
+    from fraytool.sim.builder import build_model
+    from fraytool.sim.model import SPRING_KIND_NAMES
+
+    spec = _load(args.scene)
+    model = build_model(spec)
+    bound = check_step(spec, model)
+    kinds = {name: int((model.spring_kind == k).sum()) for k, name in enumerate(SPRING_KIND_NAMES)}
+    info = {
+        "scene": spec.name,
+        "masses": model.crossing_count,
+        "particle_slots": model.particle_count,
+        "springs": int(model.spring_count - kinds["shear_twin"]),
+        "springs_by_kind": kinds,
+        "step_s": spec.time.step_s,
+        "stability_bound_s": bound,
+        "step_over_bound": spec.time.step_s / bound,
+        "bodies": len(spec.bodies),
+        "attached_masses": model.attachment_count,
+        "simulated_s_per_frame": spec.time.step_s * spec.time.steps_per_frame,
+    }
+    if args.run:
+        from fraytool.scene_checks import run_scene_checks
+
+        info["checks"] = run_scene_checks(spec)
+    if args.json:
+        print(json.dumps(info))
+    else:
+        for k, v in info.items():
+            print(f"{k:24s} {v}")
+    if args.run and not info["checks"]["passed"]:
+        return 1
+    return 0
+
+
+def cmd_bench(args) -> int:
+    from fraytool.bench import bench_command
+
+    return bench_command(args)
+
+
+def cmd_render(args) -> int:
+    from fraytool.render.command import render_command
+
+    return render_command(args)
+
+
+def cmd_study(args) -> int:
+    from fraytool.study.command import study_command
+
+    return study_command(args)
+
+
+COMMANDS = {"simulate": cmd_simulate, "check": cmd_check, "bench": cmd_bench, "render": cmd_render,
+            "study": cmd_study}
+
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return COMMANDS[args.command](args)
+    except FraytoolError as exc:
+        kind = "error" if isinstance(exc, InputError) else "run failed"
+        for line in str(exc).splitlines() or [repr(exc)]:
+            print(f"fraytool: {kind}: {line}", file=sys.stderr)
+        return exc.exit_code
+    except KeyboardInterrupt:
+        print("fraytool: interrupted", file=sys.stderr)
+        return 130
+    except BrokenPipeError:
+        return 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

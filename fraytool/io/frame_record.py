@@ -1,0 +1,96 @@
+"""FrameRecord: what one frame of a simulation hands to the renderer (and to tests), saved as .npz.
+
+A record holds only what changes per frame; the static topology (grid size, weave, spring kinds,
+rest lengths, bodies' shapes) is saved once per run as topology.npz (`Model.arrays()`).
+See docs/architecture.md for the on-disk layout.
+"""
+from __future__ import annotations
+
+import os
+import tempfile
+from dataclasses import dataclass, fields
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:  # the io package stays importable without the simulation (renderer side)
+    from fraytool.sim.model import Model
+    from fraytool.sim.state import State
+
+
+@dataclass(eq=False)
+class FrameRecord:
+    frame: int
+    time_s: float
+    particle_position_m: np.ndarray
+    """Shape (particle_count, 3), float32; slots of inactive particles hold their crossing's position."""
+    particle_active: np.ndarray
+    """Shape (particle_count,), bool."""
+    crossing_yarn_level: np.ndarray
+    """True where the crossing is a yarn-level mass couple, False at base level; (crossing_count,), bool."""
+    spring_particle_a: np.ndarray
+    """Shape (spring_count,), int32."""
+    spring_particle_b: np.ndarray
+    """Shape (spring_count,), int32."""
+    spring_alive: np.ndarray
+    """Shape (spring_count,), bool."""
+    body_position_m: np.ndarray
+    """Shape (body_count, 3), float32."""
+    body_rotation: np.ndarray
+    """Shape (body_count, 3, 3), float32."""
+
+    @staticmethod
+    def from_state(model: Model, state: State, frame: int) -> "FrameRecord":
+        pos = state.particle_position_m.astype(np.float32)
+        n = model.crossing_count
+        idle = ~state.particle_active[n:]
+        pos[n:][idle] = pos[:n][idle]
+        return FrameRecord(
+            frame=frame,
+            time_s=state.time_s,
+            particle_position_m=pos,
+            particle_active=state.particle_active.copy(),
+            crossing_yarn_level=state.crossing_yarn_level.copy(),
+            spring_particle_a=state.spring_particle_a.copy(),
+            spring_particle_b=state.spring_particle_b.copy(),
+            spring_alive=state.spring_alive.copy(),
+            body_position_m=state.body_position_m.astype(np.float32),
+            body_rotation=model.body_rotation.astype(np.float32),
+        )
+
+    def save(self, path: Path) -> None:
+        atomic_save_npz(path, {f.name: np.asarray(getattr(self, f.name)) for f in fields(self)})
+
+    @staticmethod
+    def load(path: Path) -> "FrameRecord":
+        with np.load(path) as data:
+            kw = {f.name: data[f.name] for f in fields(FrameRecord)}
+        kw["frame"] = int(kw["frame"])
+        kw["time_s"] = float(kw["time_s"])
+        return FrameRecord(**kw)
+
+
+def atomic_write_bytes(path: Path, writer) -> None:
+    """Write a file atomically: `writer(fileobj)` fills a temp file in the same folder, which is
+    fsynced and renamed over `path`. A killed process leaves either the old file or the new one."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            writer(f)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
+        raise
+
+
+def atomic_save_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
+    """np.savez (uncompressed) to `path` atomically."""
+    atomic_write_bytes(path, lambda f: np.savez(f, **arrays))

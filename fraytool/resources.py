@@ -1,0 +1,53 @@
+"""The one place that finds fraytool's data files: shaders and shipped scenes.
+
+In a wheel they are the packages `fraytool.shaders` and `fraytool.scenes` (pyproject maps the
+top-level shaders/ and scenes/ folders there); an editable install resolves the same names to the
+checkout's folders.
+"""
+from __future__ import annotations
+
+from importlib import resources
+from pathlib import Path
+
+from fraytool.errors import SceneError
+
+
+def _package_dir(package: str) -> Path:
+    try:
+        return Path(str(resources.files(package)))
+    except (ModuleNotFoundError, TypeError):
+        # Running from a source tree without installing: the folders sit beside the package.
+        return Path(__file__).resolve().parent.parent / package.split(".")[-1]
+
+
+def shader_dir() -> Path:
+    """Folder holding the GLSL shader files (.vert/.frag)."""
+    return _package_dir("fraytool.shaders")
+
+
+def shader_source(name: str) -> str:
+    """Text of one shader file, e.g. shader_source("yarn.frag")."""
+    return (shader_dir() / name).read_text(encoding="utf-8")
+
+
+def scenes_dir() -> Path:
+    """Folder holding the scenes shipped with fraytool."""
+    return _package_dir("fraytool.scenes")
+
+
+def find_scene(path: str | Path) -> Path:
+    """Resolve a scene argument: an existing file, else a shipped scene by name or scenes/ path."""
+    p = Path(path)
+    if p.is_file():
+        return p
+    shipped = scenes_dir()
+    candidates = []
+    rel = p.parts[1:] if p.parts[:1] == ("scenes",) else p.parts
+    if rel:
+        candidates.append(shipped.joinpath(*rel))
+        candidates.append(shipped.joinpath(*rel).with_suffix(".toml"))
+    for c in candidates:
+        if c.is_file():
+            return c
+    names = sorted(q.stem for q in shipped.glob("*.toml"))
+    raise SceneError([f"{path}: scene file not found (shipped scenes: {', '.join(names) or 'none'})"])

@@ -1,0 +1,47 @@
+"""Spring forces of the base and yarn-level models (METHOD.md §3.2).
+
+Hooke springs f = k (|x_b - x_a| - L) u along the unit vector u from a to b. Shear springs
+(kinds SHEAR and SHEAR_TWIN) act only in compression: no force when longer than rest.
+"""
+from __future__ import annotations
+
+import math
+
+import numba as nb
+
+from fraytool.sim.model import SHEAR, SHEAR_TWIN
+
+
+@nb.njit(cache=True, fastmath=False)
+def accumulate_spring_forces(
+    # model
+    spring_kind, spring_rest_length_m,
+    # state in
+    particle_position_m, spring_particle_a, spring_particle_b, spring_alive, spring_stiffness_n_per_m,
+    # state out
+    particle_force_n,
+):
+    """Zero `particle_force_n` and add every live spring's force; serial, so sums are deterministic."""
+    particle_force_n[:] = 0.0
+    for s in range(spring_kind.shape[0]):
+        if not spring_alive[s]:
+            continue  # cut springs and unborn shear twins carry no force
+        a = spring_particle_a[s]
+        b = spring_particle_b[s]
+        dx = particle_position_m[b, 0] - particle_position_m[a, 0]
+        dy = particle_position_m[b, 1] - particle_position_m[a, 1]
+        dz = particle_position_m[b, 2] - particle_position_m[a, 2]
+        length = math.sqrt(dx * dx + dy * dy + dz * dz)
+        if length < 1e-12:
+            continue  # no direction to push along
+        stretch = length - spring_rest_length_m[s]
+        kind = spring_kind[s]
+        if stretch > 0.0 and (kind == SHEAR or kind == SHEAR_TWIN):
+            continue  # shear springs resist compression only (§3.2)
+        f = spring_stiffness_n_per_m[s] * stretch / length
+        particle_force_n[a, 0] += f * dx
+        particle_force_n[a, 1] += f * dy
+        particle_force_n[a, 2] += f * dz
+        particle_force_n[b, 0] -= f * dx
+        particle_force_n[b, 1] -= f * dy
+        particle_force_n[b, 2] -= f * dz

@@ -1,0 +1,94 @@
+"""Strain limiting by constraint projection (METHOD.md §4.1; Provot 1995; Müller et al. 2007).
+
+A stretched spring of rest length L and current length l > (1 + limit) L is projected back to
+l* = (1 + limit) L, moving its ends along u (unit, a to b) by their inverse-mass shares:
+
+    Δx_a = +w_a / (w_a + w_b) (l - l*) u,   Δx_b = -w_b / (w_a + w_b) (l - l*) u
+
+Sweeps run Gauss-Seidel, alternating direction to avoid a drift bias, until a sweep finds every
+spring within limit + tolerance or the iteration cap is hit. Serial, hence deterministic.
+"""
+from __future__ import annotations
+
+import math
+
+import numba as nb
+
+
+@nb.njit(cache=True, fastmath=False)
+def project_distance_max(xa, xb, w_a, w_b, max_length):
+    """Corrections (dxa, dxb) that shorten segment a-b to max_length; zeros if already shorter.
+    Pure function: positions, inverse masses, target length in; corrections out."""
+    dx = xb[0] - xa[0]
+    dy = xb[1] - xa[1]
+    dz = xb[2] - xa[2]
+    length = math.sqrt(dx * dx + dy * dy + dz * dz)
+    w = w_a + w_b
+    if length <= max_length or w == 0.0 or length < 1e-15:
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    c = (length - max_length) / (length * w)
+    return w_a * c * dx, w_a * c * dy, w_a * c * dz, -w_b * c * dx, -w_b * c * dy, -w_b * c * dz
+
+
+@nb.njit(cache=True, fastmath=False)
+def limit_strain(
+    # model
+    limited_springs, spring_rest_length_m, strain_limit, tolerance, max_iterations,
+    # state in
+    particle_inv_mass, spring_particle_a, spring_particle_b, spring_alive,
+    # state in/out
+    particle_position_m,
+):
+    """Project the springs listed in `limited_springs`; returns (sweeps used, converged).
+
+    Same projection as `project_distance_max`, inlined: a spring within its limit costs one squared
+    length and a compare; only stretched springs pay for the square root.
+    """
+    n = limited_springs.shape[0]
+    stretch = 1.0 + strain_limit
+    for it in range(max_iterations):
+        worst = 0.0
+        for k in range(n):
+            s = limited_springs[k] if it % 2 == 0 else limited_springs[n - 1 - k]
+            if not spring_alive[s]:
+                continue  # a cut spring no longer holds its ends together
+            a = spring_particle_a[s]
+            b = spring_particle_b[s]
+            max_length = stretch * spring_rest_length_m[s]
+            dx = particle_position_m[b, 0] - particle_position_m[a, 0]
+            dy = particle_position_m[b, 1] - particle_position_m[a, 1]
+            dz = particle_position_m[b, 2] - particle_position_m[a, 2]
+            d2 = dx * dx + dy * dy + dz * dz
+            if d2 <= max_length * max_length:
+                continue
+            w_a = particle_inv_mass[a]
+            w_b = particle_inv_mass[b]
+            w = w_a + w_b
+            if w == 0.0:
+                continue  # both ends held by bodies: nothing can move
+            length = math.sqrt(d2)
+            excess = (length - max_length) / spring_rest_length_m[s]
+            if excess > worst:
+                worst = excess
+            c = (length - max_length) / (length * w)
+            particle_position_m[a, 0] += w_a * c * dx
+            particle_position_m[a, 1] += w_a * c * dy
+            particle_position_m[a, 2] += w_a * c * dz
+            particle_position_m[b, 0] -= w_b * c * dx
+            particle_position_m[b, 1] -= w_b * c * dy
+            particle_position_m[b, 2] -= w_b * c * dz
+        if worst <= tolerance:
+            return it + 1, True
+    return max_iterations, max_iterations == 0
+
+
+@nb.njit(cache=True, fastmath=False)
+def spring_strains(particle_position_m, spring_particle_a, spring_particle_b, spring_rest_length_m, strain_out):
+    """strain = |x_b - x_a| / L - 1 for every spring slot."""
+    for s in range(spring_particle_a.shape[0]):
+        a = spring_particle_a[s]
+        b = spring_particle_b[s]
+        dx = particle_position_m[b, 0] - particle_position_m[a, 0]
+        dy = particle_position_m[b, 1] - particle_position_m[a, 1]
+        dz = particle_position_m[b, 2] - particle_position_m[a, 2]
+        strain_out[s] = math.sqrt(dx * dx + dy * dy + dz * dz) / spring_rest_length_m[s] - 1.0

@@ -1,0 +1,163 @@
+"""Model: the static arrays of a built cloth scene (never changed by a step).
+
+Layout (see docs/architecture.md):
+- crossings c = j * warp_yarns + i, with i the warp yarn (column) and j the weft yarn (row);
+- particle slots: 2 * crossing_count. Slot c is the base mass of crossing c and, once the crossing
+  has split into a mass couple (METHOD.md §3.4), its **weft** mass; slot crossing_count + c is the
+  couple's **warp** mass (inactive while the crossing is at base level);
+- springs have fixed slots for their whole life: structural and bend springs along weft and warp,
+  shear springs, and for each shear spring a twin slot (dead until a split duplicates it).
+What a step changes (positions, alive flags, spring end points after a split) lives in State.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+# Spring kinds (spring_kind values).
+STRUCT_WEFT = 0
+STRUCT_WARP = 1
+BEND_WEFT = 2
+BEND_WARP = 3
+SHEAR = 4
+SHEAR_TWIN = 5
+SPRING_KIND_NAMES = ("structural_weft", "structural_warp", "bend_weft", "bend_warp", "shear", "shear_twin")
+
+# Rigid body shapes and motions (body_shape, body_motion values).
+SHAPE_SPHERE, SHAPE_BOX, SHAPE_PLANE = 0, 1, 2
+SHAPE_NAMES = ("sphere", "box", "plane")
+MOTION_STATIC, MOTION_KINEMATIC, MOTION_DYNAMIC = 0, 1, 2
+MOTION_NAMES = ("static", "kinematic", "dynamic")
+
+
+@dataclass(frozen=True, eq=False)
+class Model:
+    warp_yarns: int
+    """Number of warp yarns (columns, index i)."""
+    weft_yarns: int
+    """Number of weft yarns (rows, index j)."""
+    crossing_count: int
+    spacing_m: float
+    """Yarn spacing at rest [m]."""
+    thickness_m: float
+    """Cloth thickness T [m]."""
+    gravity_m_s2: np.ndarray
+    """Gravity [m/s^2], shape (3,), float64."""
+
+    crossing_mass_kg: np.ndarray
+    """Mass of each crossing [kg], shape (crossing_count,), float64."""
+    crossing_rest_position_m: np.ndarray
+    """Rest position of each crossing [m], shape (crossing_count, 3), float64."""
+    crossing_weft_on_top: np.ndarray
+    """True where the weft lies above the warp (weave pattern), shape (crossing_count,), bool."""
+    crossing_weft_springs: np.ndarray
+    """Structural weft springs at each crossing (to i-1, to i+1; -1 if none), shape (crossing_count, 2), int32."""
+    crossing_warp_springs: np.ndarray
+    """Structural warp springs at each crossing (to j-1, to j+1; -1 if none), shape (crossing_count, 2), int32."""
+
+    spring_kind: np.ndarray
+    """Spring kind (STRUCT_WEFT ... SHEAR_TWIN), shape (spring_count,), int8."""
+    spring_crossing_a: np.ndarray
+    """Crossing at end a, shape (spring_count,), int32."""
+    spring_crossing_b: np.ndarray
+    """Crossing at end b, shape (spring_count,), int32."""
+    spring_rest_length_m: np.ndarray
+    """Rest length [m], shape (spring_count,), float64."""
+    spring_base_stiffness_n_per_m: np.ndarray
+    """Stiffness when first created [N/m], shape (spring_count,), float64."""
+    spring_break_strain: np.ndarray
+    """Randomised strain at which the spring is cut, drawn once from the scene seed, shape (spring_count,)."""
+    spring_twin: np.ndarray
+    """For a shear spring, the slot of its duplicate (and back); -1 otherwise, shape (spring_count,), int32."""
+    weft_structural_spring: np.ndarray
+    """Spring joining crossings (i, j) and (i+1, j): shape (weft_yarns, warp_yarns - 1), int32."""
+    warp_structural_spring: np.ndarray
+    """Spring joining crossings (i, j) and (i, j+1): shape (warp_yarns, weft_yarns - 1), int32."""
+
+    attachment_particle: np.ndarray
+    """Particle slots held by a rigid body, shape (attachment_count,), int32."""
+    attachment_body: np.ndarray
+    """Holding body of each attachment, shape (attachment_count,), int32."""
+    attachment_offset_m: np.ndarray
+    """Offset from the body centre in the body frame [m], shape (attachment_count, 3), float64."""
+
+    body_names: tuple[str, ...]
+    body_shape: np.ndarray
+    """SHAPE_* per body, shape (body_count,), int8."""
+    body_motion: np.ndarray
+    """MOTION_* per body, shape (body_count,), int8."""
+    body_radius_m: np.ndarray
+    """Sphere radius [m], shape (body_count,)."""
+    body_half_extents_m: np.ndarray
+    """Box half extents [m], shape (body_count, 3)."""
+    body_normal: np.ndarray
+    """Plane unit normal in the body frame, shape (body_count, 3)."""
+    body_rotation: np.ndarray
+    """Fixed orientation (body to world), shape (body_count, 3, 3)."""
+    body_mass_kg: np.ndarray
+    """Dynamic body mass [kg], shape (body_count,)."""
+    body_gravity: np.ndarray
+    """Dynamic body feels gravity, shape (body_count,), bool."""
+    body_friction: np.ndarray
+    """Friction coefficient against the cloth, shape (body_count,)."""
+    body_collide: np.ndarray
+    """Cloth collides with the body, shape (body_count,), bool."""
+    body_start_s: np.ndarray
+    """Time the body starts moving [s], shape (body_count,)."""
+    body_initial_position_m: np.ndarray
+    """Shape (body_count, 3)."""
+    body_initial_velocity_m_s: np.ndarray
+    """Shape (body_count, 3)."""
+    body_path: tuple[np.ndarray, ...]
+    """Per body: kinematic keyframes (t, x, y, z), shape (K, 4); empty for none."""
+
+    strain_limit: float
+    """Structural springs are projected to at most (1 + strain_limit) x rest length."""
+    strain_max_iterations: int
+    strain_tolerance: float
+    damping: float
+    """PBD damping coefficient k_damping per step, in [0, 1]."""
+    tearing: bool
+    yarn_level: bool
+    transition_strain: float
+    disconnect_distance_m: float
+    """A connected couple disconnects beyond this weft-warp distance [m]."""
+    self_collision: bool
+    self_collision_iterations: int
+    self_collision_friction: float
+    seed: int
+
+    @property
+    def particle_count(self) -> int:
+        """Number of particle slots (two per crossing)."""
+        return 2 * self.crossing_count
+
+    @property
+    def spring_count(self) -> int:
+        return int(self.spring_kind.shape[0])
+
+    @property
+    def body_count(self) -> int:
+        return int(self.body_shape.shape[0])
+
+    @property
+    def attachment_count(self) -> int:
+        return int(self.attachment_particle.shape[0])
+
+    def state(self) -> "State":
+        """A fresh State at rest in the initial configuration."""
+        from fraytool.sim.state import initial_state
+
+        return initial_state(self)
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """All array fields, for saving (topology.npz)."""
+        out = {}
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if isinstance(v, np.ndarray):
+                out[f.name] = v
+            elif isinstance(v, (int, float, bool)):
+                out[f.name] = np.asarray(v)
+        return out

@@ -1,0 +1,102 @@
+"""State: everything a step changes. A State snapshot captures positions and the tear.
+
+Tearing changes topology without resizing arrays: particles and springs have alive/active flags,
+and a split re-points spring ends (spring_particle_a/b) from the base slot to a couple mass.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+from fraytool.sim.model import SHEAR_TWIN, Model
+
+
+@dataclass(eq=False)
+class State:
+    time_s: float
+    step_index: int
+    particle_position_m: np.ndarray
+    """Shape (particle_count, 3), float64."""
+    particle_velocity_m_s: np.ndarray
+    """Shape (particle_count, 3), float64."""
+    particle_mass_kg: np.ndarray
+    """Shape (particle_count,), float64; 0 for inactive slots."""
+    particle_inv_mass: np.ndarray
+    """1/mass [1/kg] for free particles; 0 for inactive and attached ones. Shape (particle_count,)."""
+    particle_active: np.ndarray
+    """Shape (particle_count,), bool."""
+    crossing_yarn_level: np.ndarray
+    """True once a crossing has split into a weft/warp mass couple, shape (crossing_count,), bool."""
+    couple_connected: np.ndarray
+    """A split crossing whose weft and warp are still in contact, shape (crossing_count,), bool."""
+    spring_particle_a: np.ndarray
+    """Particle at end a, shape (spring_count,), int32."""
+    spring_particle_b: np.ndarray
+    """Shape (spring_count,), int32."""
+    spring_alive: np.ndarray
+    """Shape (spring_count,), bool."""
+    spring_broken: np.ndarray
+    """Springs cut because their strain passed their break strain (§4.1), shape (spring_count,), bool."""
+    spring_stiffness_n_per_m: np.ndarray
+    """Current stiffness [N/m] (shear springs halve on duplication), shape (spring_count,)."""
+    body_position_m: np.ndarray
+    """Shape (body_count, 3), float64."""
+    body_velocity_m_s: np.ndarray
+    """Shape (body_count, 3), float64."""
+
+    def copy(self) -> "State":
+        kw = {f.name: (getattr(self, f.name).copy() if isinstance(getattr(self, f.name), np.ndarray)
+                       else getattr(self, f.name)) for f in fields(self)}
+        return State(**kw)
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """Every field as an array (full precision), for checkpoints."""
+        return {f.name: np.asarray(getattr(self, f.name)) for f in fields(self)}
+
+    @staticmethod
+    def from_arrays(data) -> "State":
+        kw = {}
+        for f in fields(State):
+            v = np.asarray(data[f.name])
+            if f.name == "time_s":
+                kw[f.name] = float(v)
+            elif f.name == "step_index":
+                kw[f.name] = int(v)
+            else:
+                kw[f.name] = v.copy()
+        return State(**kw)
+
+
+def initial_state(model: Model) -> State:
+    """State at rest: base-level crossings at their rest positions, bodies at their start poses."""
+    n = model.crossing_count
+    pos = np.zeros((2 * n, 3))
+    pos[:n] = model.crossing_rest_position_m
+    pos[n:] = model.crossing_rest_position_m
+    mass = np.zeros(2 * n)
+    mass[:n] = model.crossing_mass_kg
+    active = np.zeros(2 * n, dtype=bool)
+    active[:n] = True
+    inv_mass = np.zeros(2 * n)
+    inv_mass[:n] = 1.0 / model.crossing_mass_kg
+    inv_mass[model.attachment_particle] = 0.0
+    alive = model.spring_kind != SHEAR_TWIN  # shear twins are born dead; a split brings them to life
+    return State(
+        time_s=0.0,
+        step_index=0,
+        particle_position_m=pos,
+        particle_velocity_m_s=np.zeros((2 * n, 3)),
+        particle_mass_kg=mass,
+        particle_inv_mass=inv_mass,
+        particle_active=active,
+        crossing_yarn_level=np.zeros(n, dtype=bool),
+        couple_connected=np.zeros(n, dtype=bool),
+        spring_particle_a=model.spring_crossing_a.copy(),
+        spring_particle_b=model.spring_crossing_b.copy(),
+        spring_alive=alive,
+        spring_broken=np.zeros(model.spring_count, dtype=bool),
+        spring_stiffness_n_per_m=np.where(alive, model.spring_base_stiffness_n_per_m, 0.0),
+        body_position_m=model.body_initial_position_m.copy(),
+        body_velocity_m_s=np.zeros((model.body_count, 3)),
+    )
