@@ -129,8 +129,14 @@ def cmd_check(args) -> int:
     if args.json:
         print(json.dumps(info))
     else:
+        checks = info.pop("checks", None)
         for k, v in info.items():
             print(f"{k:24s} {v}")
+        if checks is not None:
+            print(f"checks after {checks['frames']} frames: {'passed' if checks['passed'] else 'FAILED'}")
+            for name, r in checks["results"].items():
+                print(f"  {'ok  ' if r['passed'] else 'FAIL'} {name}: {r['value']} (wanted {r['wanted']})")
+        info["checks"] = checks
     if args.run and not info["checks"]["passed"]:
         return 1
     return 0

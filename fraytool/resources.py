@@ -6,18 +6,23 @@ checkout's folders.
 """
 from __future__ import annotations
 
-from importlib import resources
+import importlib.util
 from pathlib import Path
 
 from fraytool.errors import SceneError
 
 
 def _package_dir(package: str) -> Path:
+    """Folder of a data package (a namespace package: no __init__.py in shaders/ or scenes/)."""
     try:
-        return Path(str(resources.files(package)))
-    except (ModuleNotFoundError, TypeError):
-        # Running from a source tree without installing: the folders sit beside the package.
-        return Path(__file__).resolve().parent.parent / package.split(".")[-1]
+        spec = importlib.util.find_spec(package)
+    except ModuleNotFoundError:
+        spec = None
+    for location in (spec.submodule_search_locations or []) if spec else []:
+        if Path(location).is_dir():
+            return Path(location)
+    # Running from a source tree without installing: the folders sit beside the package.
+    return Path(__file__).resolve().parent.parent / package.split(".")[-1]
 
 
 def shader_dir() -> Path:

@@ -26,7 +26,7 @@ def default_out_dir(spec: SceneSpec) -> Path:
     return Path("outputs") / spec.name
 
 
-def check_step(spec: SceneSpec, model: Model, stream=sys.stderr) -> float:
+def check_step(spec: SceneSpec, model: Model, stream=None) -> float:
     """Compare the step with the explicit stability bound: warn, or refuse (SceneError) when the
     scene says [time] stability = "refuse". Returns the bound [s]."""
     bound = stable_step_bound_s(model)
@@ -36,13 +36,14 @@ def check_step(spec: SceneSpec, model: Model, stream=sys.stderr) -> float:
                f"use step_s <= {bound:.6g} or lower the stiffness")
         if spec.time.stability == "refuse":
             raise SceneError([msg])
-        print(f"fraytool: warning: {msg}", file=stream)
+        print(f"fraytool: warning: {msg}", file=stream or sys.stderr)
     return bound
 
 
 def simulate_to_disk(spec: SceneSpec, out_dir: Path, frames: Optional[int] = None, resume: bool = False,
-                     progress: Optional[bool] = None, stream=sys.stderr) -> dict:
+                     progress: Optional[bool] = None, stream=None) -> dict:
     """Simulate `frames` frames (default: the scene's) into out_dir/frames; returns the summary."""
+    stream = stream or sys.stderr
     total = spec.time.frames if frames is None else frames
     model = build_model(spec)
     check_step(spec, model, stream)

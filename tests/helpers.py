@@ -1,0 +1,61 @@
+"""Shared test helpers: small scenes from text, array comparison that names what differs."""
+from __future__ import annotations
+
+import numpy as np
+
+from fraytool.scene import parse_scene
+
+SMALL_SCENE = """
+[scene]
+name = "{name}"
+seed = {seed}
+
+[time]
+step_s = {step_s}
+steps_per_frame = {steps_per_frame}
+frames = {frames}
+fps = 24
+
+[world]
+gravity_m_s2 = {gravity}
+
+[cloth]
+warp_yarns = {nx}
+weft_yarns = {ny}
+spacing_m = 0.005
+thickness_m = 0.0008
+mass_per_crossing_kg = 2.0e-5
+origin_m = [-0.03, 0.1, -0.03]
+plane = "xz"
+weave = "plain"
+
+[cloth.springs]
+structural_n_per_m = 20.0
+bend_n_per_m = {bend}
+shear_n_per_m = {shear}
+damping = {damping}
+
+[cloth.strain]
+limit = 0.10
+max_iterations = 30
+"""
+
+
+def small_scene_text(**overrides) -> str:
+    values = dict(name="small", seed=1, step_s=4e-4, steps_per_frame=5, frames=6, gravity="[0.0, -9.81, 0.0]",
+                  nx=12, ny=12, bend=0.5, shear=2.0, damping=0.0)
+    values.update(overrides)
+    return SMALL_SCENE.format(**values)
+
+
+def small_scene(extra: str = "", **overrides):
+    return parse_scene(small_scene_text(**overrides) + extra, "small.toml")
+
+
+def assert_arrays_equal(expected: dict, actual: dict, names=None) -> None:
+    """Bit-for-bit equality of named arrays; the message names the first array that differs."""
+    for name in names or expected.keys():
+        a, b = np.asarray(expected[name]), np.asarray(actual[name])
+        if a.shape != b.shape or a.dtype != b.dtype or a.tobytes() != b.tobytes():
+            diff = np.argwhere(a != b)[:3] if a.shape == b.shape else "shape"
+            raise AssertionError(f"array {name!r} differs (first differing indices: {diff})")

@@ -1,0 +1,74 @@
+"""Each class of bad scene input gives one clear message (file, key, value, what is allowed) and
+exit code 2, never a traceback."""
+import subprocess
+import sys
+
+import pytest
+
+from fraytool.cli import main
+from helpers import small_scene_text
+
+GOOD = small_scene_text()
+
+
+def _with(old: str, new: str) -> str:
+    assert old in GOOD
+    return GOOD.replace(old, new)
+
+
+CASES = {
+    "unknown key": (GOOD.replace("[cloth]\n", "[cloth]\nwarp_yarn = 3\n"), ["[cloth] warp_yarn = 3", "unknown key", "warp_yarns"]),
+    "unknown table": (GOOD + "\n[clothes]\nx = 1\n", ["[clothes]", "unknown table"]),
+    "wrong type": (_with("spacing_m = 0.005", 'spacing_m = "5mm"'), ['[cloth] spacing_m = "5mm"', "a number"]),
+    "zero spacing": (_with("spacing_m = 0.005", "spacing_m = 0.0"), ["[cloth] spacing_m = 0.0", "> 0"]),
+    "negative mass": (_with("mass_per_crossing_kg = 2.0e-5", "mass_per_crossing_kg = -1.0"),
+                      ["[cloth] mass_per_crossing_kg = -1.0", "> 0"]),
+    "bad choice": (_with('weave = "plain"', 'weave = "knit"'), ['[cloth] weave = "knit"', '"plain"', '"twill"']),
+    "bad twill": (_with('weave = "plain"', 'weave = "twill"\ntwill = "2-2"'), ['[cloth] twill = "2-2"', '"a/b"']),
+    "missing key": (GOOD.replace("warp_yarns = 12\n", ""), ["[cloth]", "missing required key `warp_yarns`"]),
+    "missing table": (GOOD.split("[cloth.springs]")[0], ["[cloth.springs]", "missing required table"]),
+    "vector length": (_with("origin_m = [-0.03, 0.1, -0.03]", "origin_m = [0.0, 0.1]"), ["[cloth] origin_m = [0.0, 0.1]", "3 numbers"]),
+    "unknown body": (GOOD + '\n[[attachments]]\nbody = "ghost"\nedge = "left"\n', ['[attachments.0] body = "ghost"', "must name one of"]),
+    "step above bound": (_with("step_s = 0.0004", "step_s = 0.01\nstability = \"refuse\""),
+                         ["[time] step_s = 0.01", "stability bound", "use step_s <="]),
+    "not toml": ("[cloth\nx=1", ["not valid TOML"]),
+}
+
+
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_bad_scene_gives_clear_error_and_exit_2(case, tmp_path, capsys):
+    text, expected = CASES[case]
+    path = tmp_path / "bad.toml"
+    path.write_text(text)
+    code = main(["check", str(path)])
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert str(path) in err
+    for fragment in expected:
+        assert fragment in err, f"{fragment!r} not in {err!r}"
+    assert "Traceback" not in err
+
+
+def test_step_above_bound_warns_by_default(tmp_path, capsys):
+    path = tmp_path / "warn.toml"
+    path.write_text(_with("step_s = 0.0004", "step_s = 0.01"))
+    assert main(["check", str(path)]) == 0
+    err = capsys.readouterr().err
+    assert "warning" in err and "[time] step_s = 0.01" in err and "stability bound" in err
+
+
+def test_missing_file_and_bad_flag_exit_2(tmp_path, capsys):
+    assert main(["simulate", str(tmp_path / "nope.toml")]) == 2
+    assert "scene file not found" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exc:
+        main(["simulate", "drape", "--frames", "-3"])
+    assert exc.value.code == 2
+
+
+def test_cli_subprocess_prints_no_traceback(tmp_path):
+    path = tmp_path / "bad.toml"
+    path.write_text(_with("spacing_m = 0.005", "spacing_m = -2"))
+    r = subprocess.run([sys.executable, "-m", "fraytool", "simulate", str(path)], capture_output=True, text=True,
+                       stdin=subprocess.DEVNULL)
+    assert r.returncode == 2
+    assert "Traceback" not in r.stderr and "spacing_m = -2" in r.stderr

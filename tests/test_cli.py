@@ -1,0 +1,55 @@
+"""The CLI contract other issues rely on: simulate --json, check, bench --json, --version, python -m."""
+import json
+import subprocess
+import sys
+
+from fraytool import __version__
+from fraytool.cli import main
+from helpers import small_scene_text
+
+
+def test_version(capsys):
+    try:
+        main(["--version"])
+    except SystemExit as exc:
+        assert exc.code == 0
+    assert __version__ in capsys.readouterr().out
+
+
+def test_simulate_json_summary(tmp_path, capsys):
+    scene = tmp_path / "s.toml"
+    scene.write_text(small_scene_text(frames=4))
+    assert main(["simulate", str(scene), "-o", str(tmp_path / "out"), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    for key in ("frames", "masses", "springs", "broken_springs", "yarn_level_masses", "max_strain", "all_finite"):
+        assert key in out
+    assert out["frames"] == 4 and out["masses"] == 144 and out["all_finite"] is True
+    assert len(list((tmp_path / "out" / "frames").glob("frame_*.npz"))) == 4
+
+
+def test_bench_json(tmp_path, capsys):
+    scene = tmp_path / "s.toml"
+    scene.write_text(small_scene_text(frames=4))
+    assert main(["bench", str(scene), "--frames", "3", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert set(out) >= {"scene", "masses", "springs", "frames", "ms_per_frame", "stages", "compile_s"}
+    assert out["frames"] == 3 and out["ms_per_frame"] > 0
+    assert {"forces", "integration", "strain_limiting", "export"} <= set(out["stages"])
+
+
+def test_python_dash_m_and_default_out_dir(tmp_path):
+    scene = tmp_path / "tiny.toml"
+    scene.write_text(small_scene_text(name="tiny", frames=2))
+    r = subprocess.run([sys.executable, "-m", "fraytool", "simulate", str(scene)], cwd=tmp_path,
+                       capture_output=True, text=True, stdin=subprocess.DEVNULL)
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "outputs" / "tiny" / "frames" / "frame_000001.npz").is_file()
+    assert r.stderr.count("\r") == 0  # no progress bar when not on a terminal
+
+
+def test_check_json_figures(capsys):
+    assert main(["check", "scenes/fig7_square_grab.toml", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["masses"] == 4096
+    assert out["springs_by_kind"]["structural_weft"] == 64 * 63
+    assert 0 < out["stability_bound_s"] < 1
