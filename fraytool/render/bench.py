@@ -1,0 +1,85 @@
+"""Render stage timings for `fraytool bench --render`: milliseconds per frame for
+- "geometry": frame record -> yarn pieces -> splines -> tubes (NumPy/numba, fraytool.render.geometry);
+- "draw_readback": upload, GL draw into the multisampled target, resolve, read back, flip;
+- "encode": H.264 MP4 encoding (the default output), frames sent to ffmpeg plus finishing the file.
+
+Stages are timed one after the other (all frames are drawn first, then encoded), so each figure is
+what that stage costs on its own and the sum is the per-frame cost of a sequential render. The
+first frame is drawn once before timing (numba compilation or cache load, shader compilation).
+Figures are medians over the frames, except encode, which is total time / frames (ffmpeg works
+ahead of the pipe, so single-frame figures mean little).
+"""
+from __future__ import annotations
+
+import dataclasses
+import statistics
+import tempfile
+import time
+from pathlib import Path
+from typing import Optional
+
+from fraytool.io.frame_store import FrameStore
+from fraytool.render.context import create_context
+from fraytool.render.encode import Mp4Writer
+from fraytool.render.geometry import GeometryBuilder, YarnStyle
+from fraytool.render.renderer import Renderer
+from fraytool.scene import scene_hash
+from fraytool.scene.spec import SceneSpec
+
+DEFAULT_FRAMES = 10
+
+
+def _frames_dir(spec: SceneSpec, out_dir: Optional[Path], frames: int, tmp: str) -> FrameStore:
+    """A FrameStore holding at least `frames` records of this scene: out_dir (or outputs/<scene>) if
+    it already has them, else a fresh simulation in the temporary folder."""
+    from fraytool.run import default_out_dir, simulate_to_disk
+
+    for candidate in (out_dir, default_out_dir(spec)):
+        if candidate is None:
+            continue
+        store = FrameStore(Path(candidate))
+        if store.matches(scene_hash(spec)) and store.frames_complete() >= frames:
+            return store
+    target = Path(out_dir) if out_dir is not None else Path(tmp)
+    simulate_to_disk(spec, target, frames=frames, progress=False)
+    return FrameStore(target)
+
+
+def render_stage_timings(spec: SceneSpec, out_dir: Optional[Path] = None, frames: int = DEFAULT_FRAMES,
+                         resolution: tuple[int, int] = (1280, 720), samples: int = 4) -> dict[str, float]:
+    """Milliseconds per frame of the render stages for the first `frames` frames of `spec`."""
+    spec = dataclasses.replace(spec, render=dataclasses.replace(spec.render, resolution=tuple(resolution),
+                                                                samples=samples))
+    frames = max(1, min(frames, spec.time.frames))
+    W, H = resolution
+    with tempfile.TemporaryDirectory(prefix="fraytool-bench-render-") as tmp:
+        store = _frames_dir(spec, out_dir, frames, tmp)
+        topology = store.load_topology()
+        records = [store.load_frame(f) for f in range(frames)]
+        ctx = create_context()
+        try:
+            renderer = Renderer(ctx, (W, H), samples, spec.render, spec.camera, topology)
+            builder = GeometryBuilder(topology, YarnStyle.from_spec(spec.render, topology), renderer.camera, H)
+            renderer.render(builder.build(records[0]))  # warm-up: numba, shaders, buffers
+            geometry_s, draw_s, images = [], [], []
+            for record in records:
+                t0 = time.perf_counter()
+                geom = builder.build(record)
+                t1 = time.perf_counter()
+                images.append(renderer.render(geom))
+                t2 = time.perf_counter()
+                geometry_s.append(t1 - t0)
+                draw_s.append(t2 - t1)
+            renderer.release()
+        finally:
+            ctx.release()
+        t0 = time.perf_counter()
+        with Mp4Writer(Path(tmp) / "bench.mp4", (W, H), spec.time.fps, crf=spec.output.crf) as writer:
+            for image in images:
+                writer.write(image)
+        encode_s = (time.perf_counter() - t0) / len(images)
+    return {
+        "geometry": 1e3 * statistics.median(geometry_s),
+        "draw_readback": 1e3 * statistics.median(draw_s),
+        "encode": 1e3 * encode_s,
+    }

@@ -1,0 +1,70 @@
+"""Camera matrices (right-handed, OpenGL clip space) from a CameraSpec.
+
+Matrices are NumPy float64, row-major, applied to column vectors (p_clip = P @ V @ p_world);
+upload them transposed for GLSL's column-major mat4.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from fraytool.errors import InputError
+from fraytool.scene.spec import CameraSpec
+
+
+def look_at(eye: np.ndarray, target: np.ndarray, up: np.ndarray) -> np.ndarray:
+    """World -> view matrix: the camera at `eye` looks down -z towards `target`, y up."""
+    eye, target, up = (np.asarray(v, dtype=np.float64) for v in (eye, target, up))
+    f = target - eye
+    fl = np.linalg.norm(f)
+    if fl < 1e-12:
+        raise InputError(f"camera position {_fmt(eye)} equals its target: the view direction is undefined")
+    f /= fl
+    s = np.cross(f, up)
+    sl = np.linalg.norm(s)
+    if sl < 1e-9:
+        raise InputError(f"camera up {_fmt(up)} is parallel to the view direction {_fmt(f)}: "
+                         "choose a different up vector or camera position")
+    s /= sl
+    u = np.cross(s, f)
+    m = np.eye(4)
+    m[0, :3], m[1, :3], m[2, :3] = s, u, -f
+    m[:3, 3] = -m[:3, :3] @ eye
+    return m
+
+
+def _fmt(v: np.ndarray) -> str:
+    return "(" + ", ".join(f"{float(x):g}" for x in v) + ")"
+
+
+def perspective(fov_y_deg: float, aspect: float, near: float, far: float) -> np.ndarray:
+    """View -> clip matrix for a vertical field of view."""
+    f = 1.0 / math.tan(math.radians(fov_y_deg) / 2.0)
+    m = np.zeros((4, 4))
+    m[0, 0] = f / aspect
+    m[1, 1] = f
+    m[2, 2] = (far + near) / (near - far)
+    m[2, 3] = 2.0 * far * near / (near - far)
+    m[3, 2] = -1.0
+    return m
+
+
+class Camera:
+    """A CameraSpec with its view matrix and clip planes (near/far scale with the target distance)."""
+
+    def __init__(self, spec: CameraSpec):
+        self.spec = spec
+        self.eye = np.asarray(spec.position_m, dtype=np.float64)
+        self.target = np.asarray(spec.target_m, dtype=np.float64)
+        self.view = look_at(self.eye, self.target, spec.up)
+        distance = float(np.linalg.norm(self.target - self.eye))
+        self.near = distance / 200.0
+        self.far = distance * 200.0
+
+    def view_proj(self, aspect: float) -> np.ndarray:
+        return perspective(self.spec.fov_deg, aspect, self.near, self.far) @ self.view
+
+    def view_depth(self, points: np.ndarray) -> np.ndarray:
+        """Signed view-space z of points (more negative = farther), shape (N,)."""
+        return np.asarray(points, dtype=np.float64) @ self.view[2, :3] + self.view[2, 3]

@@ -1,0 +1,127 @@
+"""`fraytool render SCENE`: simulate (or reuse frames of the same scene hash) and render PNG / MP4.
+
+Order of work, so that mistakes fail fast: check every flag (InputError, exit 2) -> create the GL
+context (RunError, exit 1, before any long simulation) -> make sure the frame records exist ->
+render. See docs/rendering.md.
+"""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Optional, TextIO
+
+from fraytool.errors import InputError
+from fraytool.io.frame_store import FrameStore
+from fraytool.render.job import RenderJob, with_overrides
+from fraytool.render.options import (
+    FrameRange,
+    check_fov,
+    check_samples,
+    parse_frame_range,
+    parse_resolution,
+    parse_vec3,
+)
+from fraytool.scene import SceneSpec, load_scene, scene_hash
+
+
+def build_job(spec: SceneSpec, args) -> RenderJob:
+    """Validate the flags against the scene and resolve them into a RenderJob."""
+    png = bool(getattr(args, "png", False)) or spec.output.png
+    mp4 = spec.output.mp4 and not getattr(args, "no_mp4", False)
+    if not png and not mp4:
+        raise InputError("--no-mp4 without --png (and the scene's [output] png = false): nothing to write")
+    resolution = parse_resolution(args.resolution, need_even=mp4) if args.resolution else None
+    if resolution is None and mp4:
+        w, h = spec.render.resolution
+        if w % 2 or h % 2:
+            raise InputError(f"{spec.source}: [render] resolution = [{w}, {h}]: the MP4 (H.264, yuv420p) needs "
+                             "an even width and height; fix the scene or pass --resolution WxH")
+    position = parse_vec3("--camera-position", args.camera_position) if args.camera_position else None
+    target = parse_vec3("--camera-target", args.camera_target) if args.camera_target else None
+    spec = with_overrides(spec, resolution=resolution, samples=check_samples(args.samples),
+                          camera_position=position, camera_target=target, fov=check_fov(args.fov))
+    if args.frames:
+        frames, ranged = parse_frame_range(args.frames, spec.time.frames), True
+    else:
+        frames, ranged = FrameRange(0, spec.time.frames, 1), False
+    from fraytool.render.camera import Camera
+
+    try:
+        Camera(spec.camera)  # position == target or up parallel to the view: fail now, not later
+    except InputError as exc:
+        where = ", ".join(f for f, v in (("--camera-position", position), ("--camera-target", target)) if v)
+        raise InputError(f"{where or spec.source + ': [camera]'}: {exc}") from None
+    from fraytool.run import default_out_dir
+
+    out = Path(args.out) if getattr(args, "out", None) else default_out_dir(spec)
+    return RenderJob(spec=spec, out_dir=out, frames=frames, ranged=ranged,
+                     wireframe=getattr(args, "wireframe", None) or "off", png=png, mp4=mp4)
+
+
+def ensure_frames(spec: SceneSpec, out_dir: Path, needed: int, stream: TextIO = sys.stderr) -> FrameStore:
+    """Frame records 0..needed-1 in out_dir/frames: reuse them if the manifest's scene hash matches
+    and enough are complete, continue a shorter matching run (resume), else simulate afresh."""
+    from fraytool.run import simulate_to_disk
+
+    store = FrameStore(out_dir)
+    digest = scene_hash(spec)
+    if store.matches(digest):
+        done = store.frames_complete()
+        if done >= needed:
+            return store
+        if done > 0 and (store.dir / "checkpoint.npz").is_file():
+            print(f"fraytool: continuing the simulation in {store.dir} from frame {done} to {needed}", file=stream)
+            simulate_to_disk(spec, out_dir, frames=needed, resume=True, stream=stream)
+            return store
+    print(f"fraytool: simulating {needed} frames into {store.dir}", file=stream)
+    simulate_to_disk(spec, out_dir, frames=needed, stream=stream)
+    return store
+
+
+class _Terminated(SystemExit):
+    """SIGTERM (a farm scheduler pre-empting the job) turned into an exception, so the same clean-up
+    as for Ctrl-C runs: ffmpeg stopped, the partial MP4 deleted, the GL context released."""
+
+
+def _on_sigterm(signum, frame):  # pragma: no cover - exercised through a subprocess
+    raise _Terminated(128 + signum)
+
+
+def render_command(args, stream: Optional[TextIO] = None) -> int:
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        return _render(args, stream)
+    previous = signal.signal(signal.SIGTERM, _on_sigterm)
+    try:
+        return _render(args, stream)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _render(args, stream: Optional[TextIO]) -> int:
+    stream = stream or sys.stderr
+    spec = load_scene(args.scene)
+    job = build_job(spec, args)
+    from fraytool.render.context import create_context, describe
+    from fraytool.render.renderer import clamp_samples
+
+    ctx = create_context()
+    try:
+        if getattr(args, "verbose", False):
+            print(describe(ctx), file=stream)
+            print(f"MSAA samples: {clamp_samples(ctx, job.samples)} (asked {job.samples})", file=stream)
+        store = ensure_frames(job.spec, job.out_dir, job.frames.end, stream)
+        from fraytool.render.sequence import render_job
+
+        result = render_job(job, ctx, store, stream=stream)
+    finally:
+        ctx.release()
+    wrote = []
+    if result.mp4:
+        wrote.append(result.mp4)
+    if result.png_dir:
+        wrote.append(f"{result.png_dir}/ ({result.rendered} rendered, {result.reused} kept from an earlier run)")
+    print(f"fraytool: rendered {result.frames} frames: " + "; ".join(wrote), file=stream)
+    return 0

@@ -1,0 +1,217 @@
+"""Writing rendered frames: PNG files (Pillow) and H.264 MP4 (the ffmpeg that imageio-ffmpeg ships).
+
+Both are atomic: a PNG is written to a temp file in the same folder and renamed over its final
+name; an MP4 is encoded into a hidden temp file beside the final one (".NAME.partial-HOST-PID.mp4") and
+renamed only when ffmpeg has finished and the file is complete, so a killed render never leaves a
+truncated PNG or a half-written MP4 where a finished one should be.
+
+Each PNG carries the digest of the settings it was rendered with (a tEXt chunk), which is how an
+interrupted render knows which frames it can keep (fraytool.render.sequence).
+
+MP4: libx264, yuv420p (plays everywhere), the scene's fps, `-movflags +faststart` (index at the
+front, so players can start before the download ends). yuv420p halves the chroma resolution, so
+both image sides must be even: odd sizes are refused with an InputError rather than padded, so
+that the video has exactly the size the user asked for.
+"""
+from __future__ import annotations
+
+import os
+import socket
+import tempfile
+from fractions import Fraction
+from pathlib import Path
+from typing import Optional
+
+import imageio_ffmpeg
+import numpy as np
+from PIL import Image, PngImagePlugin
+
+from fraytool.errors import InputError, RunError
+
+PNG_SETTINGS_KEY = "fraytool:render-settings"
+"""tEXt key holding the digest of the settings a PNG was rendered with."""
+PNG_COMPRESS_LEVEL = 3
+"""zlib level: 3 is about 3x faster than Pillow's default 6 for a few percent more bytes."""
+X264_PRESET = "veryfast"
+"""x264 speed preset: keeps encoding well inside the frame budget on 2 cores; quality is set by CRF."""
+
+
+def check_even(size: tuple[int, int], what: str = "MP4 size") -> None:
+    """Refuse odd widths or heights (yuv420p needs even sides)."""
+    w, h = size
+    if w % 2 or h % 2:
+        raise InputError(f"{what} {w}x{h}: H.264 with yuv420p needs an even width and height; "
+                         f"use e.g. {w + w % 2}x{h + h % 2}")
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def atomic_write(path: Path, writer) -> None:
+    """`writer(fileobj)` fills a temp file beside `path`, which is fsynced, given the usual
+    permissions (0666 minus the umask; mkstemp makes 0600) and renamed over `path`."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            writer(f)
+            f.flush()
+            os.fchmod(f.fileno(), 0o666 & ~_umask())
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
+        raise
+
+
+def write_png(path: Path, image: np.ndarray, settings_digest: str = "") -> None:
+    """Write an (H, W, 3) uint8 image as PNG atomically, tagged with `settings_digest`."""
+    img = Image.fromarray(np.ascontiguousarray(image), mode="RGB")
+    info = PngImagePlugin.PngInfo()
+    if settings_digest:
+        info.add_text(PNG_SETTINGS_KEY, settings_digest)
+    atomic_write(Path(path), lambda f: img.save(f, format="PNG", pnginfo=info,
+                                                      compress_level=PNG_COMPRESS_LEVEL))
+
+
+def png_settings(path: Path) -> Optional[tuple[str, tuple[int, int]]]:
+    """(settings digest, (width, height)) of a PNG written by write_png, or None if unreadable."""
+    try:
+        with Image.open(path) as img:
+            return img.text.get(PNG_SETTINGS_KEY, ""), img.size
+    except (OSError, ValueError, SyntaxError):
+        return None
+
+
+def read_png(path: Path) -> np.ndarray:
+    """An (H, W, 3) uint8 image."""
+    with Image.open(path) as img:
+        return np.asarray(img.convert("RGB"))
+
+
+def _host() -> str:
+    return "".join(c if c.isalnum() else "_" for c in socket.gethostname()) or "host"
+
+
+def partial_mp4_path(path: Path) -> Path:
+    """Temp file the MP4 is encoded into before the final rename: .NAME.partial-HOST-PID.mp4."""
+    path = Path(path)
+    return path.with_name(f".{path.stem}.partial-{_host()}-{os.getpid()}.mp4")
+
+
+def remove_stale_partials(path: Path) -> None:
+    """Delete temp MP4s of `path` left by killed runs on this host (never another machine's, on a
+    shared folder, and never a live process's)."""
+    path = Path(path)
+    for p in path.parent.glob(f".{path.stem}.partial-{_host()}-*.mp4"):
+        pid = p.name.rsplit("-", 1)[-1].split(".")[0]
+        if pid.isdigit() and not _alive(int(pid)):
+            try:
+                p.unlink()
+            except FileNotFoundError:
+                pass
+
+
+def _alive(pid: int) -> bool:
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+class Mp4Writer:
+    """Stream frames into an H.264 MP4; `close()` publishes it, `abort()` (or an exception in a
+    `with` block) removes the temp file and leaves any previous MP4 untouched."""
+
+    def __init__(self, path: Path, size: tuple[int, int], fps: float, crf: int = 18, preset: str = X264_PRESET):
+        check_even(size)
+        self.path = Path(path)
+        self.size = (int(size[0]), int(size[1]))
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        remove_stale_partials(self.path)
+        self.tmp = partial_mp4_path(self.path)
+        self.frames = 0
+        self._gen = imageio_ffmpeg.write_frames(
+            str(self.tmp), self.size, fps=Fraction(fps).limit_denominator(1001), codec="libx264",
+            pix_fmt_in="rgb24", pix_fmt_out="yuv420p", quality=None, macro_block_size=1,
+            ffmpeg_log_level="error",
+            output_params=["-crf", str(int(crf)), "-preset", preset, "-movflags", "+faststart"])
+        self._gen.send(None)
+
+    def write(self, image: np.ndarray) -> None:
+        h, w = image.shape[:2]
+        if (w, h) != self.size or image.dtype != np.uint8 or image.shape[2:] != (3,):
+            raise ValueError(f"frame {image.shape} {image.dtype} does not match the video size {self.size}")
+        try:
+            self._gen.send(np.ascontiguousarray(image))
+        except OSError as exc:
+            self.abort()
+            raise RunError(f"{self.path}: ffmpeg stopped while encoding: {str(exc).splitlines()[0]}") from None
+        self.frames += 1
+
+    def close(self) -> Path:
+        """Finish encoding and rename the temp file to the final name."""
+        if self._gen is None:
+            return self.path
+        if self.frames == 0:
+            self.abort()
+            raise RunError(f"{self.path}: no frames to encode")
+        try:
+            self._gen.close()
+        except Exception as exc:
+            self._gen = None
+            self._unlink_tmp()
+            raise RunError(f"{self.path}: ffmpeg failed: {str(exc).splitlines()[0]}") from None
+        self._gen = None
+        # write_frames does not report ffmpeg's exit status: check that a finished MP4 is there
+        # (with +faststart the index atom, moov, sits at the front of a complete file).
+        try:
+            with open(self.tmp, "rb+") as f:
+                head = f.read(1 << 16)
+                os.fsync(f.fileno())
+        except FileNotFoundError:
+            head = b""
+        if b"moov" not in head:
+            self._unlink_tmp()
+            raise RunError(f"{self.path}: ffmpeg did not produce a complete MP4 (disk full or ffmpeg error?)")
+        os.replace(self.tmp, self.path)
+        return self.path
+
+    def abort(self) -> None:
+        """Stop ffmpeg at once (no waiting for queued frames) and delete the temp file."""
+        if self._gen is not None:
+            gen, self._gen = self._gen, None
+            try:
+                gen.throw(SystemExit)          # write_frames then kills ffmpeg instead of waiting
+            except (SystemExit, StopIteration):
+                pass
+            except Exception:
+                pass
+        self._unlink_tmp()
+
+    def _unlink_tmp(self) -> None:
+        try:
+            self.tmp.unlink()
+        except FileNotFoundError:
+            pass
+
+    def __enter__(self) -> "Mp4Writer":
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if exc_type is None:
+            self.close()
+        else:
+            self.abort()

@@ -1,0 +1,142 @@
+"""Frame record -> everything the GPU draws for one frame (yarn tubes, spring lines, bodies).
+
+This is the "geometry" stage of `fraytool bench --render`: NumPy and numba, no GL.
+Steps: yarn pieces (fraytool.render.yarns) -> centripetal Catmull-Rom samples (spline) -> fade
+alpha and rotation-minimising tube sweep (tube), with the level of detail chosen per frame (lod).
+The tube index buffer depends only on how many samples each piece has and on the side count, so it
+is cached between frames (it changes when a spring is cut or the detail level changes).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Mapping, Optional
+
+import numpy as np
+
+from fraytool.io.frame_record import FrameRecord
+from fraytool.render.camera import Camera
+from fraytool.render.lod import Detail, choose_detail
+from fraytool.render.spline import catmull_rom, polyline_tangents
+from fraytool.render.tube import VERTEX_FLOATS, fade_alpha, sweep_tubes, translucent_triangles, tube_triangles
+from fraytool.render.wireframe import SpringLines, spring_lines
+from fraytool.render.yarns import YarnPieces, yarn_pieces
+from fraytool.scene.spec import RenderSpec
+
+__all__ = ["VERTEX_FLOATS", "YarnStyle", "YarnMesh", "FrameGeometry", "GeometryBuilder"]
+
+
+@dataclass(frozen=True)
+class YarnStyle:
+    """Geometric render settings resolved against the cloth (defaults that depend on it)."""
+
+    radius_m: float
+    """Tube radius [m]."""
+    fade_length_m: float
+    """Arc length over which a broken end fades to transparent [m]."""
+    samples_per_segment: int
+    """Most Catmull-Rom samples per segment (the level of detail may use fewer)."""
+    sides: int
+    """Most tube sides (the level of detail may use fewer)."""
+    spacing_m: float
+    """Yarn spacing at rest [m] (sets the sampling density the level of detail needs)."""
+
+    @staticmethod
+    def from_spec(render: RenderSpec, topology: Mapping[str, np.ndarray]) -> "YarnStyle":
+        thickness = float(np.asarray(topology["thickness_m"]).item())
+        spacing = float(np.asarray(topology["spacing_m"]).item())
+        return YarnStyle(
+            radius_m=render.yarn_radius_m if render.yarn_radius_m > 0 else 0.5 * thickness,
+            fade_length_m=render.fade_length_m if render.fade_length_m > 0 else 2.0 * spacing,
+            samples_per_segment=render.spline_samples,
+            sides=render.tube_sides,
+            spacing_m=spacing,
+        )
+
+
+@dataclass(frozen=True)
+class YarnMesh:
+    vertices: np.ndarray
+    """Interleaved vertex data, shape (V, VERTEX_FLOATS), float32 (see fraytool.render.tube)."""
+    opaque: np.ndarray
+    """Triangles whose three vertices are fully opaque, shape (Fo, 3), uint32."""
+    translucent: np.ndarray
+    """Triangles touching a fading end, shape (Ft, 3), uint32 (drawn sorted, after the opaque ones)."""
+    centroid: np.ndarray
+    """Centroid of each translucent triangle [m], shape (Ft, 3), float32 (for the depth sort)."""
+    pieces: int
+    detail: Detail
+
+
+@dataclass(frozen=True)
+class FrameGeometry:
+    yarns: Optional[YarnMesh]
+    """Shaded yarn tubes (None when only the wireframe is drawn)."""
+    lines: Optional[SpringLines]
+    """Spring lines for the wireframe view (None when it is off)."""
+    body_position_m: np.ndarray
+    body_rotation: np.ndarray
+
+
+class GeometryBuilder:
+    """Builds FrameGeometry for successive frames of one run (caches the tube index buffer).
+
+    With a camera and image height the detail adapts to the on-screen yarn size (fraytool.render.lod);
+    without, the style's full detail is used.
+    """
+
+    def __init__(self, topology: Mapping[str, np.ndarray], style: YarnStyle, camera: Optional[Camera] = None,
+                 image_height: Optional[int] = None):
+        self.topology = topology
+        self.style = style
+        self.camera = camera
+        self.image_height = image_height
+        self._tri_key: Optional[tuple] = None
+        self._tri: Optional[np.ndarray] = None
+
+    def detail(self, pieces: YarnPieces) -> Detail:
+        st = self.style
+        if self.camera is None or self.image_height is None:
+            return Detail(st.sides, st.samples_per_segment)
+        return choose_detail(self.camera, self.image_height, pieces.points, st.radius_m, st.spacing_m,
+                             st.sides, st.samples_per_segment)
+
+    def _triangles(self, offsets: np.ndarray, sides: int) -> np.ndarray:
+        key = (sides, np.diff(offsets).tobytes())
+        if key != self._tri_key:
+            self._tri = tube_triangles(offsets, sides)
+            self._tri_key = key
+        return self._tri
+
+    def yarn_mesh(self, pieces: YarnPieces) -> YarnMesh:
+        st = self.style
+        detail = self.detail(pieces)
+        curves = catmull_rom(pieces.points, pieces.offsets, detail.samples_per_segment)
+        tangents = polyline_tangents(curves.points, curves.offsets)
+        alpha = fade_alpha(curves.points, curves.offsets, pieces.broken_start, pieces.broken_end,
+                           st.fade_length_m)
+        warp = np.repeat(pieces.kind.astype(np.float32), np.diff(curves.offsets))
+        tri = self._triangles(curves.offsets, detail.sides)
+        tube = sweep_tubes(curves.points, tangents, curves.offsets, st.radius_m, detail.sides, alpha, warp,
+                           reference_normal=pieces.normal, triangles=tri)
+        if (alpha < 1.0).any():
+            see_through = translucent_triangles(curves.offsets, detail.sides, alpha)
+            opaque, translucent = tri[~see_through], tri[see_through]
+        else:
+            opaque, translucent = tri, tri[:0]
+        centroid = tube.position[translucent].mean(axis=1) if len(translucent) else np.zeros((0, 3), np.float32)
+        return YarnMesh(tube.vertices, opaque, translucent, centroid, pieces.count, detail)
+
+    def build(self, record: FrameRecord, yarns: bool = True, lines: bool = False) -> FrameGeometry:
+        """Geometry of one frame; `yarns` / `lines` choose what the shaded and wireframe views need."""
+        topo = self.topology
+        mesh = None
+        if yarns:
+            pieces = yarn_pieces(topo, record.particle_position_m, record.crossing_yarn_level,
+                                 record.spring_alive)
+            mesh = self.yarn_mesh(pieces)
+        return FrameGeometry(
+            yarns=mesh,
+            lines=spring_lines(topo, record) if lines else None,
+            body_position_m=np.asarray(record.body_position_m, dtype=np.float32),
+            body_rotation=np.asarray(record.body_rotation, dtype=np.float32),
+        )

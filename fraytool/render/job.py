@@ -1,0 +1,98 @@
+"""RenderJob: one render request resolved from a scene and the `fraytool render` flags.
+
+It fixes everything that decides the pixels (scene with camera and render overrides applied, image
+size, samples, wireframe mode) and where files go:
+
+    <out>/<scene>.mp4                       whole scene (no --frames)
+    <out>/<scene>_START-END[_stepS].mp4     a --frames range (END exclusive), e.g. for farm shards
+    <out>/png/frame_000000.png ...          --png: numbered by scene frame, so shards share one sequence
+
+`digest()` names the pixels: it hashes the simulation (scene_hash), camera, render settings, size,
+samples, wireframe mode, the shader sources and RENDER_REVISION. A PNG carries the digest of the job
+that drew it; a resumed render keeps only PNGs with its own digest.
+"""
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+from fraytool.render.options import FrameRange
+from fraytool.resources import shader_dir
+from fraytool.scene import scene_hash
+from fraytool.scene.spec import SceneSpec
+
+RENDER_REVISION = 1
+"""Bump when a change in the Python side of the renderer changes pixels (shader edits count by themselves)."""
+
+
+@dataclass(frozen=True)
+class RenderJob:
+    spec: SceneSpec
+    """The scene with camera / resolution / samples overrides applied."""
+    out_dir: Path
+    frames: FrameRange
+    ranged: bool
+    """True when a --frames range was given (the MP4 name then carries the range)."""
+    wireframe: str = "off"
+    png: bool = False
+    mp4: bool = True
+
+    @property
+    def size(self) -> tuple[int, int]:
+        w, h = self.spec.render.resolution
+        return int(w), int(h)
+
+    @property
+    def samples(self) -> int:
+        return int(self.spec.render.samples)
+
+    @property
+    def mp4_path(self) -> Path:
+        name = self.spec.name if not self.ranged else f"{self.spec.name}_{self.frames.label()}"
+        return self.out_dir / f"{name}.mp4"
+
+    @property
+    def png_dir(self) -> Path:
+        return self.out_dir / "png"
+
+    def png_path(self, frame: int) -> Path:
+        return self.png_dir / f"frame_{frame:06d}.png"
+
+    def digest(self, effective_samples: int | None = None) -> str:
+        """Digest of the pixels; `effective_samples` is the MSAA count after clamping to the context."""
+        shaders = hashlib.sha256()
+        for p in sorted(shader_dir().glob("*.*")):
+            if p.suffix in (".vert", ".frag", ".geom"):
+                shaders.update(p.name.encode() + b"\0" + p.read_bytes())
+        blob = json.dumps({
+            "scene_hash": scene_hash(self.spec),
+            "camera": dataclasses.asdict(self.spec.camera),
+            "render": dataclasses.asdict(self.spec.render),
+            "wireframe": self.wireframe,
+            "effective_samples": effective_samples,
+            "revision": RENDER_REVISION,
+            "shaders": shaders.hexdigest(),
+        }, sort_keys=True, default=list).encode()
+        return hashlib.sha256(blob).hexdigest()[:16]
+
+
+def with_overrides(spec: SceneSpec, *, resolution=None, samples=None, camera_position=None, camera_target=None,
+                   fov=None) -> SceneSpec:
+    """The scene with command-line overrides applied (None keeps the scene's value)."""
+    cam = spec.camera
+    cam = dataclasses.replace(
+        cam,
+        position_m=tuple(camera_position) if camera_position is not None else cam.position_m,
+        target_m=tuple(camera_target) if camera_target is not None else cam.target_m,
+        fov_deg=float(fov) if fov is not None else cam.fov_deg,
+    )
+    render = spec.render
+    render = dataclasses.replace(
+        render,
+        resolution=tuple(resolution) if resolution is not None else render.resolution,
+        samples=int(samples) if samples is not None else render.samples,
+    )
+    return dataclasses.replace(spec, camera=cam, render=render)

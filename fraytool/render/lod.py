@@ -1,0 +1,49 @@
+"""Level of detail: how many tube sides and spline samples a frame needs on screen.
+
+The scene's `[render] tube_sides` and `spline_samples` are the most detail ever used. When the
+yarns are small on screen (a 64 x 64 cloth at 1280x720 has yarns under a pixel wide), more
+geometry only costs time: llvmpipe's cost grows with the triangle count, and 4x MSAA multiplies it.
+So for each frame we take the closest crossing to the camera (where yarns look biggest) and pick
+- sides: enough that one facet of the tube spans at most FACET_PX pixels (at least 3);
+- samples per segment: enough that one spline sample spans at most SAMPLE_PX pixels (at least 2,
+  so the curve stays a spline, unless the scene asks for 1).
+The choice depends only on the frame and the camera, so a frame renders the same whatever range
+it is rendered in (farm shards agree).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from fraytool.render.camera import Camera
+
+FACET_PX = 2.0
+"""Largest on-screen width of one tube facet [pixels]."""
+SAMPLE_PX = 6.0
+"""Largest on-screen length of one spline sample step [pixels]."""
+
+
+@dataclass(frozen=True)
+class Detail:
+    sides: int
+    samples_per_segment: int
+
+
+def pixels_per_metre(camera: Camera, image_height: int, depth_m: float) -> float:
+    """On-screen size of one metre seen at view depth `depth_m` (vertical field of view)."""
+    depth = max(depth_m, camera.near)
+    return image_height / (2.0 * depth * math.tan(math.radians(camera.spec.fov_deg) / 2.0))
+
+
+def choose_detail(camera: Camera, image_height: int, points: np.ndarray, radius_m: float, spacing_m: float,
+                  max_sides: int, max_samples: int) -> Detail:
+    """Detail for yarns through `points` (e.g. the crossings of a frame) seen by `camera`."""
+    depth = -camera.view_depth(points)
+    ahead = depth[depth > camera.near]
+    nearest = float(ahead.min()) if ahead.size else camera.near
+    ppm = pixels_per_metre(camera, image_height, nearest)
+    sides = min(max_sides, max(3, math.ceil(2.0 * math.pi * radius_m * ppm / FACET_PX)))
+    samples = min(max_samples, max(2, math.ceil(spacing_m * ppm / SAMPLE_PX)))
+    return Detail(sides=int(sides), samples_per_segment=int(max(1, samples)))

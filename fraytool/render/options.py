@@ -1,0 +1,90 @@
+"""Parsing and checking `fraytool render` flag values; every problem is an InputError (exit 2)
+that names the flag, the value given and what is allowed."""
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass
+from typing import Optional
+
+from fraytool.errors import InputError
+
+MAX_SIDE = 8192
+"""Largest image side accepted (as in the scene schema's [render] resolution)."""
+
+
+@dataclass(frozen=True)
+class FrameRange:
+    start: int
+    end: int
+    """Exclusive."""
+    step: int = 1
+
+    def frames(self) -> range:
+        return range(self.start, self.end, self.step)
+
+    def __len__(self) -> int:
+        return len(self.frames())
+
+    def label(self) -> str:
+        """File-name suffix of a partial render, e.g. "000010-000020" or "000010-000020_step2"."""
+        text = f"{self.start:06d}-{self.end:06d}"
+        return text + (f"_step{self.step}" if self.step != 1 else "")
+
+
+def parse_frame_range(text: str, scene_frames: int) -> FrameRange:
+    """START:END[:STEP], END exclusive; START defaults to 0 and END to the scene's frame count."""
+    allowed = (f"expected START:END[:STEP] with 0 <= START < END <= {scene_frames} (the scene's "
+               f"[time] frames; END is exclusive) and STEP >= 1, e.g. 0:{scene_frames} or 10:20:2")
+    parts = text.split(":")
+    if len(parts) not in (2, 3):
+        raise InputError(f"--frames {text!r}: {allowed}")
+    try:
+        start = int(parts[0]) if parts[0].strip() else 0
+        end = int(parts[1]) if parts[1].strip() else scene_frames
+        step = int(parts[2]) if len(parts) == 3 and parts[2].strip() else 1
+    except ValueError:
+        raise InputError(f"--frames {text!r}: {allowed}") from None
+    if not (0 <= start < end <= scene_frames) or step < 1:
+        raise InputError(f"--frames {text!r}: {allowed}")
+    return FrameRange(start, end, step)
+
+
+def parse_resolution(text: str, need_even: bool) -> tuple[int, int]:
+    """WxH with both sides in [2, MAX_SIDE]; even sides when an MP4 is written."""
+    m = re.fullmatch(r"\s*(\d+)\s*[xX]\s*(\d+)\s*", text)
+    allowed = f"expected WIDTHxHEIGHT with whole numbers from 2 to {MAX_SIDE}, e.g. 1280x720"
+    if not m:
+        raise InputError(f"--resolution {text!r}: {allowed}")
+    w, h = int(m.group(1)), int(m.group(2))
+    if not (2 <= w <= MAX_SIDE and 2 <= h <= MAX_SIDE):
+        raise InputError(f"--resolution {text!r}: {allowed}")
+    if need_even and (w % 2 or h % 2):
+        raise InputError(f"--resolution {text!r}: the MP4 (H.264, yuv420p) needs an even width and height; "
+                         f"use e.g. {w + w % 2}x{h + h % 2}, or --no-mp4 for PNGs only")
+    return w, h
+
+
+def parse_vec3(flag: str, text: str) -> tuple[float, float, float]:
+    """X,Y,Z of finite numbers [m]."""
+    parts = text.split(",")
+    try:
+        v = tuple(float(p) for p in parts)
+    except ValueError:
+        v = ()
+    if len(v) != 3 or not all(math.isfinite(x) for x in v):
+        raise InputError(f"{flag} {text!r}: expected three comma-separated numbers X,Y,Z in metres, e.g. 0,0.3,0.6")
+    return v  # type: ignore[return-value]
+
+
+def check_samples(samples: Optional[int]) -> Optional[int]:
+    if samples is not None and not (0 <= samples <= 64):
+        raise InputError(f"--samples {samples}: expected 0 to 64 (MSAA samples; 0 or 1 turn it off; "
+                         "more than the GL context supports are clamped)")
+    return samples
+
+
+def check_fov(fov: Optional[float]) -> Optional[float]:
+    if fov is not None and not (math.isfinite(fov) and 1.0 <= fov <= 170.0):
+        raise InputError(f"--fov {fov:g}: expected a vertical field of view from 1 to 170 degrees")
+    return fov

@@ -1,0 +1,375 @@
+"""The GL renderer: FrameGeometry -> 8-bit sRGB image (H, W, 3), top row first.
+
+Pipeline per frame
+1. Draw into a multisampled SRGB8_ALPHA8 colour + depth framebuffer (samples clamped to
+   ctx.max_samples) with GL_FRAMEBUFFER_SRGB enabled: shaders compute linear RGB, and GL encodes
+   to sRGB on write and decodes for blending, so blending happens in linear light and the stored
+   bytes are already display-ready (IEC 61966-2-1). Order: ground plane and bodies, opaque yarn
+   triangles, then the translucent (fading) yarn triangles sorted back to front, depth writes off.
+2. Resolve the samples with a framebuffer blit into a single-sample sRGB texture (averaging in
+   linear light as GL_FRAMEBUFFER_SRGB is on).
+3. Read back and flip vertically (GL's first row is the bottom one).
+An RGBA16F target plus a separate linear -> sRGB pass gives the same image but costs about three
+times as much fill and resolve time on llvmpipe; 8-bit sRGB storage has no visible banding.
+
+Transparency: broken yarn ends fade out over a few yarn spacings, so the translucent surface is a
+small share of the mesh (only triangles touching a fading stretch). Those triangles are depth-sorted
+back to front by centroid each frame (NumPy argsort, well under a millisecond) and alpha-blended
+over the finished opaque image with depth testing on and depth writes off. We chose sorting over
+weighted blended OIT (McGuire & Bavoil 2013) because the fade runs from alpha 1 down to 0, and
+WBOIT's depth-weighted average is visibly wrong for nearly opaque overlapping layers (exactly the
+tangle of frayed ends), because it needs float MRT accumulation plus a composite pass on every
+pixel (costly on llvmpipe) and because sorted blending is exact wherever triangles do not
+intersect. Opaque triangles never pass through the blend path, so they are unaffected.
+
+Wireframe (Fig. 8): spring lines, purple at base-model crossings and blue at yarn level, drawn with
+the bodies; alone ("only") or as a right-hand panel beside the shaded view ("beside": both panels
+share the output size, left W//2 columns shaded, right W - W//2 wireframe).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Mapping, Optional
+
+import moderngl
+import numpy as np
+
+from fraytool.render.bodies import BodySet, rotation_from_y, unit_cube, unit_quad, unit_sphere
+from fraytool.render.camera import Camera
+from fraytool.render.color import WIREFRAME_BASE_SRGB, WIREFRAME_YARN_SRGB, srgb_to_linear
+from fraytool.errors import RunError
+from fraytool.render.context import check_gl_error
+from fraytool.render.geometry import FrameGeometry
+from fraytool.resources import shader_source
+from fraytool.scene.spec import CameraSpec, RenderSpec
+
+KAJIYA_WEIGHT = 0.35
+"""Share of Kajiya-Kay's sin(T, L) in the yarn diffuse term (the rest is Lambert on the tube)."""
+
+WIREFRAME_MODES = ("off", "only", "beside")
+
+GL_SRGB8_ALPHA8 = 0x8C43
+GL_FRAMEBUFFER_SRGB = 0x8DB9
+
+
+@dataclass(frozen=True)
+class Panel:
+    view: str
+    """"shaded" or "wireframe"."""
+    x: int
+    width: int
+
+
+def panels(width: int, wireframe: str) -> list[Panel]:
+    """How the output image is split for a wireframe mode."""
+    if wireframe == "off":
+        return [Panel("shaded", 0, width)]
+    if wireframe == "only":
+        return [Panel("wireframe", 0, width)]
+    half = width // 2
+    return [Panel("shaded", 0, half), Panel("wireframe", half, width - half)]
+
+
+def load_program(ctx: moderngl.Context, vertex: str, fragment: str) -> moderngl.Program:
+    """Compile a program from shader files in shaders/ (see fraytool.resources); a missing file or a
+    compile error is a RunError naming the files (a broken installation, not a user mistake)."""
+    try:
+        sources = shader_source(vertex), shader_source(fragment)
+    except OSError as exc:
+        raise RunError(f"cannot read shader {exc.filename}: {exc.strerror} (is fraytool installed completely?)") from None
+    try:
+        return ctx.program(vertex_shader=sources[0], fragment_shader=sources[1])
+    except moderngl.Error as exc:
+        raise RunError(f"shaders {vertex} + {fragment} do not compile on this GL: {exc}") from None
+
+
+def _mat4(m: np.ndarray) -> bytes:
+    return np.ascontiguousarray(np.asarray(m, dtype=np.float32).T).tobytes()
+
+
+def _mat3(m: np.ndarray) -> bytes:
+    return np.ascontiguousarray(np.asarray(m, dtype=np.float32).T).tobytes()
+
+
+class _Stream:
+    """A GL buffer that grows as needed (re-created, with its vertex arrays, when too small)."""
+
+    def __init__(self, ctx: moderngl.Context):
+        self.ctx = ctx
+        self.buffer: Optional[moderngl.Buffer] = None
+        self.capacity = 0
+        self.generation = 0
+
+    def write(self, data: np.ndarray) -> None:
+        raw = np.ascontiguousarray(data)
+        n = raw.nbytes
+        if self.buffer is None or n > self.capacity:
+            if self.buffer is not None:
+                self.buffer.release()
+            self.capacity = max(n, int(self.capacity * 1.5), 1024)
+            self.buffer = self.ctx.buffer(reserve=self.capacity, dynamic=True)
+            self.generation += 1
+        if n:
+            self.buffer.write(raw)
+
+    def release(self) -> None:
+        if self.buffer is not None:
+            self.buffer.release()
+            self.buffer = None
+
+
+class Renderer:
+    """Draws frames of one run at one size. Holds GL objects; call `release()` when done."""
+
+    def __init__(self, ctx: moderngl.Context, size: tuple[int, int], samples: int, render: RenderSpec,
+                 camera: CameraSpec, topology: Mapping[str, np.ndarray], wireframe: str = "off"):
+        if wireframe not in WIREFRAME_MODES:
+            raise ValueError(f"wireframe must be one of {WIREFRAME_MODES}, got {wireframe!r}")
+        self.ctx = ctx
+        self.size = (int(size[0]), int(size[1]))
+        self.samples = clamp_samples(ctx, samples)
+        self.render_spec = render
+        self.camera = Camera(camera)
+        self.wireframe = wireframe
+        self.panels = panels(self.size[0], wireframe)
+
+        W, H = self.size
+        self._color_ms = ctx.texture((W, H), 4, samples=self.samples, internal_format=GL_SRGB8_ALPHA8)
+        self._depth_ms = ctx.depth_renderbuffer((W, H), samples=self.samples)
+        self._fbo_ms = ctx.framebuffer(color_attachments=[self._color_ms], depth_attachment=self._depth_ms)
+        self._resolved = ctx.texture((W, H), 4, internal_format=GL_SRGB8_ALPHA8)
+        self._fbo_out = ctx.framebuffer(color_attachments=[self._resolved])
+
+        self._yarn_prog = load_program(ctx, "yarn.vert", "yarn.frag")
+        self._body_prog = load_program(ctx, "body.vert", "body.frag")
+        self._ground_prog = load_program(ctx, "body.vert", "ground.frag")
+        self._line_prog = load_program(ctx, "line.vert", "line.frag")
+
+        self._body_vaos = {}
+        self._static = []
+        for name, mesh in (("sphere", unit_sphere()), ("cube", unit_cube()), ("quad", unit_quad())):
+            vbo = ctx.buffer(mesh.vertices.tobytes())
+            ibo = ctx.buffer(mesh.indices.tobytes())
+            self._static += [vbo, ibo]
+            self._body_vaos[name] = (
+                ctx.vertex_array(self._body_prog, [(vbo, "3f 3f", "in_position", "in_normal")], ibo, 4),
+                ctx.vertex_array(self._ground_prog, [(vbo, "3f 3f", "in_position", "in_normal")], ibo, 4),
+            )
+
+        self._yarn_vbo = _Stream(ctx)
+        self._opaque_ibo = _Stream(ctx)
+        self._translucent_ibo = _Stream(ctx)
+        self._line_vbo = _Stream(ctx)
+        self._yarn_vaos: dict[str, tuple[int, moderngl.VertexArray]] = {}
+        self._line_vao: Optional[tuple[int, moderngl.VertexArray]] = None
+        self._opaque_uploaded: Optional[np.ndarray] = None
+
+        self._set_uniforms(render)
+        self.bodies = BodySet(topology, plane_half_size_m=self._scene_scale(topology) * 20.0,
+                              ground=self._ground())
+        check_gl_error(ctx, "renderer set-up")
+
+    # -- set-up -------------------------------------------------------------------------------
+    def _scene_scale(self, topology: Mapping[str, np.ndarray]) -> float:
+        rest = np.asarray(topology.get("crossing_rest_position_m", np.zeros((1, 3))))
+        extent = float(np.linalg.norm(rest.max(axis=0) - rest.min(axis=0))) if len(rest) else 0.0
+        return max(extent, float(np.linalg.norm(self.camera.target - self.camera.eye)), 1e-3)
+
+    def _ground(self) -> Optional[tuple[np.ndarray, float]]:
+        if not self.render_spec.ground_plane:
+            return None
+        up = np.asarray(self.camera.spec.up, dtype=np.float64)
+        return up / np.linalg.norm(up), float(self.render_spec.ground_height_m)
+
+    def _set_uniforms(self, r: RenderSpec) -> None:
+        light = np.asarray(r.light_direction, dtype=np.float64)
+        light = light / (np.linalg.norm(light) or 1.0)
+        eye = self.camera.eye
+        common = {"u_eye": eye, "u_light_dir": light, "u_light_intensity": r.light_intensity,
+                  "u_ambient": r.ambient}
+        for prog in (self._yarn_prog, self._body_prog, self._ground_prog):
+            for k, v in common.items():
+                if k in prog:
+                    prog[k].value = tuple(np.atleast_1d(v).tolist()) if np.ndim(v) else float(v)
+        y = self._yarn_prog
+        y["u_specular"].value = r.specular
+        y["u_shininess"].value = r.shininess
+        y["u_kajiya_weight"].value = KAJIYA_WEIGHT
+        y["u_weft_color"].value = tuple(srgb_to_linear(r.weft_color))
+        y["u_warp_color"].value = tuple(srgb_to_linear(r.warp_color))
+        self._body_prog["u_color"].value = tuple(srgb_to_linear(r.body_color))
+        self._background = tuple(srgb_to_linear(r.background))
+        self._line_prog["u_base_color"].value = tuple(srgb_to_linear(WIREFRAME_BASE_SRGB))
+        self._line_prog["u_yarn_color"].value = tuple(srgb_to_linear(WIREFRAME_YARN_SRGB))
+
+    # -- per frame ----------------------------------------------------------------------------
+    def _upload_yarns(self, geom: FrameGeometry) -> None:
+        mesh = geom.yarns
+        self._yarn_vbo.write(mesh.vertices)
+        if mesh.opaque is not self._opaque_uploaded:
+            self._opaque_ibo.write(mesh.opaque)
+            self._opaque_uploaded = mesh.opaque
+
+    def _yarn_vao(self, which: str, ibo: _Stream) -> moderngl.VertexArray:
+        key = (self._yarn_vbo.generation, ibo.generation)
+        have = self._yarn_vaos.get(which)
+        if have is None or have[0] != key:
+            if have is not None:
+                have[1].release()
+            vao = self.ctx.vertex_array(
+                self._yarn_prog,
+                [(self._yarn_vbo.buffer, "3f 3f 3f 1f 1f", "in_position", "in_normal", "in_tangent",
+                  "in_alpha", "in_warp")],
+                ibo.buffer, 4)
+            self._yarn_vaos[which] = (key, vao)
+        return self._yarn_vaos[which][1]
+
+    def _draw_bodies(self, geom: FrameGeometry, view_proj: bytes) -> None:
+        self._body_prog["u_view_proj"].write(view_proj)
+        for d in self.bodies.draws(geom.body_position_m, geom.body_rotation):
+            self._body_prog["u_model"].write(_mat4(d.model))
+            self._body_prog["u_normal_matrix"].write(_mat3(d.normal_matrix))
+            self._body_vaos[d.mesh][0].render(moderngl.TRIANGLES)
+
+    def _draw_ground(self, view_proj: bytes) -> None:
+        ground = self._ground()
+        if ground is None:
+            return
+        up, height = ground
+        centre = self.camera.target - (self.camera.target @ up - height) * up
+        Rg = rotation_from_y(up)
+        size = self.bodies.plane_half_size_m
+        model = np.eye(4)
+        model[:3, :3] = Rg @ np.diag([size, 1.0, size])
+        model[:3, 3] = centre
+        g = self._ground_prog
+        g["u_view_proj"].write(view_proj)
+        g["u_model"].write(_mat4(model))
+        g["u_normal_matrix"].write(_mat3(np.linalg.inv(model[:3, :3]).T))
+        g["u_color"].value = tuple(srgb_to_linear(self.render_spec.body_color) * 0.8)
+        g["u_background"].value = self._background
+        g["u_centre"].value = tuple(centre)
+        g["u_axis_u"].value = tuple(Rg[:, 0])
+        g["u_axis_v"].value = tuple(Rg[:, 2])
+        dist = float(np.linalg.norm(self.camera.target - self.camera.eye))
+        g["u_cell"].value = _nice_cell(dist / 6.0)
+        g["u_fade_radius"].value = 4.0 * dist
+        self._body_vaos["quad"][1].render(moderngl.TRIANGLES)
+
+    def _draw_shaded(self, geom: FrameGeometry, view_proj: bytes) -> None:
+        ctx = self.ctx
+        ctx.enable(moderngl.DEPTH_TEST)
+        ctx.disable(moderngl.CULL_FACE)
+        self._draw_ground(view_proj)
+        self._draw_bodies(geom, view_proj)
+        mesh = geom.yarns
+        if mesh is None or len(mesh.vertices) == 0:
+            return
+        ctx.enable(moderngl.CULL_FACE)
+        self._yarn_prog["u_view_proj"].write(view_proj)
+        if len(mesh.opaque):
+            self._yarn_vao("opaque", self._opaque_ibo).render(moderngl.TRIANGLES, vertices=mesh.opaque.size)
+        if len(mesh.translucent):
+            order = np.argsort(self.camera.view_depth(mesh.centroid), kind="stable")  # far first
+            self._translucent_ibo.write(mesh.translucent[order])
+            ctx.enable(moderngl.BLEND)
+            ctx.blend_func = moderngl.SRC_ALPHA, moderngl.ONE_MINUS_SRC_ALPHA
+            self._fbo_ms.depth_mask = False
+            self._yarn_vao("translucent", self._translucent_ibo).render(
+                moderngl.TRIANGLES, vertices=mesh.translucent.size)
+            self._fbo_ms.depth_mask = True
+            ctx.disable(moderngl.BLEND)
+        ctx.disable(moderngl.CULL_FACE)
+
+    def _draw_wireframe(self, geom: FrameGeometry, view_proj: bytes) -> None:
+        ctx = self.ctx
+        ctx.enable(moderngl.DEPTH_TEST)
+        ctx.disable(moderngl.CULL_FACE)
+        self._draw_bodies(geom, view_proj)
+        lines = geom.lines
+        if lines is None or lines.count == 0:
+            return
+        self._line_vbo.write(lines.vertices)
+        if self._line_vao is None or self._line_vao[0] != self._line_vbo.generation:
+            if self._line_vao is not None:
+                self._line_vao[1].release()
+            vao = ctx.vertex_array(self._line_prog, [(self._line_vbo.buffer, "3f 1f", "in_position",
+                                                      "in_yarn_level")])
+            self._line_vao = (self._line_vbo.generation, vao)
+        self._line_prog["u_view_proj"].write(view_proj)
+        self._line_vao[1].render(moderngl.LINES, vertices=2 * lines.count)
+
+    def draw(self, geom: FrameGeometry) -> None:
+        """Draw one frame into the multisampled framebuffer and resolve it (no read-back)."""
+        W, H = self.size
+        self.ctx.enable_direct(GL_FRAMEBUFFER_SRGB)
+        self._fbo_ms.use()
+        if geom.yarns is not None:
+            self._upload_yarns(geom)
+        if len(self.panels) == 1:
+            self._fbo_ms.clear(*self._background, 1.0, depth=1.0)
+        # Panels are cleared and drawn one at a time inside their scissor box, wireframe first:
+        # llvmpipe lets multisampled lines leak one pixel past the scissor edge, and the shaded
+        # panel's own clear then wipes that leak.
+        for p in sorted(self.panels, key=lambda p: p.view != "wireframe"):
+            box = (p.x, 0, p.width, H)
+            if len(self.panels) > 1:
+                self._fbo_ms.clear(*self._background, 1.0, depth=1.0, viewport=box)
+            self._fbo_ms.viewport = box
+            self._fbo_ms.scissor = box
+            self._fbo_ms.use()                             # applies viewport and scissor
+            vp = _mat4(self.camera.view_proj(p.width / H))
+            if p.view == "shaded":
+                self._draw_shaded(geom, vp)
+            else:
+                self._draw_wireframe(geom, vp)
+        self._fbo_ms.viewport = (0, 0, W, H)
+        self._fbo_ms.scissor = None
+        self.ctx.copy_framebuffer(self._fbo_out, self._fbo_ms)
+        self.ctx.disable_direct(GL_FRAMEBUFFER_SRGB)      # leave the context as we found it
+
+    def read(self) -> np.ndarray:
+        """The presented image as (H, W, 3) uint8 sRGB, top row first."""
+        W, H = self.size
+        raw = self._fbo_out.read(components=3, alignment=1)
+        check_gl_error(self.ctx, "drawing a frame")
+        return np.frombuffer(raw, dtype=np.uint8).reshape(H, W, 3)[::-1]
+
+    def render(self, geom: FrameGeometry) -> np.ndarray:
+        """Draw, resolve, present and read back one frame: (H, W, 3) uint8, top row first."""
+        self.draw(geom)
+        return self.read()
+
+    def release(self) -> None:
+        # Unbind our framebuffers first: moderngl re-binds "the current framebuffer" when it makes
+        # new ones, and a released one there would be GL_INVALID_OPERATION for the next renderer.
+        self.ctx.detect_framebuffer(0).use()
+        for _, vao in self._yarn_vaos.values():
+            vao.release()
+        if self._line_vao is not None:
+            self._line_vao[1].release()
+        for vaos in self._body_vaos.values():
+            for vao in vaos:
+                vao.release()
+        for s in (self._yarn_vbo, self._opaque_ibo, self._translucent_ibo, self._line_vbo):
+            s.release()
+        for obj in (*self._static, self._fbo_ms, self._color_ms, self._depth_ms, self._fbo_out,
+                    self._resolved, self._yarn_prog, self._body_prog, self._ground_prog, self._line_prog):
+            obj.release()
+
+
+def clamp_samples(ctx: moderngl.Context, samples: int) -> int:
+    """MSAA samples the context can do: 0 (off) for 0 or 1, else at most ctx.max_samples."""
+    s = int(samples)
+    if s <= 1:
+        return 0
+    return min(s, int(ctx.max_samples))
+
+
+def _nice_cell(x: float) -> float:
+    """Round a length to 1, 2 or 5 x a power of ten (checker cells of a readable size)."""
+    if x <= 0:
+        return 1.0
+    e = np.floor(np.log10(x))
+    m = x / 10 ** e
+    return float((1.0 if m < 1.5 else 2.0 if m < 3.5 else 5.0) * 10 ** e)

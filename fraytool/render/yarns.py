@@ -1,0 +1,134 @@
+"""Yarn centre lines of one frame: control points of every weft and warp yarn, split at cuts.
+
+Input contract (docs/architecture.md): crossing c = j * warp_yarns + i; weft yarn j runs through
+crossings (0, j), (1, j), ...; warp yarn i through (i, 0), (i, 1), ....
+- A base-level crossing gives a weft point and a warp point x_c ± (T/2) n_c, the weft up where the
+  weave says so (METHOD.md §5, `fraytool.grid.base_yarn_points`).
+- A yarn-level crossing (mass couple, §3.3) gives its own masses: particle slot c is the weft mass,
+  slot crossing_count + c the warp mass.
+- A dead structural spring (`weft_structural_spring[j, i]` between crossings i and i+1 of weft j,
+  `warp_structural_spring[i, j]` between crossings j and j+1 of warp i) splits its yarn there. The
+  two ends it leaves are *broken* ends (they fade out); the first and last point of a yarn are the
+  cloth border (they do not).
+Pieces of a single point (a crossing cut off on both sides) are dropped: there is no yarn to draw.
+Everything is vectorised over all yarns of the frame.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Mapping
+
+import numpy as np
+
+from fraytool.grid import base_yarn_points, crossing_normals
+
+WEFT = 0
+WARP = 1
+
+
+@dataclass(frozen=True)
+class YarnPieces:
+    points: np.ndarray
+    """Control points of all pieces [m], shape (N, 3), float64; piece p owns offsets[p]:offsets[p+1]."""
+    offsets: np.ndarray
+    """Shape (K + 1,), int64."""
+    kind: np.ndarray
+    """WEFT (0) or WARP (1) per piece, shape (K,), int8."""
+    yarn: np.ndarray
+    """Yarn index per piece (j for a weft, i for a warp), shape (K,), int32."""
+    first_crossing: np.ndarray
+    """Crossing at the piece's first control point, shape (K,), int32."""
+    broken_start: np.ndarray
+    """True where the piece starts at a cut (not at the cloth border), shape (K,), bool."""
+    broken_end: np.ndarray
+    """True where the piece ends at a cut, shape (K,), bool."""
+    normal: np.ndarray
+    """Cloth normal at the piece's first crossing (orients the tube frames), shape (K, 3)."""
+
+    @property
+    def count(self) -> int:
+        return int(self.kind.shape[0])
+
+
+def _scalar(topology: Mapping[str, np.ndarray], key: str) -> float:
+    return np.asarray(topology[key]).item()
+
+
+def yarn_points(topology: Mapping[str, np.ndarray], particle_position_m: np.ndarray,
+                crossing_yarn_level: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(weft point, warp point, cloth normal) of every crossing, each (C, 3) float64."""
+    C = int(_scalar(topology, "crossing_count"))
+    W = int(_scalar(topology, "warp_yarns"))
+    H = int(_scalar(topology, "weft_yarns"))
+    T = float(_scalar(topology, "thickness_m"))
+    pos = np.asarray(particle_position_m, dtype=np.float64)
+    level = np.asarray(crossing_yarn_level, dtype=bool)
+    weft_mass, warp_mass = pos[:C], pos[C:2 * C]
+    # The crossing's centre: its base mass, or the middle of its couple.
+    centre = np.where(level[:, None], 0.5 * (weft_mass + warp_mass), weft_mass)
+    n = crossing_normals(centre, W, H)
+    weft_pt, warp_pt = base_yarn_points(centre, n, np.asarray(topology["crossing_weft_on_top"], bool), T)
+    weft_pt = np.where(level[:, None], weft_mass, weft_pt)
+    warp_pt = np.where(level[:, None], warp_mass, warp_pt)
+    return weft_pt, warp_pt, n
+
+
+def _runs(link_alive: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Split rows of points at dead links. link_alive: (Y, n - 1) per yarn. Returns the start
+    index (into the flattened (Y * n) points) of every run and its length."""
+    Y, n1 = link_alive.shape
+    n = n1 + 1
+    # Flattened "link to next point": dead at each yarn's last point.
+    link = np.zeros((Y, n), dtype=bool)
+    link[:, :-1] = link_alive
+    flat = link.ravel()
+    starts = np.nonzero(np.concatenate([[True], ~flat[:-1]]))[0]
+    ends = np.nonzero(~flat)[0]                 # inclusive end of each run
+    return starts, ends - starts + 1
+
+
+def yarn_pieces(topology: Mapping[str, np.ndarray], particle_position_m: np.ndarray,
+                crossing_yarn_level: np.ndarray, spring_alive: np.ndarray) -> YarnPieces:
+    """All yarn pieces of a frame (see the module docstring for the rules)."""
+    W = int(_scalar(topology, "warp_yarns"))
+    H = int(_scalar(topology, "weft_yarns"))
+    alive = np.asarray(spring_alive, dtype=bool)
+    weft_pt, warp_pt, normal = yarn_points(topology, particle_position_m, crossing_yarn_level)
+    crossing = np.arange(W * H).reshape(H, W)
+
+    # Weft yarn j = row j; warp yarn i = column i.
+    rows = [
+        (WEFT, weft_pt.reshape(H, W, 3), crossing,
+         alive[np.asarray(topology["weft_structural_spring"])].reshape(H, W - 1)),
+        (WARP, warp_pt.reshape(H, W, 3).transpose(1, 0, 2), crossing.T,
+         alive[np.asarray(topology["warp_structural_spring"])].reshape(W, H - 1)),
+    ]
+    pts, offs, kinds, yarns, firsts, bstart, bend, normals = [], [], [], [], [], [], [], []
+    base = 0
+    for kind, p, cross, link in rows:
+        Y, n = p.shape[:2]
+        starts, lengths = _runs(link)
+        keep = lengths >= 2
+        starts, lengths = starts[keep], lengths[keep]
+        idx = np.repeat(starts - np.cumsum(np.concatenate([[0], lengths[:-1]])), lengths) + np.arange(lengths.sum())
+        pts.append(p.reshape(-1, 3)[idx])
+        offs.append(base + np.concatenate([[0], np.cumsum(lengths)])[:-1])
+        base += int(lengths.sum())
+        kinds.append(np.full(len(starts), kind, dtype=np.int8))
+        yarns.append((starts // n).astype(np.int32))
+        first = cross.reshape(-1)[starts]
+        firsts.append(first.astype(np.int32))
+        bstart.append(starts % n != 0)
+        bend.append((starts + lengths - 1) % n != n - 1)
+        normals.append(normal[first])
+    offsets = np.concatenate(offs + [[base]]).astype(np.int64)
+    return YarnPieces(
+        points=np.concatenate(pts),
+        offsets=offsets,
+        kind=np.concatenate(kinds),
+        yarn=np.concatenate(yarns),
+        first_crossing=np.concatenate(firsts),
+        broken_start=np.concatenate(bstart),
+        broken_end=np.concatenate(bend),
+        normal=np.concatenate(normals),
+    )

@@ -1,0 +1,25 @@
+#version 330 core
+// Rigid bodies: Lambert plus a soft Blinn-Phong highlight under the key light, linear RGB.
+
+uniform vec3 u_eye;
+uniform vec3 u_light_dir;
+uniform float u_light_intensity;
+uniform float u_ambient;
+uniform vec3 u_color;            // linear RGB
+
+in vec3 v_position;
+in vec3 v_normal;
+
+out vec4 f_color;
+
+void main() {
+    vec3 N = normalize(v_normal);
+    vec3 E = normalize(u_eye - v_position);
+    if (dot(N, E) < 0.0) N = -N;    // planes are seen from both sides
+    vec3 L = u_light_dir;
+    vec3 H = normalize(L + E);
+    float diffuse = max(dot(N, L), 0.0);
+    float highlight = 0.15 * pow(max(dot(N, H), 0.0), 32.0) * step(0.0, dot(N, L));
+    vec3 color = u_color * (u_ambient + u_light_intensity * diffuse) + vec3(u_light_intensity * highlight);
+    f_color = vec4(color, 1.0);
+}

@@ -1,0 +1,31 @@
+#version 330 core
+// Ground plane: a faint checkerboard (to read motion and scale) lit by the key light, fading into
+// the background with distance from the scene centre so the horizon does not alias.
+
+uniform vec3 u_light_dir;
+uniform float u_light_intensity;
+uniform float u_ambient;
+uniform vec3 u_color;            // linear RGB
+uniform vec3 u_background;       // linear RGB
+uniform vec3 u_centre;           // scene centre on the plane [m]
+uniform vec3 u_axis_u;           // in-plane unit axes
+uniform vec3 u_axis_v;
+uniform float u_cell;            // checker cell size [m]
+uniform float u_fade_radius;     // distance where the plane has faded out [m]
+
+in vec3 v_position;
+in vec3 v_normal;
+
+out vec4 f_color;
+
+void main() {
+    vec3 d = v_position - u_centre;
+    vec2 uv = vec2(dot(d, u_axis_u), dot(d, u_axis_v)) / u_cell;
+    float checker = mod(floor(uv.x) + floor(uv.y), 2.0);
+    vec3 N = normalize(v_normal);
+    float diffuse = abs(dot(N, u_light_dir));
+    vec3 albedo = u_color * mix(0.85, 1.0, checker);
+    vec3 color = albedo * (u_ambient + u_light_intensity * diffuse);
+    float fade = smoothstep(0.35 * u_fade_radius, u_fade_radius, length(d));
+    f_color = vec4(mix(color, u_background, fade), 1.0);
+}

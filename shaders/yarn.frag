@@ -1,0 +1,34 @@
+#version 330 core
+// Yarn shading: Kajiya-Kay on the yarn tangent combined with Lambert on the tube normal.
+//
+// Kajiya & Kay 1989, "Rendering fur with three dimensional textures", SIGGRAPH: a thin fibre with
+// tangent T lit from L seen from E has
+//   diffuse   sin(T, L)
+//   specular  cos(thetaL - thetaE)^p = ((T.Li)(T.E) + sin(T, Li) sin(T, E))^p
+// where Li = -L is the direction the light travels (their convention), so the highlight lies on
+// the cone of mirror directions around the fibre (both terms come from yarn.vert). A yarn is a
+// tube of many fibres, so Lambert on the tube normal adds the round shape (one side lit, one in
+// shade); the two diffuse terms are mixed by u_kajiya_weight, and the highlight fades out on the
+// side facing away from the light (a self-shadowing term, as in Scheuermann 2004). All maths in
+// linear RGB; the sRGB framebuffer encodes on write.
+
+uniform vec3 u_light_dir;        // unit vector towards the key light
+uniform float u_light_intensity;
+uniform float u_ambient;
+uniform float u_specular;
+uniform float u_kajiya_weight;   // 0: Lambert only, 1: Kajiya-Kay diffuse only
+
+in vec3 v_normal;
+in vec2 v_kajiya;
+in vec4 v_albedo;
+
+out vec4 f_color;
+
+void main() {
+    vec3 N = normalize(v_normal);
+    float n_l = dot(N, u_light_dir);
+    float diffuse = mix(max(n_l, 0.0), v_kajiya.x, u_kajiya_weight);
+    float highlight = u_specular * v_kajiya.y * smoothstep(-0.2, 0.3, n_l);
+    vec3 color = v_albedo.rgb * (u_ambient + u_light_intensity * diffuse) + vec3(u_light_intensity * highlight);
+    f_color = vec4(color, v_albedo.a);
+}

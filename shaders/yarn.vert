@@ -1,0 +1,39 @@
+#version 330 core
+// Yarn tubes (fraytool.render.geometry): world-space vertices, normals and yarn tangents.
+// The Kajiya-Kay terms depend only on the tangent, the light and the view direction, which are
+// smooth along a yarn and constant around it, so they are evaluated here per vertex (cheaper on a
+// software rasteriser: fewer interpolated values); Lambert, which needs the normal across the
+// tube, is evaluated per fragment. See yarn.frag for the model.
+
+uniform mat4 u_view_proj;
+uniform vec3 u_eye;              // camera position [m]
+uniform vec3 u_light_dir;        // unit vector towards the key light
+uniform float u_shininess;
+uniform vec3 u_weft_color;       // linear RGB
+uniform vec3 u_warp_color;       // linear RGB
+
+in vec3 in_position;
+in vec3 in_normal;
+in vec3 in_tangent;
+in float in_alpha;
+in float in_warp;
+
+out vec3 v_normal;
+out vec2 v_kajiya;               // (diffuse sin(T, L), specular cos(thetaL - thetaE)^p)
+out vec4 v_albedo;               // linear RGB and alpha
+
+void main() {
+    vec3 T = normalize(in_tangent);
+    vec3 E = normalize(u_eye - in_position);
+    // Kajiya & Kay 1989: with Li = -L the direction the light travels,
+    // cos(thetaL - thetaE) = (T.Li)(T.E) + sin(T, Li) sin(T, E).
+    float tl = dot(T, -u_light_dir);
+    float te = dot(T, E);
+    float sin_tl = sqrt(max(0.0, 1.0 - tl * tl));
+    float sin_te = sqrt(max(0.0, 1.0 - te * te));
+    float cos_cone = max(tl * te + sin_tl * sin_te, 0.0);
+    v_kajiya = vec2(sin_tl, pow(cos_cone, u_shininess));
+    v_normal = in_normal;
+    v_albedo = vec4(mix(u_weft_color, u_warp_color, in_warp), in_alpha);
+    gl_Position = u_view_proj * vec4(in_position, 1.0);
+}

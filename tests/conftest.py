@@ -1,0 +1,136 @@
+"""Shared pytest set-up.
+
+- `--update-goldens`: rewrite the golden images in tests/golden/ instead of comparing with them
+  (tests/test_render_golden.py). A missing golden fails without it; it is never created silently.
+- `gl_ctx`: the one OpenGL context of the test session, made by fraytool's own factory
+  (fraytool.render.context.create_context). This is the only place tests create a context; every
+  test that uses it is checked for a clean GL error state afterwards.
+- Synthetic frames for the renderer: the model of a small scene, posed analytically (flat, draped
+  over a ball, torn with yarn-level crossings and cut springs). Tearing is not simulated yet, and
+  the renderer must be pinned independently of the solver, so tests pose frames themselves.
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+TESTS = Path(__file__).resolve().parent
+GOLDEN_SCENE = TESTS / "scenes" / "golden_small.toml"
+
+
+def pytest_addoption(parser):
+    parser.addoption("--update-goldens", action="store_true", default=False,
+                     help="rewrite the golden images in tests/golden/ from the current renderer")
+
+
+@pytest.fixture(scope="session")
+def update_goldens(request) -> bool:
+    return bool(request.config.getoption("--update-goldens"))
+
+
+@pytest.fixture(scope="session")
+def _gl_session():
+    from fraytool.render.context import create_context
+
+    ctx = create_context()
+    yield ctx
+    ctx.release()
+
+
+@pytest.fixture
+def gl_ctx(_gl_session):
+    """The session's GL context; the test fails if it leaves a GL error behind."""
+    ctx = _gl_session
+    yield ctx
+    assert ctx.error == "GL_NO_ERROR", f"GL error state after the test: {ctx.error}"
+
+
+# -- synthetic frames ----------------------------------------------------------------------------
+
+class PosedCloth:
+    """A built scene and helpers to pose its frame records by hand."""
+
+    def __init__(self, scene_path: Path):
+        from fraytool.io.frame_record import FrameRecord
+        from fraytool.scene import load_scene
+        from fraytool.sim.builder import build_model
+
+        self.spec = load_scene(scene_path)
+        self.model = build_model(self.spec)
+        self.topology = self.model.arrays()
+        self.rest = FrameRecord.from_state(self.model, self.model.state(), 0)
+        self.W = self.model.warp_yarns
+        self.H = self.model.weft_yarns
+        self.C = self.model.crossing_count
+
+    def copy(self, frame: int = 0):
+        r = self.rest
+        return replace(r, frame=frame, particle_position_m=r.particle_position_m.copy(),
+                       particle_active=r.particle_active.copy(), crossing_yarn_level=r.crossing_yarn_level.copy(),
+                       spring_particle_a=r.spring_particle_a.copy(), spring_particle_b=r.spring_particle_b.copy(),
+                       spring_alive=r.spring_alive.copy(), body_position_m=r.body_position_m.copy(),
+                       body_rotation=r.body_rotation.copy())
+
+    def crossing(self, i: int, j: int) -> int:
+        return j * self.W + i
+
+    def draped(self, frame: int = 1):
+        """Crossings pushed out of the ball and sagging beyond it (a smooth, drape-like pose)."""
+        rec = self.copy(frame)
+        x = rec.particle_position_m[: self.C].astype(np.float64)
+        centre = self.model.body_initial_position_m[0]
+        radius = float(self.model.body_radius_m[0]) + 0.6 * self.model.thickness_m
+        d = x - centre
+        horiz = np.hypot(d[:, 0], d[:, 2])
+        on_ball = horiz < radius
+        y_surface = centre[1] + np.sqrt(np.maximum(radius ** 2 - horiz ** 2, 0.0))
+        y = np.where(on_ball, y_surface, centre[1] - 0.9 * (horiz - radius) + 0.0)
+        ground = self.spec.render.ground_height_m + self.model.thickness_m
+        x[:, 1] = np.maximum(np.minimum(x[:, 1], y), ground)
+        rec.particle_position_m[: self.C] = x
+        rec.particle_position_m[self.C:] = x
+        return rec
+
+    def torn(self, frame: int = 2):
+        """The draped pose with a tear: weft springs cut across a column, the crossings beside the
+        cut at yarn level with their weft and warp masses apart and the cut ends pulled open."""
+        from fraytool.grid import base_yarn_points, crossing_normals
+
+        rec = self.draped(frame)
+        W, H, C = self.W, self.H, self.C
+        cut_i = W // 2 - 1                       # weft springs between crossings cut_i and cut_i+1
+        rows = range(2, H - 3)
+        for j in rows:
+            rec.spring_alive[self.topology["weft_structural_spring"][j, cut_i]] = False
+        # warp springs cut along one row, making a T-shaped tear
+        for i in range(cut_i + 1, W - 2):
+            rec.spring_alive[self.topology["warp_structural_spring"][i, 3]] = False
+        x = rec.particle_position_m[:C].astype(np.float64)
+        n = crossing_normals(x, W, H)
+        weft, warp = base_yarn_points(x, n, self.topology["crossing_weft_on_top"], self.model.thickness_m)
+        for j in rows:
+            for i, side in ((cut_i - 1, -1.0), (cut_i, -1.0), (cut_i + 1, 1.0), (cut_i + 2, 1.0)):
+                c = self.crossing(i, j)
+                rec.crossing_yarn_level[c] = True
+                rec.particle_active[C + c] = True
+                pull = np.array([side * 0.004 * (2 if i in (cut_i, cut_i + 1) else 1), 0.0, 0.0])
+                rec.particle_position_m[c] = weft[c] + pull
+                rec.particle_position_m[C + c] = warp[c] + 0.3 * pull
+        # structural springs of yarn-level crossings end on the couple's masses
+        from fraytool.sim.model import BEND_WARP, STRUCT_WARP
+
+        kind = self.topology["spring_kind"]
+        level = rec.crossing_yarn_level
+        ca, cb = self.topology["spring_crossing_a"], self.topology["spring_crossing_b"]
+        for ends, cross in ((rec.spring_particle_a, ca), (rec.spring_particle_b, cb)):
+            warp_spring = np.isin(kind, (STRUCT_WARP, BEND_WARP)) & level[cross]
+            ends[warp_spring] = C + cross[warp_spring]
+        return rec
+
+
+@pytest.fixture(scope="session")
+def posed_cloth() -> PosedCloth:
+    return PosedCloth(GOLDEN_SCENE)

@@ -1,0 +1,132 @@
+"""`fraytool render` end to end: simulate, render, write MP4 and PNGs, resume, clear errors."""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from fraytool.cli import main
+from test_render_encode import probe
+
+SCENE = Path(__file__).resolve().parent / "scenes" / "golden_small.toml"   # 4 frames at 24 fps
+
+
+def fraytool(*args, cwd=None):
+    return subprocess.run([sys.executable, "-m", "fraytool", *map(str, args)], capture_output=True, text=True,
+                          cwd=cwd, stdin=subprocess.DEVNULL, timeout=300)
+
+
+def test_render_writes_mp4_and_pngs_then_resumes(tmp_path):
+    out = tmp_path / "out"
+    r = fraytool("render", SCENE, "-o", out, "--png", "--resolution", "64x48", "-v")
+    assert r.returncode == 0, r.stderr
+    assert "GL_RENDERER" in r.stderr and "GL_VERSION" in r.stderr
+    assert "\r" not in r.stderr                                  # no progress bar off a terminal
+    mp4 = out / "golden_small.mp4"
+    assert probe(mp4) == {"codec": "h264", "pix_fmt": "yuv420p", "size": (64, 48), "fps": 24.0, "frames": 4}
+    pngs = sorted((out / "png").glob("frame_*.png"))
+    assert [p.name for p in pngs] == [f"frame_{k:06d}.png" for k in range(4)]
+    assert (out / "frames" / "manifest.json").is_file()
+
+    # Resume: frames are reused (no simulation), complete PNGs are kept, the MP4 is rebuilt.
+    os.remove(pngs[2])
+    before = {p.name: p.stat().st_mtime_ns for p in pngs if p.exists()}
+    r = fraytool("render", SCENE, "-o", out, "--png", "--resolution", "64x48")
+    assert r.returncode == 0, r.stderr
+    assert "simulating" not in r.stderr
+    assert "1 rendered, 3 kept" in r.stderr
+    assert {p: (out / "png" / p).stat().st_mtime_ns for p in before} == before
+    assert probe(mp4)["frames"] == 4
+
+    # Other settings make other pixels: nothing is kept.
+    r = fraytool("render", SCENE, "-o", out, "--png", "--resolution", "64x48", "--fov", "50")
+    assert r.returncode == 0, r.stderr
+    assert "4 rendered, 0 kept" in r.stderr
+
+
+def test_frame_range_names_the_mp4_and_continues_a_shorter_simulation(tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main(["render", str(SCENE), "-o", str(out), "--frames", "0:2", "--resolution", "32x24"]) == 0
+    assert "simulating 2 frames" in capsys.readouterr().err
+    assert probe(out / "golden_small_000000-000002.mp4")["frames"] == 2
+    assert main(["render", str(SCENE), "-o", str(out), "--frames", "1:4:2", "--resolution", "32x24"]) == 0
+    assert "continuing the simulation" in capsys.readouterr().err
+    p = probe(out / "golden_small_000001-000004_step2.mp4")
+    assert p["frames"] == 2 and p["size"] == (32, 24)
+    assert main(["render", str(SCENE), "-o", str(out), "--no-mp4", "--png", "--wireframe", "only",
+                 "--resolution", "33x25"]) == 0                  # odd sizes are fine without an MP4
+    assert len(list((out / "png").glob("*.png"))) == 4
+
+
+@pytest.mark.parametrize("flags,needle", [
+    (["--resolution", "64x"], "--resolution '64x': expected WIDTHxHEIGHT"),
+    (["--resolution", "65x48"], "even width and height"),
+    (["--frames", "3:1"], "--frames '3:1': expected START:END[:STEP]"),
+    (["--samples", "-2"], "--samples -2"),
+    (["--camera-target", "a,b,c"], "--camera-target 'a,b,c'"),
+    (["--no-mp4"], "nothing to write"),
+])
+def test_bad_flags_exit_2_with_a_clear_message(tmp_path, capsys, flags, needle):
+    assert main(["render", str(SCENE), "-o", str(tmp_path), *flags]) == 2
+    err = capsys.readouterr().err
+    assert needle in err and "Traceback" not in err
+    assert not (tmp_path / "frames").exists()                    # nothing simulated
+
+
+def test_bad_resolution_exits_2_from_the_command_line(tmp_path):
+    r = fraytool("render", SCENE, "-o", tmp_path, "--resolution", "big")
+    assert r.returncode == 2
+    assert "--resolution 'big'" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_no_gl_context_exits_1_before_simulating(tmp_path, capsys, monkeypatch):
+    from fraytool.render import context
+
+    def fail(**kwargs):
+        raise Exception("eglInitialize failed")
+
+    monkeypatch.setattr(context.moderngl, "create_context", fail)
+    assert main(["render", str(SCENE), "-o", str(tmp_path)]) == 1
+    err = capsys.readouterr().err
+    assert "libegl1" in err and "libgl1-mesa-dri" in err and "Traceback" not in err
+    assert not (tmp_path / "frames").exists()
+
+
+def test_bench_render_stage_timings(tmp_path):
+    from fraytool.render.bench import render_stage_timings
+    from fraytool.scene import load_scene
+
+    t = render_stage_timings(load_scene(SCENE), tmp_path, frames=3, resolution=(64, 48), samples=4)
+    assert set(t) == {"geometry", "draw_readback", "encode"}
+    assert all(v > 0 for v in t.values())
+    assert (tmp_path / "frames" / "frame_000002.npz").is_file()     # simulated where asked
+
+
+def test_terminated_render_leaves_no_partial_mp4_and_resumes(tmp_path):
+    import signal
+    import time
+
+    from fraytool.render.encode import png_settings
+
+    scene = tmp_path / "long.toml"
+    scene.write_text(SCENE.read_text().replace("frames = 4", "frames = 60"))
+    out = tmp_path / "out"
+    assert fraytool("simulate", scene, "-o", out).returncode == 0
+    p = subprocess.Popen([sys.executable, "-m", "fraytool", "render", str(scene), "-o", str(out), "--png",
+                          "--resolution", "320x240"], stderr=subprocess.PIPE, stdin=subprocess.DEVNULL, text=True)
+    deadline = time.monotonic() + 120
+    while len(list((out / "png").glob("frame_*.png"))) < 3 and p.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.05)
+    p.send_signal(signal.SIGTERM)
+    err = p.communicate(timeout=120)[1]
+    assert p.returncode == 128 + signal.SIGTERM, err
+    assert sorted(f.name for f in out.iterdir()) == ["frames", "png"]           # no MP4, no partial
+    kept = sorted((out / "png").glob("*"))
+    assert 3 <= len(kept) < 60 and all(png_settings(f) is not None for f in kept)   # only complete PNGs
+    r = fraytool("render", scene, "-o", out, "--png", "--resolution", "320x240")
+    assert r.returncode == 0, r.stderr
+    assert f"{60 - len(kept)} rendered, {len(kept)} kept" in r.stderr
+    assert probe(out / "golden_small.mp4")["frames"] == 60
