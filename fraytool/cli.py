@@ -104,6 +104,7 @@ def cmd_check(args) -> int:
     from fraytool.run import check_step
     from fraytool.sim.builder import build_model
     from fraytool.sim.model import SPRING_KIND_NAMES
+    from fraytool.sim.stability import stability_report
 
     spec = _load(args.scene)
     model = build_model(spec)
@@ -118,6 +119,7 @@ def cmd_check(args) -> int:
         "step_s": spec.time.step_s,
         "stability_bound_s": bound,
         "step_over_bound": spec.time.step_s / bound,
+        **{k: v for k, v in stability_report(model, spec.time.step_s).items() if k != "step_s"},
         "bodies": len(spec.bodies),
         "attached_masses": model.attachment_count,
         "simulated_s_per_frame": spec.time.step_s * spec.time.steps_per_frame,

@@ -5,6 +5,7 @@ gives the same frames, bit for bit, as an uninterrupted run.
 """
 from __future__ import annotations
 
+import json
 import sys
 import time
 from pathlib import Path
@@ -16,6 +17,7 @@ from fraytool.progress import Progress
 from fraytool.scene.load import scene_hash
 from fraytool.scene.spec import SceneSpec
 from fraytool.sim.builder import build_model
+from fraytool.sim.guard import explain_failure, record_is_finite, unstable_message, write_failure
 from fraytool.sim.model import Model
 from fraytool.sim.simulation import Simulation
 from fraytool.sim.solver import SimulationUnstable
@@ -55,6 +57,7 @@ def simulate_to_disk(spec: SceneSpec, out_dir: Path, frames: Optional[int] = Non
                              f"(scene hash {store.manifest().get('scene_hash')} != {digest}); run without --resume")
         frame, state = store.load_checkpoint()
         sim = Simulation(spec, model=model, state=state, frame=frame)
+        store.clear_failure()  # a failure recorded by an earlier attempt no longer describes this run
     else:
         store.start(model, digest, {
             "scene": spec.name, "seed": spec.scene.seed, "frames_planned": total,
@@ -68,15 +71,34 @@ def simulate_to_disk(spec: SceneSpec, out_dir: Path, frames: Optional[int] = Non
     try:
         while sim.frame + 1 < total:
             record = sim.advance_frame()
+            if not record_is_finite(record):  # the guard checks active masses; never write a NaN frame
+                raise SimulationUnstable("frame record holds a non-finite value",
+                                         {"step": sim.state.step_index, "time_s": sim.state.time_s,
+                                          "stage": "frame record", "stage_located": True,
+                                          "kernel": "FrameRecord.from_state"})
             store.write_frame(record, sim.state)
             now = time.perf_counter()
             bar.update(sim.frame + 1, f"{1e3 * (now - t_last):6.1f} ms/frame")
             t_last = now
     except SimulationUnstable as exc:
         bar.close()
-        exc.diagnostic["last_good_frame"] = store.frames_complete() - 1
-        store.update_manifest(unstable=exc.diagnostic)
-        raise
+        raise _unstable_run(sim, store, exc) from None
     bar.close()
     store.update_manifest(frames_planned=max(total, store.manifest().get("frames_planned", 0)))
     return sim.summary()
+
+
+def _unstable_run(sim: Simulation, store: FrameStore, exc: SimulationUnstable) -> SimulationUnstable:
+    """After the guard stopped a run: replay the failed step from the last complete frame's checkpoint
+    to find the stage, write <out>/frames/unstable.json and the last good state, note it in the
+    manifest, and return the error to raise (one line for the user; exit code 1). The frames on disk
+    stay those of the complete, finite frames before the failure."""
+    try:
+        _, start = store.load_checkpoint()
+    except (OSError, KeyError, ValueError):
+        start = None
+    diag, last_good = explain_failure(sim.solver, start, sim.dt_s, exc.diagnostic)
+    diag["last_good_frame"] = store.frames_complete() - 1
+    path = write_failure(store.dir, diag, last_good)
+    store.update_manifest(unstable=json.loads(path.read_text()))
+    return SimulationUnstable(unstable_message(diag, str(path)), diag)

@@ -82,6 +82,15 @@ class FrameStore:
         m.update(fields)
         self._write_manifest(m)
 
+    def clear_failure(self) -> None:
+        """Forget a failure written by the stability guard (unstable.json and the manifest entry)."""
+        for name in ("unstable.json", "unstable_last_good_state.npz"):
+            (self.dir / name).unlink(missing_ok=True)
+        m = self.manifest()
+        if m is not None and "unstable" in m:
+            m.pop("unstable")
+            self._write_manifest(m)
+
     def load_checkpoint(self) -> tuple[int, "State"]:
         """(frame, state) of the last checkpoint."""
         from fraytool.sim.state import State

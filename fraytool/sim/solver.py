@@ -73,11 +73,17 @@ class SolverExplicitPBD:
         self.yarn_contact: Optional[StepHook] = None
         self.self_collision: Optional[StepHook] = None
         self.tearing: Optional[StepHook] = None
+        self.stage_check: Optional[Callable[[str, Callable], None]] = None
+        """Called after every stage as stage_check(stage name, kernel) while fraytool.sim.guard replays a
+        failed step to find the stage that went wrong; None (no cost) in normal runs."""
+        self._guard_bodies = bool(self._body_dynamic.any())
 
     def _timed(self, name: str, fn: Callable, *args):
         t0 = time.perf_counter()
         out = fn(*args)
         self.stage_s[name] += time.perf_counter() - t0
+        if self.stage_check is not None:
+            self.stage_check(name, fn)
         return out
 
     def step(self, state: State, dt_s: float) -> None:
@@ -123,28 +129,21 @@ class SolverExplicitPBD:
         state.time_s = t_new
         state.step_index += 1
         if bad >= 0:
-            self._unstable(state, int(bad))
+            self._unstable(state, int(bad), dt_s)
+        if self._guard_bodies and not np.isfinite(state.body_position_m).all():
+            self._unstable(state, -1, dt_s)  # a thrown body received a non-finite impulse
 
-    def _unstable(self, state: State, particle: int) -> None:
-        n = self.model.crossing_count
-        crossing = particle % n
-        i, j = crossing % self.model.warp_yarns, crossing // self.model.warp_yarns
-        springs = np.nonzero((state.spring_particle_a == particle) | (state.spring_particle_b == particle))[0]
-        diag = {
-            "step": state.step_index,
-            "time_s": state.time_s,
-            "particle": particle,
-            "crossing": [int(i), int(j)],
-            "position_m": state.particle_position_m[particle].tolist(),
-            "velocity_m_s": state.particle_velocity_m_s[particle].tolist(),
-            "springs": springs.tolist(),
-            "speed_limit_m_s": self.speed_limit_m_s,
-            "stage": "velocity post-process (end of step)",
-        }
-        raise SimulationUnstable(
-            f"simulation became unstable at step {state.step_index} (t = {state.time_s:.6g} s): particle "
-            f"{particle} (warp yarn {i}, weft yarn {j}) has velocity {state.particle_velocity_m_s[particle].tolist()} "
-            f"(non-finite or above {self.speed_limit_m_s:g} m/s). Reduce [time] step_s or the stiffness.", diag)
+    def _unstable(self, state: State, particle: int, dt_s: float) -> None:
+        """Stop the run: the end-of-step guard found `particle` (or, if -1, a rigid body) non-finite or
+        too fast. The diagnostic says which mass and which springs; fraytool.sim.guard replays the
+        step to add which stage."""
+        from fraytool.sim.guard import unstable_diagnostic, unstable_message
+
+        diag = unstable_diagnostic(self, state, particle, "end of step", "velocities_from_positions", dt_s)
+        if particle < 0:
+            bad = np.nonzero(~np.isfinite(state.body_position_m).all(axis=1))[0]
+            diag["body"] = self.model.body_names[int(bad[0])] if bad.size else "?"
+        raise SimulationUnstable(unstable_message(diag), diag)
 
     def reset_timers(self) -> None:
         self.stage_s = dict.fromkeys(STAGE_NAMES, 0.0)

@@ -1,0 +1,97 @@
+"""`fraytool study SCENE [-o DIR] [--stability] [--quick]`: run a study and write its files.
+
+Accuracy (default): DIR/study/runs.csv, report.md, error_vs_time.png, convergence.png.
+Stability (--stability): DIR/study/stability.csv, stability.md, stability.png.
+DIR defaults to outputs/<scene name>/. Without matplotlib the tables and reports are still written
+and the closing message says how to get the plots. Exit code 0; an unusable scene or a reference
+run that the guard stops is a FraytoolError (exit 2 or 1, one line, from the CLI).
+"""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Optional, TextIO
+
+from fraytool.errors import RunError
+from fraytool.scene import load_scene
+from fraytool.scene.spec import SceneSpec
+from fraytool.study import plot, report
+
+STUDY_DIR = "study"
+
+
+def study_dir(spec: SceneSpec, out: Optional[Path]) -> Path:
+    base = Path(out) if out is not None else Path("outputs") / spec.name
+    return base / STUDY_DIR
+
+
+def write_accuracy_study(spec: SceneSpec, folder: Path, quick: bool = False, stream: Optional[TextIO] = sys.stderr,
+                         plan=None):
+    """Run the accuracy study and write its files into `folder`; returns (StudyResult, written paths)."""
+    from fraytool.study.accuracy import run_accuracy_study
+
+    result = run_accuracy_study(spec, quick=quick, plan=plan, stream=stream)
+    folder.mkdir(parents=True, exist_ok=True)
+    written = [folder / "runs.csv"]
+    report.write_runs_csv(result, written[0])
+    figure = plot.plot_error_vs_time(result, folder / "error_vs_time.png")
+    if figure is not None:
+        written.append(figure)
+        written.append(plot.plot_convergence(result, folder / "convergence.png"))
+        note = ("`error_vs_time.png`: error against wall time (log-log), one line per varied setting; "
+                "`convergence.png`: error against the step, and the error per frame of each step run.")
+    else:
+        note = f"No plots: matplotlib is not installed; {plot.INSTALL_HINT}."
+    written.append(folder / "report.md")
+    report.write_text(written[-1], report.accuracy_report(result, note))
+    return result, written
+
+
+def write_stability_sweep(spec: SceneSpec, folder: Path, quick: bool = False, stream: Optional[TextIO] = sys.stderr):
+    """Run the stability sweep and write its files into `folder`; returns (SweepResult, written paths)."""
+    from fraytool.study.stability_sweep import run_stability_sweep
+
+    result = run_stability_sweep(spec, quick=quick, stream=stream)
+    folder.mkdir(parents=True, exist_ok=True)
+    written = [folder / "stability.csv"]
+    report.write_sweep_csv(result, written[0])
+    figure = plot.plot_stability(result, folder / "stability.png")
+    if figure is not None:
+        written.append(figure)
+        note = "`stability.png`: each case at its step / bound and largest strain, coloured by outcome."
+    else:
+        note = f"No plot: matplotlib is not installed; {plot.INSTALL_HINT}."
+    written.append(folder / "stability.md")
+    report.write_text(written[-1], report.sweep_report(result, note))
+    return result, written
+
+
+def study_command(args) -> int:
+    spec = load_scene(args.scene)
+    folder = study_dir(spec, args.out)
+    try:
+        return _study(spec, folder, args)
+    except ImportError as exc:  # a pass the scene needs (tearing, self-collision) is not installed
+        raise RunError(f"{spec.source}: cannot run the scene: {exc}") from None
+
+
+def _study(spec: SceneSpec, folder: Path, args) -> int:
+    err = sys.stderr
+    if args.stability:
+        result, written = write_stability_sweep(spec, folder, quick=args.quick, stream=err)
+        counts = {}
+        for c in result.cases:
+            counts[c.outcome] = counts.get(c.outcome, 0) + 1
+        print(f"stability sweep of {spec.name}: {len(result.cases)} cases ("
+              + ", ".join(f"{v} {k}" for k, v in sorted(counts.items())) + f"); wrote {folder}", file=err)
+    else:
+        result, written = write_accuracy_study(spec, folder, quick=args.quick, stream=err)
+        o = result.order
+        print(f"study of {spec.name}: observed order in the step {o['observed_order']:.2f} (expected "
+              f"{o['expected_order']:g}), error falls monotonically: {'yes' if o['monotonic'] else 'no'}; "
+              f"wrote {folder}", file=err)
+    if not plot.have_matplotlib():
+        print(f"fraytool: note: no plot written: {plot.INSTALL_HINT}", file=err)
+    for path in written:
+        print(f"  {path}", file=err)
+    return 0
