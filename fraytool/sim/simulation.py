@@ -98,4 +98,6 @@ class Simulation:
         }
         if self.solver.tearing is not None and hasattr(self.solver.tearing, "summary"):
             out.update(self.solver.tearing.summary(self.state))
+        if self.solver.self_collision is not None:
+            out.update(self.solver.self_collision.summary())
         return out

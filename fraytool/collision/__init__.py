@@ -1,0 +1,40 @@
+"""Self-collision detection for yarn segments (springs), METHOD.md §4.2.
+
+- :func:`edge_edge_ccd`, :func:`edge_edge_ccd_kernel`, :func:`edge_edge_ccd_many`: conservative
+  edge-edge continuous collision detection over one step (narrow phase,
+  :mod:`fraytool.collision.ccd`).
+- :func:`find_candidate_pairs`: swept-box spatial hash (broad phase,
+  :mod:`fraytool.collision.broadphase`).
+- :func:`detect_edge_edge_collisions`: broad + narrow phase for all springs
+  (:mod:`fraytool.collision.detect`).
+
+Detection only; the response (impulses / position correction) lives with the solver.
+"""
+from pathlib import Path
+
+from fraytool.collision._numba_cache import invalidate_stale_numba_cache
+
+invalidate_stale_numba_cache(Path(__file__).parent)  # before any cached kernel is loaded
+
+from fraytool.collision.broadphase import find_candidate_pairs, find_candidate_pairs_kernel  # noqa: E402
+from fraytool.collision.ccd import (  # noqa: E402
+    NO_HIT_TIME,
+    edge_edge_ccd,
+    edge_edge_ccd_kernel,
+    edge_edge_ccd_many,
+)
+from fraytool.collision.detect import (  # noqa: E402
+    detect_edge_edge_collisions,
+    detect_edge_edge_collisions_kernel,
+)
+
+__all__ = [
+    "NO_HIT_TIME",
+    "detect_edge_edge_collisions",
+    "detect_edge_edge_collisions_kernel",
+    "edge_edge_ccd",
+    "edge_edge_ccd_kernel",
+    "edge_edge_ccd_many",
+    "find_candidate_pairs",
+    "find_candidate_pairs_kernel",
+]
