@@ -132,11 +132,14 @@ class ModelBuilder:
         return kind, a, b, np.asarray(stiff, float), rest_len, twin, weft_struct, warp_struct
 
     def _break_strains(self, count: int) -> np.ndarray:
-        """Per-spring break strain ~ Normal(break_strain, spread), clipped above the transition strain."""
+        """Per-spring break strain ~ Normal(break_strain, spread), clipped above the transition strain.
+
+        The floor does not depend on yarn_level, so a base-model-only run of a scene (yarn_level =
+        false, for comparison) tears a cloth with exactly the same break strains."""
         t = self.spec.cloth.tearing
         rng = np.random.default_rng(self.spec.scene.seed)
         draw = t.break_strain + t.break_strain_spread * rng.standard_normal(count)
-        floor = t.transition_strain * 1.01 if t.yarn_level else 1e-3
+        floor = t.transition_strain * 1.01 if t.transition_strain < t.break_strain else 1e-3
         return np.maximum(draw, floor)
 
     def finalize(self) -> Model:

@@ -1,0 +1,247 @@
+"""Yarn contact at connected mass couples (METHOD.md §3.3), stage 5 of the step.
+
+Only the springs of a couple's own masses are checked: its live weft structural springs (at most
+2, on the weft mass) against its live warp structural springs (at most 2, on the warp mass), so at
+most 4 pairs per couple, and only couples in the compact list of connected couples are visited.
+
+Closest points. For weft spring p_a q_a and warp spring p_b q_b (each oriented along its yarn, i
+then j increasing): a = (1 - t_a) p_a + t_a q_a, b = (1 - t_b) p_b + t_b q_b (Ericson, Real-Time
+Collision Detection, §5.1.9), r = a - b, d = |r|.
+
+Projection: mass-weighted and exact. Along a unit direction e (pointing from the warp to the weft
+side) the constraint C = r.e - T = 0 is projected as in Bridson, Fedkiw & Anderson (2002):
+
+    lambda = C / (w_pa (1-t_a)^2 + w_qa t_a^2 + w_pb (1-t_b)^2 + w_qb t_b^2)
+    dp_a = -lambda w_pa (1 - t_a) e    dq_a = -lambda w_qa t_a e
+    dp_b = +lambda w_pb (1 - t_b) e    dq_b = +lambda w_qb t_b e
+
+after which r.e = T exactly at (t_a, t_b) (w = inverse masses; a held mass does not move). The
+paper's plain form dp_a = (1 - t_a)(d - T) n_s ... moves the closest points by (d - T) times the sum
+of the squared weights, which is 2 at the couple's own masses (t = 0 or 1): it overshoots there.
+
+Direction e, two cases (docs/tearing.md "Contact"):
+- Inside the weave, e = r / d, the paper's n_s: |a - b| -> T for all 4 pairs. A pair whose closest
+  points are not over each other (a yarn that slid along the other) is pulled back in the plane
+  too, so a woven crossing holds its yarns together like the interlacing (and its friction) of
+  real cloth does.
+- At a free yarn end, e = s nu with nu = (q_a - p_a) x (q_b - p_b) / |...| (along the cloth normal
+  n_c: weft direction x warp direction) and s = +1 where the weft is on top: only the separation
+  across the cloth is kept at T, sliding in the cloth plane is free. A couple is at a free end when
+  its weft or warp mass has fewer than 2 live structural springs (a cut or the cloth border) or a
+  neighbouring crossing along its weft or warp is a disconnected couple. This is what lets a cut
+  yarn slip out of the weave crossing by crossing, i.e. fray; with n_s there too the end would stay
+  hooked on its last crossing for good (the pull-back is exact every step).
+- A pair that has passed through (s (r . nu) <= 0) or touches (d = 0) is always corrected along
+  s nu, back to its own side. Nearly parallel springs (|sin| < 1e-2) have no nu; such a pair is
+  corrected along n_s inside the weave and skipped at a free end.
+
+Disconnection. The weft-warp distance of a couple is the smallest d over its pairs, taken before
+this step's projection. When it exceeds model.disconnect_distance_m (disconnect_factor x T), or
+when the couple has no live weft or no live warp spring left, the couple is disconnected for good:
+it is never corrected again, and the shear copies at it are cut (no woven cell left to keep).
+
+Serial Gauss-Seidel over couples in crossing order and over pairs in slot order: deterministic.
+"""
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+
+from fraytool.sim.model import SHEAR
+
+SIN_PARALLEL = 1e-2
+"""Pairs whose springs are closer to parallel than this |sin(angle)| have no crossing normal."""
+
+
+@nb.njit(cache=True, fastmath=False)
+def segment_closest_params(pax, pay, paz, qax, qay, qaz, pbx, pby, pbz, qbx, qby, qbz):
+    """Parameters (t_a, t_b) in [0, 1] of the closest points of segments p_a q_a and p_b q_b
+    (Ericson 2005, §5.1.9; parallel segments take t_a = 0)."""
+    d1x, d1y, d1z = qax - pax, qay - pay, qaz - paz
+    d2x, d2y, d2z = qbx - pbx, qby - pby, qbz - pbz
+    rx, ry, rz = pax - pbx, pay - pby, paz - pbz
+    a = d1x * d1x + d1y * d1y + d1z * d1z
+    e = d2x * d2x + d2y * d2y + d2z * d2z
+    f = d2x * rx + d2y * ry + d2z * rz
+    eps = 1e-30
+    if a <= eps and e <= eps:
+        return 0.0, 0.0  # both degenerate to points
+    if a <= eps:
+        return 0.0, min(max(f / e, 0.0), 1.0)
+    c = d1x * rx + d1y * ry + d1z * rz
+    if e <= eps:
+        return min(max(-c / a, 0.0), 1.0), 0.0
+    b = d1x * d2x + d1y * d2y + d1z * d2z
+    denom = a * e - b * b
+    ta = min(max((b * f - c * e) / denom, 0.0), 1.0) if denom > 0.0 else 0.0
+    tb = (b * ta + f) / e
+    if tb < 0.0:
+        tb = 0.0
+        ta = min(max(-c / a, 0.0), 1.0)
+    elif tb > 1.0:
+        tb = 1.0
+        ta = min(max((b - c) / a, 0.0), 1.0)
+    return ta, tb
+
+
+@nb.njit(cache=True, fastmath=False)
+def crossing_pair_correction(pa, qa, pb, qb, w_pa, w_qa, w_pb, w_qb, side, thickness_m, slide):
+    """The contact correction of one weft/warp spring pair (module docstring), as a pure function.
+
+    pa, qa: weft spring ends; pb, qb: warp spring ends (3-vectors); w_*: inverse masses;
+    side = +1.0 where the weft is on top, -1.0 otherwise; slide: correct along the crossing normal
+    only (a couple at a free yarn end) instead of along the closest-point direction.
+    Returns (d, t_a, t_b, k_pa, k_qa, k_pb, k_qb, n_x, n_y, n_z): closest distance, closest-point
+    parameters, and the corrections dp_a = k_pa n, ... along the unit direction n (all k zero when
+    nothing is to be corrected)."""
+    ta, tb = segment_closest_params(pa[0], pa[1], pa[2], qa[0], qa[1], qa[2], pb[0], pb[1], pb[2], qb[0], qb[1], qb[2])
+    ga, gb = 1.0 - ta, 1.0 - tb
+    rx = (ga * pa[0] + ta * qa[0]) - (gb * pb[0] + tb * qb[0])
+    ry = (ga * pa[1] + ta * qa[1]) - (gb * pb[1] + tb * qb[1])
+    rz = (ga * pa[2] + ta * qa[2]) - (gb * pb[2] + tb * qb[2])
+    d = math.sqrt(rx * rx + ry * ry + rz * rz)
+    denom = w_pa * ga * ga + w_qa * ta * ta + w_pb * gb * gb + w_qb * tb * tb
+    if denom == 0.0:
+        return d, ta, tb, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0  # every end held: nothing can move
+    ux, uy, uz = qa[0] - pa[0], qa[1] - pa[1], qa[2] - pa[2]
+    vx, vy, vz = qb[0] - pb[0], qb[1] - pb[1], qb[2] - pb[2]
+    nx = uy * vz - uz * vy
+    ny = uz * vx - ux * vz
+    nz = ux * vy - uy * vx
+    nl = math.sqrt(nx * nx + ny * ny + nz * nz)
+    ul = math.sqrt(ux * ux + uy * uy + uz * uz)
+    vl = math.sqrt(vx * vx + vy * vy + vz * vz)
+    crossing = nl > SIN_PARALLEL * ul * vl and nl > 0.0
+    if crossing:
+        nx /= nl
+        ny /= nl
+        nz /= nl
+        h = side * (rx * nx + ry * ny + rz * nz)  # signed separation, weft side positive
+    else:
+        h = d  # (nearly) parallel springs: no crossing normal, no side to keep
+    if slide or h <= 0.0 or d < 1e-15:
+        # Along the crossing normal: free in-plane sliding; also the way back for a pair that has
+        # passed through (h < 0) or touches (d = 0).
+        if not crossing:
+            return d, ta, tb, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0  # nothing defines a direction
+        lam = (h - thickness_m) / denom
+        sx, sy, sz = side * nx, side * ny, side * nz  # from the warp towards the weft
+    else:
+        # Along the closest-point direction (the paper's n_s, from b to a here): |a - b| -> T.
+        lam = (d - thickness_m) / denom
+        sx, sy, sz = rx / d, ry / d, rz / d
+    return d, ta, tb, -lam * w_pa * ga, -lam * w_qa * ta, lam * w_pb * gb, lam * w_qb * tb, sx, sy, sz
+
+
+@nb.njit(cache=True, fastmath=False)
+def _pair_distance(pa, qa, pb, qb, particle_position_m):
+    """Closest distance between springs (pa, qa) and (pb, qb) given by particle slots."""
+    x = particle_position_m
+    ta, tb = segment_closest_params(x[pa, 0], x[pa, 1], x[pa, 2], x[qa, 0], x[qa, 1], x[qa, 2],
+                                    x[pb, 0], x[pb, 1], x[pb, 2], x[qb, 0], x[qb, 1], x[qb, 2])
+    s2 = 0.0
+    for d in range(3):
+        r = (x[pa, d] + ta * (x[qa, d] - x[pa, d])) - (x[pb, d] + tb * (x[qb, d] - x[pb, d]))
+        s2 += r * r
+    return math.sqrt(s2)
+
+
+@nb.njit(cache=True, fastmath=False)
+def disconnect_couple(c, spring_kind, spring_twin, crossing_spring_start, crossing_spring_list, couple_connected,
+                spring_alive):
+    """Disconnect couple c and cut the shear springs (both copies) at it: once weft and warp part
+    there is no woven cell left for a diagonal to keep."""
+    couple_connected[c] = False
+    for k in range(crossing_spring_start[c], crossing_spring_start[c + 1]):
+        s = crossing_spring_list[k]
+        if spring_kind[s] == SHEAR:
+            spring_alive[s] = False
+            spring_alive[spring_twin[s]] = False
+
+
+@nb.njit(cache=True, fastmath=False)
+def project_couples(
+    # model
+    thickness_m, disconnect_distance_m, crossing_weft_on_top, crossing_weft_springs, crossing_warp_springs,
+    spring_kind, spring_crossing_a, spring_crossing_b, spring_twin, crossing_spring_start, crossing_spring_list,
+    # state in
+    particle_inv_mass, spring_particle_a, spring_particle_b, crossing_yarn_level,
+    # state in/out
+    particle_position_m, couple_connected, spring_alive, couple_list, couple_count,
+):
+    """Project the contact of every couple in couple_list[:couple_count] (module docstring).
+    Couples that disconnect are flagged in couple_connected (their shear copies cut) and dropped
+    from the list, which is compacted in place (order kept). Returns the new couple_count."""
+    x = particle_position_m
+    kept = 0
+    weft = np.zeros(2, np.int64)
+    warp = np.zeros(2, np.int64)
+    for k in range(couple_count):
+        c = couple_list[k]
+        if not couple_connected[c]:
+            continue  # disconnected elsewhere: drop from the list
+        n_weft = 0
+        for e in range(2):
+            s = crossing_weft_springs[c, e]
+            if s >= 0 and spring_alive[s]:
+                weft[n_weft] = s
+                n_weft += 1
+        n_warp = 0
+        for e in range(2):
+            s = crossing_warp_springs[c, e]
+            if s >= 0 and spring_alive[s]:
+                warp[n_warp] = s
+                n_warp += 1
+        if n_weft == 0 or n_warp == 0:
+            # One yarn is cut on both sides here: nothing left to hold.
+            disconnect_couple(c, spring_kind, spring_twin, crossing_spring_start, crossing_spring_list,
+                              couple_connected, spring_alive)
+            continue
+        dmin = 1e300
+        for u in range(n_weft):
+            for v in range(n_warp):
+                sa, sb = weft[u], warp[v]
+                d = _pair_distance(spring_particle_a[sa], spring_particle_b[sa], spring_particle_a[sb],
+                                   spring_particle_b[sb], x)
+                if d < dmin:
+                    dmin = d
+        if not (dmin <= disconnect_distance_m):
+            # Weft and warp have parted (or NaN): never corrected again.
+            disconnect_couple(c, spring_kind, spring_twin, crossing_spring_start, crossing_spring_list,
+                              couple_connected, spring_alive)
+            continue
+        side = 1.0 if crossing_weft_on_top[c] else -1.0
+        slide = n_weft < 2 or n_warp < 2
+        for e in range(n_weft):
+            o = spring_crossing_a[weft[e]] + spring_crossing_b[weft[e]] - c
+            if crossing_yarn_level[o] and not couple_connected[o]:
+                slide = True  # the weft is no longer woven on that side: a free end
+        for e in range(n_warp):
+            o = spring_crossing_a[warp[e]] + spring_crossing_b[warp[e]] - c
+            if crossing_yarn_level[o] and not couple_connected[o]:
+                slide = True
+        for u in range(n_weft):
+            for v in range(n_warp):
+                sa, sb = weft[u], warp[v]
+                pa, qa = spring_particle_a[sa], spring_particle_b[sa]
+                pb, qb = spring_particle_a[sb], spring_particle_b[sb]
+                d, ta, tb, kpa, kqa, kpb, kqb, nx, ny, nz = crossing_pair_correction(
+                    x[pa], x[qa], x[pb], x[qb], particle_inv_mass[pa], particle_inv_mass[qa],
+                    particle_inv_mass[pb], particle_inv_mass[qb], side, thickness_m, slide)
+                x[pa, 0] += kpa * nx
+                x[pa, 1] += kpa * ny
+                x[pa, 2] += kpa * nz
+                x[qa, 0] += kqa * nx
+                x[qa, 1] += kqa * ny
+                x[qa, 2] += kqa * nz
+                x[pb, 0] += kpb * nx
+                x[pb, 1] += kpb * ny
+                x[pb, 2] += kpb * nz
+                x[qb, 0] += kqb * nx
+                x[qb, 1] += kqb * ny
+                x[qb, 2] += kqb * nz
+        couple_list[kept] = c
+        kept += 1
+    return kept

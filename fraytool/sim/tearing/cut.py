@@ -1,0 +1,86 @@
+"""Cutting springs over their randomised break strain (METHOD.md §3.4 "random break limits", §4.1).
+
+Runs in stage 7 of the step, after strain limiting (stage 5), yarn contact and collisions, and
+after the transitions of the same step. Rules (docs/tearing.md "Cutting"):
+- A structural (yarn) spring is *broken* when its strain |x_b - x_a| / L - 1 exceeds its own break
+  strain `model.spring_break_strain[s]`, drawn once when the model is built from the scene seed:
+  Normal(break_strain, break_strain_spread), floored just above the transition strain. It gets
+  spring_alive = False and spring_broken = True (the source of the `broken_springs` figure).
+  Only yarn springs have a limit of their own: bend springs span two yarn springs and carry a
+  fraction of their strain, and shear springs carry no tension at all.
+- A bend spring is cut (spring_alive = False, not "broken") with either structural spring it
+  spans: a cut yarn must not stay joined through its bend spring.
+- A shear spring and its twin are cut with any of the four structural springs bordering their
+  grid cell: a torn cell has no diagonal left to keep. (The contact pass also cuts the shear
+  copies at a couple when it disconnects, `contact.py`.)
+An unborn shear twin (alive = broken = False) is never born once its shear spring is cut, since
+a split duplicates only a live shear spring. Serial in slot order: deterministic.
+"""
+from __future__ import annotations
+
+import numba as nb
+
+
+@nb.njit(cache=True, fastmath=False)
+def cut_spring(s, spring_alive):
+    """Cut one spring; returns 1 if it was alive."""
+    if not spring_alive[s]:
+        return 0  # already cut (or an unborn twin): nothing to do
+    spring_alive[s] = False
+    return 1
+
+
+@nb.njit(cache=True, fastmath=False)
+def cut_structural(
+    s,
+    # model
+    spring_twin, structural_bend_start, structural_bend_list, structural_shear_start, structural_shear_list,
+    # state in/out
+    spring_alive, spring_broken,
+):
+    """Break structural spring s (spring_broken) and cut the bend springs spanning it and the shear
+    springs (and twins) of the cells beside it; returns the number of springs cut."""
+    if not spring_alive[s]:
+        return 0  # already cut
+    spring_broken[s] = True
+    count = cut_spring(s, spring_alive)
+    for k in range(structural_bend_start[s], structural_bend_start[s + 1]):
+        count += cut_spring(structural_bend_list[k], spring_alive)
+    for k in range(structural_shear_start[s], structural_shear_start[s + 1]):
+        sh = structural_shear_list[k]
+        count += cut_spring(sh, spring_alive)
+        count += cut_spring(spring_twin[sh], spring_alive)
+    return count
+
+
+@nb.njit(cache=True, fastmath=False)
+def cut_overstrained(
+    # model
+    structural_springs, spring_rest_length_m, spring_break_strain, spring_twin, structural_bend_start,
+    structural_bend_list, structural_shear_start, structural_shear_list,
+    # state in
+    particle_position_m, spring_particle_a, spring_particle_b,
+    # state in/out
+    spring_alive, spring_broken,
+):
+    """Break every live structural spring over its break strain, with its bend and shear springs.
+    Returns (structural springs broken, all springs cut). A spring within its limit costs one
+    squared length and a compare."""
+    yarn_cuts = 0
+    total = 0
+    for k in range(structural_springs.shape[0]):
+        s = structural_springs[k]
+        if not spring_alive[s]:
+            continue  # already cut
+        a = spring_particle_a[s]
+        b = spring_particle_b[s]
+        dx = particle_position_m[b, 0] - particle_position_m[a, 0]
+        dy = particle_position_m[b, 1] - particle_position_m[a, 1]
+        dz = particle_position_m[b, 2] - particle_position_m[a, 2]
+        limit = (1.0 + spring_break_strain[s]) * spring_rest_length_m[s]
+        if dx * dx + dy * dy + dz * dz <= limit * limit:
+            continue
+        yarn_cuts += 1
+        total += cut_structural(s, spring_twin, structural_bend_start, structural_bend_list,
+                                structural_shear_start, structural_shear_list, spring_alive, spring_broken)
+    return yarn_cuts, total

@@ -1,0 +1,127 @@
+"""The fray metric: how far loose yarn ends stick out of the weave along a tear.
+
+Definition (docs/tearing.md "Fray metric"):
+- A *cut end* is one of the two yarn ends left by a cut structural spring (spring_broken of a
+  STRUCT_WEFT or STRUCT_WARP slot): the yarn's masses at the crossings on either side of the cut.
+- A crossing is *woven* when it is at base level (weft and warp are one mass) or when it is a
+  connected mass couple (§3.3).
+- The *free length* of a cut end is the length of yarn, in metres along the yarn's current
+  polyline (the sum of the current lengths of its structural springs), from the cut end to the
+  first woven crossing met walking away from the cut. It is 0 when the end crossing itself is
+  woven (the yarn stops exactly at the edge of the weave: a clean cut). If the walk reaches the
+  other end of the yarn piece without meeting a woven crossing (a loose fragment), the free length
+  is the whole fragment, counted from each of its cut ends.
+A base-model-only tear (yarn_level = false) has no couples, so every free length is 0: a clean edge.
+"""
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+
+from fraytool.sim.model import STRUCT_WEFT
+
+
+@nb.njit(cache=True, fastmath=False)
+def _woven(k, crossing_yarn_level, couple_connected):
+    return (not crossing_yarn_level[k]) or couple_connected[k]
+
+
+@nb.njit(cache=True, fastmath=False)
+def _free_length(start, step, along_weft, warp_yarns, weft_yarns, weft_structural_spring, warp_structural_spring,
+                 particle_position_m, spring_particle_a, spring_particle_b, spring_alive, crossing_yarn_level,
+                 couple_connected):
+    """Yarn length from cut-end crossing `start`, walking by `step` (+1/-1) along a weft
+    (along_weft) or warp yarn, to the first woven crossing or the end of the piece."""
+    x = particle_position_m
+    length = 0.0
+    k = start
+    while not _woven(k, crossing_yarn_level, couple_connected):
+        i = k % warp_yarns
+        j = k // warp_yarns
+        if along_weft:
+            i2 = i + step
+            if i2 < 0 or i2 >= warp_yarns:
+                break  # cloth border: the piece ends
+            s = weft_structural_spring[j, min(i, i2)]
+            k2 = k + step
+        else:
+            j2 = j + step
+            if j2 < 0 or j2 >= weft_yarns:
+                break
+            s = warp_structural_spring[i, min(j, j2)]
+            k2 = k + step * warp_yarns
+        if not spring_alive[s]:
+            break  # another cut: the piece ends
+        a = spring_particle_a[s]
+        b = spring_particle_b[s]
+        dx = x[b, 0] - x[a, 0]
+        dy = x[b, 1] - x[a, 1]
+        dz = x[b, 2] - x[a, 2]
+        length += math.sqrt(dx * dx + dy * dy + dz * dz)
+        k = k2
+    return length
+
+
+@nb.njit(cache=True, fastmath=False)
+def free_end_lengths(
+    # model
+    warp_yarns, weft_yarns, structural_springs, spring_kind, spring_crossing_a, spring_crossing_b,
+    weft_structural_spring, warp_structural_spring,
+    # state in
+    particle_position_m, spring_particle_a, spring_particle_b, spring_alive, spring_broken, crossing_yarn_level,
+    couple_connected,
+    # out
+    length_out, crossing_out,
+):
+    """Free length [m] of every cut end (module docstring) into length_out, the crossing of the
+    end into crossing_out; returns the number of cut ends (2 per cut structural spring)."""
+    count = 0
+    for k in range(structural_springs.shape[0]):
+        s = structural_springs[k]
+        if not spring_broken[s]:
+            continue  # intact yarn
+        along_weft = spring_kind[s] == STRUCT_WEFT
+        ca = spring_crossing_a[s]
+        cb = spring_crossing_b[s]
+        # a lies before the cut (walk backwards), b after it (walk forwards).
+        length_out[count] = _free_length(ca, -1, along_weft, warp_yarns, weft_yarns, weft_structural_spring,
+                                         warp_structural_spring, particle_position_m, spring_particle_a,
+                                         spring_particle_b, spring_alive, crossing_yarn_level, couple_connected)
+        crossing_out[count] = ca
+        count += 1
+        length_out[count] = _free_length(cb, 1, along_weft, warp_yarns, weft_yarns, weft_structural_spring,
+                                         warp_structural_spring, particle_position_m, spring_particle_a,
+                                         spring_particle_b, spring_alive, crossing_yarn_level, couple_connected)
+        crossing_out[count] = cb
+        count += 1
+    return count
+
+
+def fray_lengths(model, topo, state) -> tuple[np.ndarray, np.ndarray]:
+    """(free length [m], crossing) of every cut end of `state`, in structural-slot order."""
+    k = topo.structural_springs.shape[0]
+    lengths = np.zeros(2 * k)
+    crossings = np.zeros(2 * k, np.int32)
+    count = free_end_lengths(model.warp_yarns, model.weft_yarns, topo.structural_springs, model.spring_kind,
+                             model.spring_crossing_a, model.spring_crossing_b, model.weft_structural_spring,
+                             model.warp_structural_spring, state.particle_position_m, state.spring_particle_a,
+                             state.spring_particle_b, state.spring_alive, state.spring_broken,
+                             state.crossing_yarn_level, state.couple_connected, lengths, crossings)
+    return lengths[:count], crossings[:count]
+
+
+def fray_summary(model, topo, state) -> dict:
+    """The fray figures of the `--json` summary (docs/tearing.md)."""
+    lengths, _ = fray_lengths(model, topo, state)
+    free = lengths[lengths > 0.0]
+    return {
+        "fray_cut_ends": int(lengths.size),
+        "fray_free_end_count": int(free.size),
+        "fray_mean_free_end_m": float(free.mean()) if free.size else 0.0,
+        "fray_max_free_end_m": float(lengths.max()) if lengths.size else 0.0,
+        "fray_total_free_end_m": float(lengths.sum()),
+        "fray_free_end_fraction": float(free.size / lengths.size) if lengths.size else 0.0,
+    }
+

@@ -1,0 +1,349 @@
+"""Transition from the base model to the yarn-level model (METHOD.md §3.4): split and propagate.
+
+Split of a base crossing c into a mass couple
+---------------------------------------------
+- n_c: the cloth normal of `fraytool.grid.crossing_normals` evaluated at c alone, over crossing
+  *centres*: the base mass of a base-level crossing, the midpoint of the couple of a yarn-level one
+  (the renderer's rule, `fraytool.render.yarns.yarn_points`), so a split mass lands exactly on the
+  base-level yarn point the renderer drew the step before (`fraytool.grid.base_yarn_points`).
+- Weft mass (slot c) at x + s T/2 n_c, warp mass (slot C + c) at x - s T/2 n_c, s = +1 where the
+  weft lies on top (crossing_weft_on_top), -1 otherwise.
+- Each gets half the mass and the original velocity: linear momentum m v = m/2 v + m/2 v exactly,
+  angular momentum about the old position R_weft x m/2 v + R_warp x m/2 v = 0 (R_warp = -R_weft).
+  Inside a step the velocity is recomputed at the end as (x - x_prev) / dt, so the previous
+  positions of both masses are set to x_new - (x - x_prev): their post-processed velocity is the
+  original mass's.
+- Structural and bend springs: weft kinds stay on slot c (now the weft mass), warp kinds move to
+  slot C + c (the warp mass).
+- Shear springs are duplicated into their twin slot, each copy at half the stiffness. The copies
+  join masses of the same layer (upper to upper, lower to lower: the upper mass of a couple is its
+  weft mass where the weft is on top); where the other end is still a base mass both copies attach
+  to that same base mass. When the other end splits later, each copy moves to its layer's mass.
+- Crossings held by a rigid body (model.attachment_particle) never split: an attachment holds one
+  particle slot, and splitting would leave the warp mass unheld. Springs from a held crossing to a
+  split one simply attach to the held base mass.
+
+Propagation ("until the weave pattern flips")
+--------------------------------------------
+A structural spring whose strain exceeds the transition strain splits both of its end crossings.
+From each end the split then walks along the spring's own yarn, away from the spring, and splits
+the next crossing while that crossing has the same weave flag as the previous one (the yarn stays
+on the same side: the two are in one float). It stops at the first crossing whose flag differs
+(not split), at the cloth border, at a dead structural spring (the yarn is cut there) and at a held
+crossing (not split). Plain weave flips at every crossing, so exactly the two end crossings split;
+in a 2/2 twill the float partner of each end splits too. The walk is repeated whenever a spring is
+over the threshold (crossings already split are skipped), so the split set does not depend on the
+order in which springs were found over-strained.
+
+Kernels are serial numba (cache=True, fastmath=False): same inputs, bit-identical results.
+"""
+from __future__ import annotations
+
+import math
+
+import numba as nb
+
+from fraytool.sim.model import BEND_WARP, SHEAR, STRUCT_WARP, STRUCT_WEFT
+
+
+@nb.njit(cache=True, fastmath=False)
+def _centre(k, d, crossing_count, particle_position_m, crossing_yarn_level):
+    """Component d of the centre of crossing k: base mass, or the midpoint of its couple."""
+    if crossing_yarn_level[k]:
+        return 0.5 * (particle_position_m[k, d] + particle_position_m[crossing_count + k, d])
+    return particle_position_m[k, d]
+
+
+@nb.njit(cache=True, fastmath=False)
+def _centre_difference(k1, k0, crossing_count, particle_position_m, crossing_yarn_level):
+    """Centre of crossing k1 minus centre of crossing k0."""
+    return (_centre(k1, 0, crossing_count, particle_position_m, crossing_yarn_level)
+            - _centre(k0, 0, crossing_count, particle_position_m, crossing_yarn_level),
+            _centre(k1, 1, crossing_count, particle_position_m, crossing_yarn_level)
+            - _centre(k0, 1, crossing_count, particle_position_m, crossing_yarn_level),
+            _centre(k1, 2, crossing_count, particle_position_m, crossing_yarn_level)
+            - _centre(k0, 2, crossing_count, particle_position_m, crossing_yarn_level))
+
+
+@nb.njit(cache=True, fastmath=False)
+def _raw_normal(c, warp_yarns, weft_yarns, particle_position_m, crossing_yarn_level):
+    """Un-normalised du x dv at crossing c (one-sided differences at the border, as in grid.py)."""
+    n = warp_yarns * weft_yarns
+    i = c % warp_yarns
+    j = c // warp_yarns
+    if i == 0:
+        u0, u1 = c, c + 1
+    elif i == warp_yarns - 1:
+        u0, u1 = c - 1, c
+    else:
+        u0, u1 = c - 1, c + 1
+    if j == 0:
+        v0, v1 = c, c + warp_yarns
+    elif j == weft_yarns - 1:
+        v0, v1 = c - warp_yarns, c
+    else:
+        v0, v1 = c - warp_yarns, c + warp_yarns
+    dux, duy, duz = _centre_difference(u1, u0, n, particle_position_m, crossing_yarn_level)
+    dvx, dvy, dvz = _centre_difference(v1, v0, n, particle_position_m, crossing_yarn_level)
+    return duy * dvz - duz * dvy, duz * dvx - dux * dvz, dux * dvy - duy * dvx
+
+
+@nb.njit(cache=True, fastmath=False)
+def crossing_normal_at(c, warp_yarns, weft_yarns, particle_position_m, crossing_yarn_level):
+    """Unit cloth normal n_c at crossing c: `fraytool.grid.crossing_normals` over crossing centres,
+    for one crossing. A degenerate crossing (neighbours collinear) gets the mean normal of the cloth
+    (or +z), the same fallback as grid.py."""
+    nx, ny, nz = _raw_normal(c, warp_yarns, weft_yarns, particle_position_m, crossing_yarn_level)
+    length = math.sqrt(nx * nx + ny * ny + nz * nz)
+    if length > 1e-300:
+        return nx / length, ny / length, nz / length
+    # Rare: average the unit normals of every non-degenerate crossing.
+    mx, my, mz = 0.0, 0.0, 0.0
+    for k in range(warp_yarns * weft_yarns):
+        ax, ay, az = _raw_normal(k, warp_yarns, weft_yarns, particle_position_m, crossing_yarn_level)
+        la = math.sqrt(ax * ax + ay * ay + az * az)
+        if la > 1e-300:
+            mx += ax / la
+            my += ay / la
+            mz += az / la
+    ml = math.sqrt(mx * mx + my * my + mz * mz)
+    if ml > 0.0:
+        return mx / ml, my / ml, mz / ml
+    return 0.0, 0.0, 1.0
+
+
+@nb.njit(cache=True, fastmath=False)
+def _upper(k, crossing_count, crossing_weft_on_top):
+    """Slot of the upper mass of yarn-level crossing k (its weft mass where the weft is on top)."""
+    return k if crossing_weft_on_top[k] else crossing_count + k
+
+
+@nb.njit(cache=True, fastmath=False)
+def split_crossing(
+    c,
+    # model
+    warp_yarns, weft_yarns, thickness_m, crossing_weft_on_top, crossing_attached, spring_kind,
+    spring_crossing_a, spring_crossing_b, spring_twin, crossing_spring_start, crossing_spring_list,
+    # state in/out
+    particle_position_m, prev_position_m, particle_velocity_m_s, particle_mass_kg, particle_inv_mass,
+    particle_active, crossing_yarn_level, couple_connected, spring_particle_a, spring_particle_b,
+    spring_alive, spring_broken, spring_stiffness_n_per_m,
+):
+    """Split base crossing c into a connected weft/warp mass couple (module docstring); returns
+    True if it split, False if it was already yarn level or is held by a body."""
+    if crossing_yarn_level[c]:
+        return False  # already a couple
+    if crossing_attached[c]:
+        return False  # held crossings stay base level (an attachment holds one slot)
+    n = warp_yarns * weft_yarns
+    w = n + c
+    nx, ny, nz = crossing_normal_at(c, warp_yarns, weft_yarns, particle_position_m, crossing_yarn_level)
+    half_t = 0.5 * thickness_m if crossing_weft_on_top[c] else -0.5 * thickness_m
+    ox, oy, oz = half_t * nx, half_t * ny, half_t * nz
+    x0, x1, x2 = particle_position_m[c, 0], particle_position_m[c, 1], particle_position_m[c, 2]
+    # Step displacement of the old mass: both new masses keep it, so v = (x - x_prev)/dt is unchanged.
+    d0, d1, d2 = x0 - prev_position_m[c, 0], x1 - prev_position_m[c, 1], x2 - prev_position_m[c, 2]
+    particle_position_m[c, 0] = x0 + ox
+    particle_position_m[c, 1] = x1 + oy
+    particle_position_m[c, 2] = x2 + oz
+    particle_position_m[w, 0] = x0 - ox
+    particle_position_m[w, 1] = x1 - oy
+    particle_position_m[w, 2] = x2 - oz
+    prev_position_m[c, 0] = particle_position_m[c, 0] - d0
+    prev_position_m[c, 1] = particle_position_m[c, 1] - d1
+    prev_position_m[c, 2] = particle_position_m[c, 2] - d2
+    prev_position_m[w, 0] = particle_position_m[w, 0] - d0
+    prev_position_m[w, 1] = particle_position_m[w, 1] - d1
+    prev_position_m[w, 2] = particle_position_m[w, 2] - d2
+    for d in range(3):
+        particle_velocity_m_s[w, d] = particle_velocity_m_s[c, d]
+    m = particle_mass_kg[c]
+    particle_mass_kg[c] = 0.5 * m
+    particle_mass_kg[w] = 0.5 * m
+    inv = 1.0 / (0.5 * m) if particle_inv_mass[c] > 0.0 else 0.0
+    particle_inv_mass[c] = inv
+    particle_inv_mass[w] = inv
+    particle_active[w] = True
+    crossing_yarn_level[c] = True
+    couple_connected[c] = True
+
+    up_c = _upper(c, n, crossing_weft_on_top)
+    low_c = c if up_c != c else w
+    for k in range(crossing_spring_start[c], crossing_spring_start[c + 1]):
+        s = crossing_spring_list[k]
+        kind = spring_kind[s]
+        at_a = spring_crossing_a[s] == c
+        if kind == STRUCT_WARP or kind == BEND_WARP:
+            if at_a:
+                spring_particle_a[s] = w
+            else:
+                spring_particle_b[s] = w
+            continue
+        if kind != SHEAR:
+            continue  # weft structural / weft bend: slot c is the weft mass now
+        o = spring_crossing_b[s] if at_a else spring_crossing_a[s]
+        t = spring_twin[s]
+        twin_born = spring_alive[t] or spring_broken[t]
+        if spring_alive[s] and not twin_born:
+            # First split at this spring: duplicate it, half the stiffness each (§3.4).
+            k_half = 0.5 * spring_stiffness_n_per_m[s]
+            spring_stiffness_n_per_m[s] = k_half
+            spring_stiffness_n_per_m[t] = k_half
+            spring_alive[t] = True
+            o_up = _upper(o, n, crossing_weft_on_top) if crossing_yarn_level[o] else o
+            o_low = (o if o_up != o else n + o) if crossing_yarn_level[o] else o
+            if at_a:
+                spring_particle_a[s] = up_c
+                spring_particle_b[s] = o_up
+                spring_particle_a[t] = low_c
+                spring_particle_b[t] = o_low
+            else:
+                spring_particle_b[s] = up_c
+                spring_particle_a[s] = o_up
+                spring_particle_b[t] = low_c
+                spring_particle_a[t] = o_low
+        elif twin_born:
+            # Already duplicated when the other end split: each copy follows its layer there.
+            for copy in (s, t):
+                p_o = spring_particle_b[copy] if at_a else spring_particle_a[copy]
+                same = up_c if p_o == _upper(o, n, crossing_weft_on_top) else low_c
+                if at_a:
+                    spring_particle_a[copy] = same
+                else:
+                    spring_particle_b[copy] = same
+        else:
+            # Cut before any split: no copy is born; keep the dead spring's end on a live slot.
+            if at_a:
+                spring_particle_a[s] = up_c
+            else:
+                spring_particle_b[s] = up_c
+    return True
+
+
+@nb.njit(cache=True, fastmath=False)
+def _walk_and_split(
+    start, step, s_dir,
+    # model
+    warp_yarns, weft_yarns, thickness_m, crossing_weft_on_top, crossing_attached, spring_kind,
+    spring_crossing_a, spring_crossing_b, spring_twin, crossing_spring_start, crossing_spring_list,
+    weft_structural_spring, warp_structural_spring,
+    # state in/out
+    particle_position_m, prev_position_m, particle_velocity_m_s, particle_mass_kg, particle_inv_mass,
+    particle_active, crossing_yarn_level, couple_connected, spring_particle_a, spring_particle_b,
+    spring_alive, spring_broken, spring_stiffness_n_per_m,
+):
+    """From crossing `start`, walk along a weft (s_dir = 0) or warp (1) yarn by `step` (+1/-1) and
+    split while the weave flag stays the same; returns the number of crossings split."""
+    if crossing_attached[start]:
+        return 0  # a held crossing is a wall
+    count = 0
+    k = start
+    while True:
+        i = k % warp_yarns
+        j = k // warp_yarns
+        if s_dir == 0:
+            i2 = i + step
+            if i2 < 0 or i2 >= warp_yarns:
+                break  # cloth border
+            spring = weft_structural_spring[j, min(i, i2)]
+            k2 = k + step
+        else:
+            j2 = j + step
+            if j2 < 0 or j2 >= weft_yarns:
+                break
+            spring = warp_structural_spring[i, min(j, j2)]
+            k2 = k + step * warp_yarns
+        if not spring_alive[spring]:
+            break  # the yarn is cut here
+        if crossing_weft_on_top[k2] != crossing_weft_on_top[k]:
+            break  # the weave flips: the float ends
+        if crossing_attached[k2]:
+            break
+        if split_crossing(k2, warp_yarns, weft_yarns, thickness_m, crossing_weft_on_top, crossing_attached,
+                          spring_kind, spring_crossing_a, spring_crossing_b, spring_twin, crossing_spring_start,
+                          crossing_spring_list, particle_position_m, prev_position_m, particle_velocity_m_s,
+                          particle_mass_kg, particle_inv_mass, particle_active, crossing_yarn_level,
+                          couple_connected, spring_particle_a, spring_particle_b, spring_alive, spring_broken,
+                          spring_stiffness_n_per_m):
+            count += 1
+        k = k2
+    return count
+
+
+@nb.njit(cache=True, fastmath=False)
+def transition_spring(
+    s,
+    # model
+    warp_yarns, weft_yarns, thickness_m, crossing_weft_on_top, crossing_attached, spring_kind,
+    spring_crossing_a, spring_crossing_b, spring_twin, crossing_spring_start, crossing_spring_list,
+    weft_structural_spring, warp_structural_spring,
+    # state in/out
+    particle_position_m, prev_position_m, particle_velocity_m_s, particle_mass_kg, particle_inv_mass,
+    particle_active, crossing_yarn_level, couple_connected, spring_particle_a, spring_particle_b,
+    spring_alive, spring_broken, spring_stiffness_n_per_m,
+):
+    """Split both ends of structural spring s and propagate along its yarn (module docstring);
+    returns the number of crossings split."""
+    kind = spring_kind[s]
+    if kind != STRUCT_WEFT and kind != STRUCT_WARP:
+        return 0  # only yarn (structural) springs trigger a transition
+    ca = spring_crossing_a[s]
+    cb = spring_crossing_b[s]  # b is one further along the yarn than a
+    s_dir = 0 if kind == STRUCT_WEFT else 1
+    count = 0
+    for c in (ca, cb):
+        if split_crossing(c, warp_yarns, weft_yarns, thickness_m, crossing_weft_on_top, crossing_attached,
+                          spring_kind, spring_crossing_a, spring_crossing_b, spring_twin, crossing_spring_start,
+                          crossing_spring_list, particle_position_m, prev_position_m, particle_velocity_m_s,
+                          particle_mass_kg, particle_inv_mass, particle_active, crossing_yarn_level,
+                          couple_connected, spring_particle_a, spring_particle_b, spring_alive, spring_broken,
+                          spring_stiffness_n_per_m):
+            count += 1
+    for start, step in ((cb, 1), (ca, -1)):
+        count += _walk_and_split(start, step, s_dir, warp_yarns, weft_yarns, thickness_m, crossing_weft_on_top,
+                                 crossing_attached, spring_kind, spring_crossing_a, spring_crossing_b, spring_twin,
+                                 crossing_spring_start, crossing_spring_list, weft_structural_spring,
+                                 warp_structural_spring, particle_position_m, prev_position_m,
+                                 particle_velocity_m_s, particle_mass_kg, particle_inv_mass, particle_active,
+                                 crossing_yarn_level, couple_connected, spring_particle_a, spring_particle_b,
+                                 spring_alive, spring_broken, spring_stiffness_n_per_m)
+    return count
+
+
+@nb.njit(cache=True, fastmath=False)
+def transition_overstrained(
+    # model
+    structural_springs, spring_rest_length_m, transition_strain,
+    warp_yarns, weft_yarns, thickness_m, crossing_weft_on_top, crossing_attached, spring_kind,
+    spring_crossing_a, spring_crossing_b, spring_twin, crossing_spring_start, crossing_spring_list,
+    weft_structural_spring, warp_structural_spring,
+    # state in/out
+    particle_position_m, prev_position_m, particle_velocity_m_s, particle_mass_kg, particle_inv_mass,
+    particle_active, crossing_yarn_level, couple_connected, spring_particle_a, spring_particle_b,
+    spring_alive, spring_broken, spring_stiffness_n_per_m,
+):
+    """Transition every live structural spring whose strain exceeds `transition_strain`, in slot
+    order; returns the number of crossings split. A spring within the threshold costs one squared
+    length and a compare."""
+    count = 0
+    stretch = 1.0 + transition_strain
+    for k in range(structural_springs.shape[0]):
+        s = structural_springs[k]
+        if not spring_alive[s]:
+            continue  # a cut yarn carries no strain
+        a = spring_particle_a[s]
+        b = spring_particle_b[s]
+        dx = particle_position_m[b, 0] - particle_position_m[a, 0]
+        dy = particle_position_m[b, 1] - particle_position_m[a, 1]
+        dz = particle_position_m[b, 2] - particle_position_m[a, 2]
+        limit = stretch * spring_rest_length_m[s]
+        if dx * dx + dy * dy + dz * dz <= limit * limit:
+            continue
+        count += transition_spring(s, warp_yarns, weft_yarns, thickness_m, crossing_weft_on_top, crossing_attached,
+                                   spring_kind, spring_crossing_a, spring_crossing_b, spring_twin,
+                                   crossing_spring_start, crossing_spring_list, weft_structural_spring,
+                                   warp_structural_spring, particle_position_m, prev_position_m,
+                                   particle_velocity_m_s, particle_mass_kg, particle_inv_mass, particle_active,
+                                   crossing_yarn_level, couple_connected, spring_particle_a, spring_particle_b,
+                                   spring_alive, spring_broken, spring_stiffness_n_per_m)
+    return count

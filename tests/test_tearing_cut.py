@@ -1,0 +1,160 @@
+"""Cuts (§3.4 random break limits, §4.1) and the fray metric."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from fraytool.scene import parse_scene
+from fraytool.sim.builder import build_model
+from fraytool.sim.model import BEND_WARP, BEND_WEFT, SHEAR, SHEAR_TWIN, STRUCT_WARP, STRUCT_WEFT
+from fraytool.sim.simulation import make_solver
+from fraytool.sim.tearing import YarnTearing, fray_lengths, topology_problems
+from fraytool.sim.tearing.reference import free_end_lengths_reference, state_dict
+
+SCENE = """
+[scene]
+name = "cut"
+seed = {seed}
+[time]
+step_s = 2e-4
+steps_per_frame = 1
+frames = 2
+fps = 24
+[cloth]
+warp_yarns = 8
+weft_yarns = 6
+spacing_m = 0.004
+thickness_m = 0.0006
+mass_per_crossing_kg = 5e-6
+origin_m = [0.0, 0.0, 0.0]
+plane = "xy"
+weave = "plain"
+[cloth.springs]
+structural_n_per_m = 40.0
+bend_n_per_m = 1.0
+shear_n_per_m = 5.0
+damping = 0.0
+[cloth.tearing]
+enabled = true
+yarn_level = {yarn_level}
+transition_strain = 0.12
+break_strain = 0.2
+break_strain_spread = {spread}
+"""
+
+
+def make(seed=1, yarn_level="true", spread=0.03):
+    model = build_model(parse_scene(SCENE.format(seed=seed, yarn_level=yarn_level, spread=spread), "cut.toml"))
+    return model, model.state(), YarnTearing(model)
+
+
+def test_cutting_a_yarn_cuts_its_bend_springs_and_the_shear_springs_of_both_cells():
+    model, state, tear = make()
+    W = model.warp_yarns
+    s = int(model.weft_structural_spring[2, 3])  # joins (3,2)-(4,2); cells (3,1) below and (3,2) above
+    tear.split(state, [2 * W + 3, 3 * W + 4])  # some shear twins are born
+    alive_before = state.spring_alive.copy()
+    cut = tear.cut(state, s)
+    dead = ~state.spring_alive
+    bends = np.nonzero(dead & (model.spring_kind == BEND_WEFT))[0]
+    assert sorted((int(model.spring_crossing_a[b] % W), int(model.spring_crossing_a[b] // W)) for b in bends) == \
+        [(2, 2), (3, 2)]  # (2,2)-(4,2) and (3,2)-(5,2) span the cut
+    shear = np.nonzero(dead & (model.spring_kind == SHEAR))[0]
+    cells = {(int(min(model.spring_crossing_a[k] % W, model.spring_crossing_b[k] % W)),
+              int(min(model.spring_crossing_a[k] // W, model.spring_crossing_b[k] // W))) for k in shear}
+    assert cells == {(3, 1), (3, 2)} and len(shear) == 4
+    assert not state.spring_alive[model.spring_twin[shear]].any()
+    twins_cut = int(((model.spring_kind == SHEAR_TWIN) & dead & alive_before).sum())
+    # twins were born on the diagonals touching a split crossing: (3,2)-(4,3) and (4,1)-(3,2)
+    assert twins_cut == 2
+    assert cut == 1 + 2 + 4 + twins_cut
+    assert (np.nonzero(state.spring_broken)[0] == [s]).all()  # only the yarn is "broken"
+    assert not (dead & (model.spring_kind == BEND_WARP)).any()
+    assert topology_problems(model, state) == []
+
+
+def test_springs_over_their_own_break_strain_are_cut_and_only_those():
+    # base-only, so that no split adds its crimp to the strain: the threshold is exact
+    model, _, tear = make(yarn_level="false")
+    W, n = model.warp_yarns, model.crossing_count
+    s = int(model.warp_structural_spring[4, 2])  # joins (4,2)-(4,3)
+    limit = model.spring_break_strain[s]
+    top = np.arange(n) // W >= 3
+    row = model.warp_structural_spring[:, 2]  # every warp spring between rows 2 and 3
+    for factor, expect in ((0.999, False), (1.001, True)):
+        state = model.state()
+        x = state.particle_position_m
+        strain = factor * (1 + limit) - 1
+        x[:n][top, 1] += strain * model.spacing_m  # rows 3.. move up: row-2/3 warp springs stretch
+        tear(state, x.copy(), 2e-4)
+        assert bool(state.spring_broken[s]) == expect, factor
+        assert (state.spring_broken[row] == (model.spring_break_strain[row] < strain)).all()
+        assert state.spring_broken.sum() == state.spring_broken[row].sum()
+
+
+def test_break_strains_are_drawn_once_from_the_seed():
+    a, _, _ = make(seed=5)
+    b, _, _ = make(seed=5)
+    c, _, _ = make(seed=6)
+    assert (a.spring_break_strain == b.spring_break_strain).all()
+    assert (a.spring_break_strain != c.spring_break_strain).mean() > 0.99
+    base_only, _, _ = make(seed=5, yarn_level="false")  # the comparison run tears the same cloth
+    assert (base_only.spring_break_strain == a.spring_break_strain).all()
+    zero, _, _ = make(spread=0.0)
+    assert (zero.spring_break_strain == 0.2).all()
+    wide, _, _ = make(spread=0.03)
+    assert abs(wide.spring_break_strain.std() - 0.03) < 0.005  # the spread is the scene's
+    assert wide.spring_break_strain.min() > 0.12  # floored above the transition strain
+
+
+def test_base_only_tearing_has_no_couples_and_no_contact_pass():
+    model, state, _ = make(yarn_level="false")
+    solver = make_solver(model)
+    assert solver.tearing is not None and solver.yarn_contact is None
+    x = state.particle_position_m
+    W = model.warp_yarns
+    x[:model.crossing_count][np.arange(model.crossing_count) // W >= 3, 1] += 0.5 * model.spacing_m  # 50 % strain
+    solver.tearing(state, x.copy(), 2e-4)
+    assert state.spring_broken.sum() == W  # the whole row of warp springs between rows 2 and 3
+    assert not state.crossing_yarn_level.any() and not state.particle_active[model.crossing_count:].any()
+    lengths, _ = fray_lengths(model, solver.tearing.topology, state)
+    assert len(lengths) == 2 * W and (lengths == 0).all()  # a clean edge
+    assert topology_problems(model, state) == []
+
+
+def test_fray_free_length_is_the_yarn_from_the_cut_to_the_first_woven_crossing():
+    model, state, tear = make()
+    W, L = model.warp_yarns, model.spacing_m
+    row = [2 * W + i for i in range(8)]
+    tear.split(state, row[2:7])                       # (2..6, 2) yarn level
+    tear.cut(state, int(model.weft_structural_spring[2, 4]))  # weft 2 cut between i = 4 and 5
+    tear.disconnect(state, row[4])
+    tear.disconnect(state, row[3])                    # left end: 4, 3 parted; 2 still woven
+    tear.disconnect(state, row[6])                    # right end: 5 woven -> 0
+    lengths, crossings = fray_lengths(model, tear.topology, state)
+    assert crossings.tolist() == [row[4], row[5]]
+    x = state.particle_position_m
+    expected = np.linalg.norm(x[row[4]] - x[row[3]]) + np.linalg.norm(x[row[3]] - x[row[2]])
+    assert lengths[0] == pytest.approx(expected, rel=1e-12) and lengths[0] == pytest.approx(2 * L, rel=0.05)
+    assert lengths[1] == 0.0
+    summary = tear.summary(state)
+    assert summary["fray_cut_ends"] == 2 and summary["fray_free_end_count"] == 1
+    assert summary["fray_max_free_end_m"] == pytest.approx(expected)
+    assert summary["broken_springs"] == 1 and summary["yarn_level_masses"] == 10
+    assert summary["connected_couples"] == 2 and summary["disconnected_couples"] == 3
+
+
+def test_fray_metric_matches_reference_on_random_tears():
+    rng = np.random.default_rng(3)
+    model, state, tear = make()
+    structural = np.nonzero((model.spring_kind == STRUCT_WEFT) | (model.spring_kind == STRUCT_WARP))[0]
+    tear.split(state, range(model.crossing_count))
+    state.particle_position_m += rng.normal(0.0, 0.2 * model.spacing_m, state.particle_position_m.shape)
+    for s in rng.choice(structural, 12, replace=False):
+        tear.cut(state, int(s))
+    for c in rng.choice(model.crossing_count, 25, replace=False):
+        tear.disconnect(state, int(c))
+    lengths, _ = fray_lengths(model, tear.topology, state)
+    ref = free_end_lengths_reference(model, state_dict(state))
+    np.testing.assert_allclose(lengths, ref, rtol=1e-12, atol=0)
+    assert (lengths > 0).sum() >= 3
