@@ -11,6 +11,7 @@ import statistics
 import sys
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 
 from fraytool.io.frame_store import FrameStore
@@ -57,6 +58,8 @@ def bench_simulation(spec, frames: int = DEFAULT_FRAMES, out_dir: Path | None = 
 
 def bench_command(args) -> int:
     spec = load_scene(args.scene)
+    if getattr(args, "self_collision", None):
+        spec = replace(spec, self_collision=replace(spec.self_collision, enabled=args.self_collision == "on"))
     frames = args.frames or DEFAULT_FRAMES
     result = bench_simulation(spec, frames)
     if args.render:

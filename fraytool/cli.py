@@ -56,6 +56,7 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("scene")
     b.add_argument("--frames", type=_positive_int, default=None, help="frames to time (default 20)")
     b.add_argument("--render", action="store_true", help="also time the render stages")
+    b.add_argument("--self-collision", choices=("on", "off"), help="override the scene's [self_collision] enabled")
     b.add_argument("--json", action="store_true")
 
     r = sub.add_parser("render", help="simulate (or reuse frames) and render PNG / MP4")

@@ -15,8 +15,9 @@ Pair rule (exact):
     common crossing mass, touch by construction.
 
 Algorithm (uniform grid, hashed, deterministic; O(n) work besides the pair tests inside cells):
-  1. cell size ``c`` = the largest box extent (or the caller's ``cell_size``), so a box covers at
-     most 2 cells per axis; cell of a coordinate ``x``: ``floor((x - origin) * (1 / c))``, a
+  1. cell size ``c`` = the mean box extent, at least 1/16 of the largest (or the caller's
+     ``cell_size``): a typical box covers 1-2 cells per axis and none more than 17, so a few long
+     (stretched, flailing) springs do not crowd every cell; cell of a coordinate ``x``: ``floor((x - origin) * (1 / c))``, a
      monotone function, so a box covers exactly the cells between those of its two corners.
   2. one entry (spring, cell) per covered cell; entries are bucketed by a hash of the cell with a
      stable counting sort over a power-of-two table (no comparison sort, no randomness).
@@ -116,7 +117,7 @@ def find_candidate_pairs_kernel(
 
     Args: positions (P, 3) float64 [m] at step start/end; spring_a, spring_b (S,) int32;
     spring_alive (S,) bool; spring_yarn (S,) int32 (< 0: not a yarn segment, never collides);
-    margin [m] added to every side of every box; cell_size [m] (<= 0: the largest box extent).
+    margin [m] added to every side of every box; cell_size [m] (<= 0: the mean box extent, >= largest / 16).
 
     Returns: (K, 2) int32, i < j, sorted lexicographically.
     """
@@ -143,19 +144,26 @@ def find_candidate_pairs_kernel(
     origin = np.empty(3)
     top = np.empty(3)
     extent = 0.0
+    extent_sum = 0.0
     for k in range(3):
         origin[k] = math.inf
         top[k] = -math.inf
     for p in range(n):
         s = active[p]
+        box_extent = 0.0
         for k in range(3):
             origin[k] = min(origin[k], box_lo[s, k])
             top[k] = max(top[k], box_hi[s, k])
-            extent = max(extent, box_hi[s, k] - box_lo[s, k])
+            box_extent = max(box_extent, box_hi[s, k] - box_lo[s, k])
+        extent = max(extent, box_extent)
+        extent_sum += box_extent
     scene = 0.0
     for k in range(3):
         scene = max(scene, top[k] - origin[k])
-    cell = cell_size if cell_size > 0.0 else extent
+    # Cell: the mean box extent, so a typical box covers 1-2 cells per axis and a cell holds a
+    # few boxes, whatever a handful of long (stretched, flailing) springs do; at least 1/16 of the
+    # largest extent, so no box covers more than 17 cells per axis.
+    cell = cell_size if cell_size > 0.0 else max(extent_sum / n, extent / 16.0)
     # Keep cell coordinates below 2^40 (and the size positive) for degenerate inputs.
     cell = max(cell, scene * 2.0**-40, 1e-300)
     inv_cell = 1.0 / cell
@@ -314,7 +322,7 @@ def find_candidate_pairs(
         margin: added to every side of every box [m] (use the contact thickness).
         spring_yarn: yarn id per spring, shape (S,), -1 for non-yarn springs (skipped);
             None: every live spring takes part.
-        cell_size: grid cell [m]; <= 0 picks the largest box extent.
+        cell_size: grid cell [m]; <= 0 picks the mean box extent (at least the largest / 16).
 
     Returns:
         (K, 2) int32 array of spring slots (i < j), sorted lexicographically; pairs sharing an

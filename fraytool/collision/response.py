@@ -6,8 +6,10 @@ start-of-step to its current end points. Three parts, as in Bridson, Fedkiw, And
 
 1. proximity: pairs closer than the contact distance d_c at the end of the step (broad phase on the
    end positions) are pushed apart along their separation to exactly d_c;
-2. collisions: `detect_edge_edge_collisions` (swept-box spatial hash + interval CCD at thickness 0,
-   fraytool.collision.ccd) finds pairs whose centre lines meet during the step, i.e. that pass
+2. collisions: the interval CCD at thickness 0 (fraytool.collision.ccd) on the candidate pairs of
+   a swept-box spatial hash inflated by a slack of spacing/4, rebuilt only when a particle has
+   moved further than the slack since the build or a split re-attached a spring, so the hash runs
+   every few steps, not every step, finds pairs whose centre lines meet during the step, i.e. that pass
    through each other. For each, in a fixed order (deterministic): the normal n is the direction
    between the closest points a = (1-s) x1 + s x2 and b = (1-u) x3 + u x4 at the contact time t
    (the side each yarn came from; falling back to the start of the step, then to the cross product
@@ -33,7 +35,7 @@ import numba as nb
 import numpy as np
 
 from fraytool.collision.broadphase import find_candidate_pairs_kernel
-from fraytool.collision.detect import detect_edge_edge_collisions_kernel
+from fraytool.collision.ccd import edge_edge_ccd_kernel
 from fraytool.sim.model import STRUCT_WARP, STRUCT_WEFT, Model
 
 CONTACT_FRACTION = 0.5
@@ -150,7 +152,7 @@ def repel_close_pairs(
     # model
     contact_distance_m, friction,
     # state in
-    x_start, candidates, spring_particle_a, spring_particle_b, particle_inv_mass,
+    x_start, candidates, spring_particle_a, spring_particle_b, spring_alive, particle_inv_mass,
     # state in/out
     x_end,
 ):
@@ -160,6 +162,8 @@ def repel_close_pairs(
     for k in range(candidates.shape[0]):
         i = candidates[k, 0]
         j = candidates[k, 1]
+        if not (spring_alive[i] and spring_alive[j]):
+            continue  # cut since the candidates were built
         i1, i2 = spring_particle_a[i], spring_particle_b[i]
         i3, i4 = spring_particle_a[j], spring_particle_b[j]
         s, u = closest_parameters(x_end[i1], x_end[i2], x_end[i3], x_end[i4])
@@ -171,6 +175,56 @@ def repel_close_pairs(
         if _correct_pair(contact_distance_m, friction, x_start, i1, i2, i3, i4, n, particle_inv_mass, x_end):
             moved += 1
     return moved
+
+
+@nb.njit(cache=True, fastmath=False)
+def ccd_pairs(x_start, x_end, candidates, spring_particle_a, spring_particle_b, spring_alive):
+    """Narrow phase at thickness 0 on candidate pairs: those whose centre lines meet during the
+    step, (K, 2) int32, and their earliest contact times (K,)."""
+    hit = np.zeros(candidates.shape[0], np.bool_)
+    t_hit = np.ones(candidates.shape[0])
+    for k in range(candidates.shape[0]):
+        i = candidates[k, 0]
+        j = candidates[k, 1]
+        if not (spring_alive[i] and spring_alive[j]):
+            continue  # cut since the candidates were built
+        i1, i2 = spring_particle_a[i], spring_particle_b[i]
+        i3, i4 = spring_particle_a[j], spring_particle_b[j]
+        hit[k], t_hit[k] = edge_edge_ccd_kernel(x_start[i1], x_start[i2], x_start[i3], x_start[i4],
+                                                x_end[i1], x_end[i2], x_end[i3], x_end[i4], 0.0)
+    return candidates[hit].copy(), t_hit[hit].copy()
+
+
+@nb.njit(cache=True, fastmath=False)
+def segment_boxes(x_start, x_end, spring_particle_a, spring_particle_b, segments):
+    """Axis-aligned boxes (lo, hi), shape (len(segments), 3) each, of the listed segments swept
+    from x_start to x_end."""
+    lo = np.empty((segments.shape[0], 3))
+    hi = np.empty((segments.shape[0], 3))
+    for k in range(segments.shape[0]):
+        a = spring_particle_a[segments[k]]
+        b = spring_particle_b[segments[k]]
+        for d in range(3):
+            lo[k, d] = min(min(x_start[a, d], x_start[b, d]), min(x_end[a, d], x_end[b, d]))
+            hi[k, d] = max(max(x_start[a, d], x_start[b, d]), max(x_end[a, d], x_end[b, d]))
+    return lo, hi
+
+
+@nb.njit(cache=True, fastmath=False)
+def segments_within(x_start, x_end, spring_particle_a, spring_particle_b, spring_alive, segments, box_lo, box_hi,
+                    slack):
+    """True if every live listed segment's end points, at the start and the end of the step, lie
+    within `slack` of its build box."""
+    for k in range(segments.shape[0]):
+        s = segments[k]
+        if not spring_alive[s]:
+            continue  # a cut segment collides with nothing
+        for p in (spring_particle_a[s], spring_particle_b[s]):
+            for d in range(3):
+                for x in (x_start[p, d], x_end[p, d]):
+                    if x < box_lo[k, d] - slack or x > box_hi[k, d] + slack:
+                        return False
+    return True
 
 
 @nb.njit(cache=True, fastmath=False)
@@ -203,6 +257,12 @@ class SelfCollision:
         self.spring_yarn = yarn_segment_ids(model)
         self.contact_distance_m = CONTACT_FRACTION * model.thickness_m
         self.iterations = model.self_collision_iterations
+        self.slack_m = 0.25 * model.spacing_m
+        self._cand = None
+        self.yarn_segments = np.nonzero(self.spring_yarn >= 0)[0].astype(np.int32)
+        self._box_lo = self._box_hi = None
+        self.broad_phase_builds = 0
+        """Extra broad-phase margin: candidates stay valid while corrections move no particle further."""
         self.friction = model.self_collision_friction
         self.pairs_last = 0
         """Crossing pairs found by the first CCD pass of the last step."""
@@ -213,34 +273,51 @@ class SelfCollision:
         self.cap_hits = 0
         """Steps that still had colliding pairs after the last pass."""
 
-    def _detect(self, state, prev_position_m):
-        return detect_edge_edge_collisions_kernel(
+    def _build(self, state, prev_position_m) -> None:
+        """Broad phase on the step's swept boxes inflated by d_c/2 + slack. The candidates stay
+        valid for later steps and after corrections while every end point of every yarn segment
+        stays within the slack of the box it had at the build (a split that re-attaches a segment
+        to a couple mass T/2 away keeps it): every box of a later step, inflated by d_c/2, then
+        lies inside its build box, so no pair outside the candidates can touch."""
+        x = state.particle_position_m
+        self._cand = find_candidate_pairs_kernel(prev_position_m, x, state.spring_particle_a,
+                                                 state.spring_particle_b, state.spring_alive, self.spring_yarn,
+                                                 0.5 * self.contact_distance_m + self.slack_m, 0.0)
+        self._box_lo, self._box_hi = segment_boxes(prev_position_m, x, state.spring_particle_a,
+                                                   state.spring_particle_b, self.yarn_segments)
+        self.broad_phase_builds += 1
+
+    def _valid(self, state, prev_position_m) -> bool:
+        return self._cand is not None and segments_within(
             prev_position_m, state.particle_position_m, state.spring_particle_a, state.spring_particle_b,
-            state.spring_alive, self.spring_yarn, 0.0)
+            state.spring_alive, self.yarn_segments, self._box_lo, self._box_hi, self.slack_m)
 
     def __call__(self, state, prev_position_m: np.ndarray, dt_s: float) -> None:
         x = state.particle_position_m
-        a, b, w = state.spring_particle_a, state.spring_particle_b, state.particle_inv_mass
-        close = find_candidate_pairs_kernel(x, x, a, b, state.spring_alive, self.spring_yarn,
-                                            0.5 * self.contact_distance_m, 0.0)
-        self.proximity_last = repel_close_pairs(self.contact_distance_m, self.friction, prev_position_m, close,
-                                                a, b, w, x)
+        a, b, w, alive = state.spring_particle_a, state.spring_particle_b, state.particle_inv_mass, state.spring_alive
+        if not self._valid(state, prev_position_m):
+            self._build(state, prev_position_m)
+        self.proximity_last = repel_close_pairs(self.contact_distance_m, self.friction, prev_position_m, self._cand,
+                                                a, b, alive, w, x)
         self.proximity_total += self.proximity_last
         self.pairs_last = 0
-        for it in range(self.iterations):
-            pairs, t = self._detect(state, prev_position_m)
+        for it in range(self.iterations + 1):
+            if (self.proximity_last or it) and not self._valid(state, prev_position_m):
+                self._build(state, prev_position_m)
+            pairs, t = ccd_pairs(prev_position_m, x, self._cand, a, b, alive)
             if it == 0:
                 self.pairs_last = len(pairs)
                 self.pairs_total += len(pairs)
             if len(pairs) == 0:
                 return
+            if it == self.iterations:
+                break
             respond_pairs(self.contact_distance_m, self.friction, prev_position_m, pairs, t, a, b, w, x)
-        pairs, _ = self._detect(state, prev_position_m)
-        if len(pairs):
-            self.cap_hits += 1
+        self.cap_hits += 1
         while len(pairs):  # each round returns more particles to where they started: it ends
             freeze_pairs(pairs, a, b, w, prev_position_m, x)
-            pairs, _ = self._detect(state, prev_position_m)
+            self._build(state, prev_position_m)
+            pairs, _ = ccd_pairs(prev_position_m, x, self._cand, a, b, alive)
 
     def summary(self) -> dict:
         return {"self_collision_pairs": self.pairs_total, "self_collision_proximity_pushes": self.proximity_total,
