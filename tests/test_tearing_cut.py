@@ -158,3 +158,25 @@ def test_fray_metric_matches_reference_on_random_tears():
     ref = free_end_lengths_reference(model, state_dict(state))
     np.testing.assert_allclose(lengths, ref, rtol=1e-12, atol=0)
     assert (lengths > 0).sum() >= 3
+
+
+def test_springs_are_cut_one_by_one_per_yarn():
+    """Two springs of one yarn over their limits in the same step: only the one furthest over
+    breaks (the yarn snaps once and relaxes); a spring of another yarn breaks in the same step."""
+    model, _, tear = make(yarn_level="false", spread=0.0)
+    W, n = model.warp_yarns, model.crossing_count
+    state = model.state()
+    x = state.particle_position_m
+    s1 = int(model.weft_structural_spring[2, 1])  # (1,2)-(2,2)
+    s2 = int(model.weft_structural_spring[2, 5])  # (5,2)-(6,2), same weft yarn
+    other = int(model.weft_structural_spring[4, 3])  # another weft yarn
+    cols = np.arange(n) % W
+    rows = np.arange(n) // W
+    row2 = rows == 2
+    x[:n][row2 & (cols >= 2), 0] += 0.30 * model.spacing_m  # s1 30 % over rest
+    x[:n][row2 & (cols >= 6), 0] += 0.25 * model.spacing_m  # s2 25 %
+    x[:n][(rows == 4) & (cols >= 4), 0] += 0.30 * model.spacing_m
+    tear(state, x.copy(), 2e-4)
+    assert state.spring_broken[s1] and not state.spring_broken[s2]
+    assert state.spring_broken[other]
+    assert state.spring_broken.sum() == 2

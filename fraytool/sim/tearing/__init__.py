@@ -96,7 +96,7 @@ class YarnTearing:
             if splits:
                 self._rebuild(state)
         _, cuts = cut_overstrained(
-            t.structural_springs, m.spring_rest_length_m, m.spring_break_strain, m.spring_twin,
+            t.structural_springs, t.structural_yarn, m.warp_yarns + m.weft_yarns, m.spring_rest_length_m, m.spring_break_strain, m.spring_twin,
             t.structural_bend_start, t.structural_bend_list, t.structural_shear_start, t.structural_shear_list,
             state.particle_position_m, state.spring_particle_a, state.spring_particle_b, state.spring_alive,
             state.spring_broken)

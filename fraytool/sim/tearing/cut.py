@@ -3,7 +3,8 @@
 Runs in stage 7 of the step, after strain limiting (stage 5), yarn contact and collisions, and
 after the transitions of the same step. Rules (docs/tearing.md "Cutting"):
 - A structural (yarn) spring is *broken* when its strain |x_b - x_a| / L - 1 exceeds its own break
-  strain `model.spring_break_strain[s]`, drawn once when the model is built from the scene seed:
+  strain `model.spring_break_strain[s]` and it is, of its yarn's springs over their limits, the
+  furthest over (one cut per yarn per step: "springs cut one by one"), drawn once when the model is built from the scene seed:
   Normal(break_strain, break_strain_spread), floored just above the transition strain. It gets
   spring_alive = False and spring_broken = True (the source of the `broken_springs` figure).
   Only yarn springs have a limit of their own: bend springs span two yarn springs and carry a
@@ -19,6 +20,7 @@ a split duplicates only a live shear spring. Serial in slot order: deterministic
 from __future__ import annotations
 
 import numba as nb
+import numpy as np
 
 
 @nb.njit(cache=True, fastmath=False)
@@ -56,18 +58,21 @@ def cut_structural(
 @nb.njit(cache=True, fastmath=False)
 def cut_overstrained(
     # model
-    structural_springs, spring_rest_length_m, spring_break_strain, spring_twin, structural_bend_start,
-    structural_bend_list, structural_shear_start, structural_shear_list,
+    structural_springs, structural_yarn, yarn_count, spring_rest_length_m, spring_break_strain, spring_twin,
+    structural_bend_start, structural_bend_list, structural_shear_start, structural_shear_list,
     # state in
     particle_position_m, spring_particle_a, spring_particle_b,
     # state in/out
     spring_alive, spring_broken,
 ):
-    """Break every live structural spring over its break strain, with its bend and shear springs.
-    Returns (structural springs broken, all springs cut). A spring within its limit costs one
-    squared length and a compare."""
-    yarn_cuts = 0
-    total = 0
+    """Break, on each yarn, the live structural spring furthest over its break strain (ratio of
+    length to break length; the lower slot on a tie), with its bend and shear springs: springs are
+    cut one by one (METHOD.md §1), so a yarn under tension snaps at its weakest point and the rest
+    of it relaxes before the next step instead of shattering into loose bits. Returns (structural
+    springs broken, all springs cut). A spring within its limit costs one squared length and a
+    compare."""
+    worst = np.zeros(yarn_count)
+    pick = np.full(yarn_count, -1, np.int64)
     for k in range(structural_springs.shape[0]):
         s = structural_springs[k]
         if not spring_alive[s]:
@@ -78,9 +83,20 @@ def cut_overstrained(
         dy = particle_position_m[b, 1] - particle_position_m[a, 1]
         dz = particle_position_m[b, 2] - particle_position_m[a, 2]
         limit = (1.0 + spring_break_strain[s]) * spring_rest_length_m[s]
-        if dx * dx + dy * dy + dz * dz <= limit * limit:
+        d2 = dx * dx + dy * dy + dz * dz
+        if d2 <= limit * limit:
+            continue
+        ratio = d2 / (limit * limit)
+        y = structural_yarn[k]
+        if ratio > worst[y]:
+            worst[y] = ratio
+            pick[y] = s
+    yarn_cuts = 0
+    total = 0
+    for y in range(yarn_count):
+        if pick[y] < 0:
             continue
         yarn_cuts += 1
-        total += cut_structural(s, spring_twin, structural_bend_start, structural_bend_list,
+        total += cut_structural(pick[y], spring_twin, structural_bend_start, structural_bend_list,
                                 structural_shear_start, structural_shear_list, spring_alive, spring_broken)
     return yarn_cuts, total
