@@ -8,6 +8,8 @@ over. The MP4 is encoded into a temp file and renamed only once complete (frayto
 """
 from __future__ import annotations
 
+import hashlib
+
 import sys
 import time
 from dataclasses import dataclass, field
@@ -31,6 +33,14 @@ class RenderResult:
     mp4: Optional[str] = None
     png_dir: Optional[str] = None
     stage_s: dict = field(default_factory=lambda: {"geometry": 0.0, "draw_readback": 0.0, "encode": 0.0})
+
+
+def frame_digest(job_digest: str, store: FrameStore, frame: int) -> str:
+    """Digest of one PNG's pixels: the job's settings and the bytes of the frame record it draws,
+    so a re-simulated frame (same scene, another fraytool) is drawn again, never reused stale."""
+    h = hashlib.sha256(job_digest.encode())
+    h.update(store.frame_path(frame).read_bytes())
+    return h.hexdigest()[:16]
 
 
 def reusable_png(job: RenderJob, frame: int, digest: str) -> bool:
@@ -58,7 +68,8 @@ def render_job(job: RenderJob, ctx: moderngl.Context, store: FrameStore, stream:
             writer = Mp4Writer(job.mp4_path, job.size, job.spec.time.fps, crf=job.spec.output.crf)
         for i, frame in enumerate(frames):
             t0 = time.perf_counter()
-            if job.png and reusable_png(job, frame, digest):
+            png_digest = frame_digest(digest, store, frame) if job.png else ""
+            if job.png and reusable_png(job, frame, png_digest):
                 image = read_png(job.png_path(frame)) if writer is not None else None
                 result.reused += 1
                 t2 = time.perf_counter()
@@ -71,7 +82,7 @@ def render_job(job: RenderJob, ctx: moderngl.Context, store: FrameStore, stream:
                 result.stage_s["geometry"] += t1 - t0
                 result.stage_s["draw_readback"] += t2 - t1
                 if job.png:
-                    write_png(job.png_path(frame), image, digest)
+                    write_png(job.png_path(frame), image, png_digest)
                 result.rendered += 1
             if writer is not None:
                 writer.write(image)
