@@ -160,7 +160,8 @@ edge = "right"
 @pytest.mark.parametrize("spread, straight", [(0.0, True), (0.03, False)])
 def test_random_break_limits_make_the_cut_ragged(spread, straight):
     # A strip pulled apart by its edges: with equal limits every weft yarn breaks in the same column
-    # (a knife cut); with the scene's spread they break in many columns.
+    # (a knife cut; the strip is symmetric, so it may cut at both grips: at most two straight
+    # cuts); with the scene's spread they break in many columns.
     from fraytool.scene import parse_scene
     from fraytool.sim.model import STRUCT_WEFT
 
@@ -169,6 +170,6 @@ def test_random_break_limits_make_the_cut_ragged(spread, straight):
     broken = np.nonzero(s.spring_broken & (m.spring_kind == STRUCT_WEFT))[0]
     assert len(broken) >= m.weft_yarns  # torn through
     columns = set((m.spring_crossing_a[broken] % m.warp_yarns).tolist())
-    assert (len(columns) == 1) == straight, sorted(columns)
+    assert (len(columns) <= 2) == straight, sorted(columns)
     if not straight:
         assert len(columns) >= 4

@@ -46,6 +46,15 @@ class StepHook(Protocol):
     def __call__(self, state: State, prev_position_m: np.ndarray, dt_s: float) -> None: ...
 
 
+def colour_ordered_structural_springs(model: Model) -> np.ndarray:
+    """Slots of the structural springs grouped by colour: weft springs (i, i+1) with i even, then
+    i odd, then warp springs (j, j+1) with j even, then j odd; ascending slots inside a group."""
+    weft = model.weft_structural_spring
+    warp = model.warp_structural_spring
+    groups = [weft[:, 0::2], weft[:, 1::2], warp[:, 0::2], warp[:, 1::2]]
+    return np.concatenate([np.sort(g.ravel()) for g in groups]).astype(np.int32)
+
+
 class SolverExplicitPBD:
     """Explicit Euler substeps with position-based constraints, as in METHOD.md §4."""
 
@@ -54,7 +63,10 @@ class SolverExplicitPBD:
         self.speed_limit_m_s = speed_limit_m_s
         """Guard: a particle faster than this [m/s] (or non-finite) stops the run."""
         kinds = model.spring_kind
-        self.limited_springs = np.nonzero((kinds == STRUCT_WEFT) | (kinds == STRUCT_WARP))[0].astype(np.int32)
+        self.limited_springs = colour_ordered_structural_springs(model)
+        """Structural springs in four colour groups (weft i even, weft i odd, warp j even, warp j odd):
+        no two springs of a group share a mass, so a sweep is order-independent inside each group
+        and strain limiting has no spatial sweep direction (STYLE.md §7)."""
         self._force = np.zeros((model.particle_count, 3))
         self._prev = np.zeros((model.particle_count, 3))
         self._impulse = np.zeros((model.body_count, 3))
