@@ -71,9 +71,16 @@ class FrameRecord:
         return FrameRecord(**kw)
 
 
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
 def atomic_write_bytes(path: Path, writer) -> None:
-    """Write a file atomically: `writer(fileobj)` fills a temp file in the same folder, which is
-    fsynced and renamed over `path`. A killed process leaves either the old file or the new one."""
+    """Write a file atomically: `writer(fileobj)` fills a temp file in the same folder, which gets
+    the usual permissions (0666 minus the umask; mkstemp makes 0600), is fsynced and renamed over
+    `path`. A killed process leaves either the old file or the new one, never a truncated one."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
@@ -81,6 +88,7 @@ def atomic_write_bytes(path: Path, writer) -> None:
         with os.fdopen(fd, "wb") as f:
             writer(f)
             f.flush()
+            os.fchmod(f.fileno(), 0o666 & ~_umask())
             os.fsync(f.fileno())
         os.replace(tmp, path)
     except BaseException:

@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import os
 import socket
-import tempfile
 from fractions import Fraction
 from pathlib import Path
 from typing import Optional
@@ -27,6 +26,7 @@ import numpy as np
 from PIL import Image, PngImagePlugin
 
 from fraytool.errors import InputError, RunError
+from fraytool.io.frame_record import atomic_write_bytes
 
 PNG_SETTINGS_KEY = "fraytool:render-settings"
 """tEXt key holding the digest of the settings a PNG was rendered with."""
@@ -44,40 +44,13 @@ def check_even(size: tuple[int, int], what: str = "MP4 size") -> None:
                          f"use e.g. {w + w % 2}x{h + h % 2}")
 
 
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
-
-
-def atomic_write(path: Path, writer) -> None:
-    """`writer(fileobj)` fills a temp file beside `path`, which is fsynced, given the usual
-    permissions (0666 minus the umask; mkstemp makes 0600) and renamed over `path`."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            writer(f)
-            f.flush()
-            os.fchmod(f.fileno(), 0o666 & ~_umask())
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
-
-
 def write_png(path: Path, image: np.ndarray, settings_digest: str = "") -> None:
     """Write an (H, W, 3) uint8 image as PNG atomically, tagged with `settings_digest`."""
     img = Image.fromarray(np.ascontiguousarray(image), mode="RGB")
     info = PngImagePlugin.PngInfo()
     if settings_digest:
         info.add_text(PNG_SETTINGS_KEY, settings_digest)
-    atomic_write(Path(path), lambda f: img.save(f, format="PNG", pnginfo=info,
+    atomic_write_bytes(Path(path), lambda f: img.save(f, format="PNG", pnginfo=info,
                                                       compress_level=PNG_COMPRESS_LEVEL))
 
 
