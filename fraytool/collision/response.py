@@ -34,6 +34,8 @@ import math
 import numba as nb
 import numpy as np
 
+from fraytool.segments import segment_closest_params
+
 from fraytool.collision.broadphase import find_candidate_pairs_kernel
 from fraytool.collision.ccd import edge_edge_ccd_kernel
 from fraytool.sim.model import STRUCT_WARP, STRUCT_WEFT, Model
@@ -42,33 +44,17 @@ CONTACT_FRACTION = 0.5
 """d_c = CONTACT_FRACTION x thickness."""
 
 
+@nb.njit(cache=True, fastmath=False, inline="always")
+def _dot(u, v):
+    """u . v of two 3-vectors (no BLAS: numba's `@` needs SciPy)."""
+    return u[0] * v[0] + u[1] * v[1] + u[2] * v[2]
+
+
 @nb.njit(cache=True, fastmath=False)
 def closest_parameters(p1, p2, p3, p4):
     """Parameters (s, u) in [0, 1]^2 of the closest points of segments p1p2 and p3p4."""
-    d1 = p2 - p1
-    d2 = p4 - p3
-    r = p1 - p3
-    a = d1 @ d1
-    e = d2 @ d2
-    f = d2 @ r
-    if a <= 1e-300 and e <= 1e-300:
-        return 0.0, 0.0
-    if a <= 1e-300:
-        return 0.0, min(max(f / e, 0.0), 1.0)
-    c = d1 @ r
-    if e <= 1e-300:
-        return min(max(-c / a, 0.0), 1.0), 0.0
-    b = d1 @ d2
-    denom = a * e - b * b
-    s = min(max((b * f - c * e) / denom, 0.0), 1.0) if denom > 1e-300 * a * e else 0.0
-    u = (b * s + f) / e
-    if u < 0.0:
-        u = 0.0
-        s = min(max(-c / a, 0.0), 1.0)
-    elif u > 1.0:
-        u = 1.0
-        s = min(max((b - c) / a, 0.0), 1.0)
-    return s, u
+    return segment_closest_params(p1[0], p1[1], p1[2], p2[0], p2[1], p2[2],
+                                  p3[0], p3[1], p3[2], p4[0], p4[1], p4[2])
 
 
 @nb.njit(cache=True, fastmath=False)
@@ -82,11 +68,11 @@ def _normal(xs, xe, i1, i2, i3, i4, t):
         p4 = xs[i4] + tt * (xe[i4] - xs[i4])
         s, u = closest_parameters(p1, p2, p3, p4)
         d = (1.0 - s) * p1 + s * p2 - (1.0 - u) * p3 - u * p4
-        length = math.sqrt(d @ d)
+        length = math.sqrt(_dot(d, d))
         if length > 1e-12:
             return d / length
     n = np.cross(xs[i2] - xs[i1], xs[i4] - xs[i3])
-    length = math.sqrt(n @ n)
+    length = math.sqrt(_dot(n, n))
     if length > 1e-300:
         return n / length
     return np.array([0.0, 0.0, 1.0])
@@ -103,15 +89,15 @@ def _correct_pair(contact_distance_m, friction, x_start, i1, i2, i3, i4, n, part
         return False  # all four ends held by bodies: nothing can move
     a = (1.0 - s) * x_end[i1] + s * x_end[i2]
     b = (1.0 - u) * x_end[i3] + u * x_end[i4]
-    gap = (a - b) @ n
+    gap = _dot(a - b, n)
     if gap >= contact_distance_m:
         return False
     lam = (contact_distance_m - gap) / denom
     a0 = (1.0 - s) * x_start[i1] + s * x_start[i2]
     b0 = (1.0 - u) * x_start[i3] + u * x_start[i4]
     rel = (a - a0) - (b - b0)
-    tang = rel - (rel @ n) * n
-    tl = math.sqrt(tang @ tang)
+    tang = rel - _dot(rel, n) * n
+    tl = math.sqrt(_dot(tang, tang))
     corr = lam * denom  # normal correction of the relative position
     scale = 0.0
     if tl > 0.0:
@@ -168,7 +154,7 @@ def repel_close_pairs(
         i3, i4 = spring_particle_a[j], spring_particle_b[j]
         s, u = closest_parameters(x_end[i1], x_end[i2], x_end[i3], x_end[i4])
         d = (1.0 - s) * x_end[i1] + s * x_end[i2] - (1.0 - u) * x_end[i3] - u * x_end[i4]
-        dist = math.sqrt(d @ d)
+        dist = math.sqrt(_dot(d, d))
         if dist >= contact_distance_m:
             continue
         n = d / dist if dist > 1e-12 else _normal(x_start, x_end, i1, i2, i3, i4, 0.0)
