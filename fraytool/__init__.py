@@ -9,3 +9,9 @@ Python API (see README):
     from fraytool.sim import build_model, SolverExplicitPBD
 """
 __version__ = "0.1.0"
+
+from pathlib import Path as _Path
+
+from fraytool._numba_cache import invalidate_stale_numba_cache as _invalidate
+
+_invalidate(_Path(__file__).parent)  # before any cached numba kernel is loaded

@@ -12,7 +12,7 @@ from fraytool.collision import (
     edge_edge_ccd,
     find_candidate_pairs,
 )
-from fraytool.collision.broadphase import swept_boxes_kernel
+from fraytool.collision.broadphase import candidate_pairs_of_segments_kernel, swept_boxes_kernel
 
 
 # --- helpers ------------------------------------------------------------------------------------
@@ -196,3 +196,43 @@ def test_detect_crossing_yarns():
     pairs, t = detect_edge_edge_collisions(x_start, x_end, a, b, alive, 0.6)
     assert [0, 4] in pairs.tolist() and len(pairs) > 1
     assert np.all(t < 0.5)
+
+
+# --- listed segments, buffer growth, degenerate grids -----------------------------------------
+@pytest.mark.parametrize("seed", [12, 13])
+def test_listed_segments_match_the_full_kernel(seed):
+    x_start, x_end, a, b, alive, yarn = random_scene(seed)
+    segments = np.nonzero(yarn >= 0)[0].astype(np.int32)  # dead ones included: skipped
+    got = candidate_pairs_of_segments_kernel(x_start, x_end, a, b, alive, segments, 0.01, 0.0)
+    assert np.array_equal(got, find_candidate_pairs(x_start, x_end, a, b, alive, 0.01, spring_yarn=yarn))
+    with pytest.raises(ValueError):
+        candidate_pairs_of_segments_kernel(x_start, x_end, a, b, alive, segments[::-1].copy(), 0.01, 0.0)
+
+
+def test_more_pairs_than_the_first_buffer():
+    # 150 short springs in a small cube with a large margin: nearly all 11175 pairs overlap, far
+    # more than the first pair buffer (2 n + 16) holds
+    rng = np.random.default_rng(14)
+    x = rng.random((300, 3)) * 0.1
+    a = np.arange(0, 300, 2, dtype=np.int32)
+    b = np.arange(1, 300, 2, dtype=np.int32)
+    alive = np.ones(150, bool)
+    got = find_candidate_pairs(x, x, a, b, alive, 0.05)
+    want = brute_force_pairs(x, x, a, b, alive, 0.05)
+    assert len(want) > 10000
+    assert np.array_equal(got, want)
+
+
+def test_tiny_cells_and_huge_coordinates():
+    x_start, x_end, a, b, alive, _ = random_scene(15, particles=100, springs=150)
+    # a cell far smaller than the boxes: coarsened (at most 4 n + 1024 columns), still exact
+    got = find_candidate_pairs(x_start, x_end, a, b, alive, 0.01, cell_size=1e-5)
+    assert np.array_equal(got, brute_force_pairs(x_start, x_end, a, b, alive, 0.01))
+    # coordinates near the float64 limit: the scene's extent overflows, one column, still exact
+    x_far = x_end.copy()
+    x_far[3] = [1e308, -1e308, 1e308]
+    x_far[4] = [-1e308, 1e308, -1e308]
+    x_near_far = x_start.copy()
+    x_near_far[10:13] = x_far[10:13] = 1e308  # boxes entirely at the far end too
+    got = find_candidate_pairs(x_near_far, x_far, a, b, alive, 0.0)
+    assert np.array_equal(got, brute_force_pairs(x_near_far, x_far, a, b, alive, 0.0))

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from fraytool.collision import NO_HIT_TIME, edge_edge_ccd, edge_edge_ccd_kernel, edge_edge_ccd_many
-from fraytool.collision._numba_cache import invalidate_stale_numba_cache
+from fraytool._numba_cache import invalidate_stale_numba_cache
 from fraytool.collision.boxqueue import ROW, queue_pop, queue_push
 from fraytool.collision.ccd import DELTA_REL
 from fraytool.collision.cubic import coplanarity_bernstein, cubic_range
@@ -397,3 +397,11 @@ def test_numba_cache_dropped_when_sources_change(tmp_path):
     (tmp_path / "mod.py").write_text("x = 2\n")
     invalidate_stale_numba_cache(tmp_path)  # edited: dropped
     assert not (cache / "mod.f-1.py311.nbi").exists()
+    sub = tmp_path / "sub" / "__pycache__"  # a kernel in a subpackage that calls mod.py
+    sub.mkdir(parents=True)
+    (sub / "k.g-1.py311.nbc").write_text("compiled against x = 2")
+    invalidate_stale_numba_cache(tmp_path)
+    assert (sub / "k.g-1.py311.nbc").exists()
+    (tmp_path / "mod.py").write_text("x = 3\n")
+    invalidate_stale_numba_cache(tmp_path)  # an edit anywhere drops the caches everywhere
+    assert not (sub / "k.g-1.py311.nbc").exists()

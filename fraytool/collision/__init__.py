@@ -10,20 +10,14 @@
 
 Detection only; the response (impulses / position correction) lives with the solver.
 """
-from pathlib import Path
-
-from fraytool.collision._numba_cache import invalidate_stale_numba_cache
-
-invalidate_stale_numba_cache(Path(__file__).parent)  # before any cached kernel is loaded
-
-from fraytool.collision.broadphase import find_candidate_pairs, find_candidate_pairs_kernel  # noqa: E402
-from fraytool.collision.ccd import (  # noqa: E402
+from fraytool.collision.broadphase import find_candidate_pairs, find_candidate_pairs_kernel
+from fraytool.collision.ccd import (
     NO_HIT_TIME,
     edge_edge_ccd,
     edge_edge_ccd_kernel,
     edge_edge_ccd_many,
 )
-from fraytool.collision.detect import (  # noqa: E402
+from fraytool.collision.detect import (
     detect_edge_edge_collisions,
     detect_edge_edge_collisions_kernel,
 )
