@@ -311,9 +311,11 @@ def repel_close_pairs(
 
 
 @nb.njit(cache=True, fastmath=False)
-def ccd_pairs(x_start, x_end, candidates, spring_particle_a, spring_particle_b, spring_alive):
+def ccd_pairs(x_start, x_end, candidates, spring_particle_a, spring_particle_b, spring_alive, moved=None):
     """Narrow phase at thickness 0 on candidate pairs: those whose centre lines meet during the
-    step, (K, 2) int32, and their earliest contact times (K,)."""
+    step, (K, 2) int32, and their earliest contact times (K,). With `moved` (a flag per particle),
+    only pairs with a flagged end point are tested: the others were tested already with the same
+    positions and did not hit."""
     hit = np.zeros(candidates.shape[0], np.bool_)
     t_hit = np.ones(candidates.shape[0])
     seg = np.empty((4, 3))
@@ -324,6 +326,8 @@ def ccd_pairs(x_start, x_end, candidates, spring_particle_a, spring_particle_b, 
             continue  # cut since the candidates were built
         i1, i2 = spring_particle_a[i], spring_particle_b[i]
         i3, i4 = spring_particle_a[j], spring_particle_b[j]
+        if moved is not None and not (moved[i1] or moved[i2] or moved[i3] or moved[i4]):
+            continue  # unchanged since the last pass, which found no hit here
         if _share_end(i1, i2, i3, i4) or _apart_swept(x_start, x_end, i1, i2, i3, i4):
             continue  # (the CCD would report no hit)
         gap, scale = _plane_gap(x_start, x_end, i1, i2, i3, i4, seg)
@@ -732,10 +736,12 @@ class SelfCollision:
                                                       self._cand, a, b, alive, w, self._reach, x)
         self.proximity_total += self.proximity_last
         self.pairs_last = 0
+        moved = None  # first pass: every candidate
         for it in range(self.iterations + 1):
-            if left:  # a correction moved an end point out of its reach
+            if left:  # a correction moved an end point out of its reach: candidates may change
                 self._ensure_valid(state, prev_position_m)
-            pairs, t = ccd_pairs(prev_position_m, x, self._cand, a, b, alive)
+                moved = None
+            pairs, t = ccd_pairs(prev_position_m, x, self._cand, a, b, alive, moved)
             if it == 0:
                 self.pairs_last = len(pairs)
                 self.pairs_total += len(pairs)
@@ -743,8 +749,10 @@ class SelfCollision:
                 return
             if it == self.iterations:
                 break
+            before = x.copy()
             _, left = respond_pairs(self.contact_distance_m, self.friction, prev_position_m, pairs, t, a, b, w,
                                     self._reach, x)
+            moved = np.any(x != before, axis=1)  # later passes test only pairs these particles touch
         self.cap_hits += 1
         while len(pairs):  # each round returns more particles to where they started: it ends
             freeze_pairs(pairs, a, b, w, prev_position_m, x)
