@@ -3,12 +3,13 @@
 - :func:`edge_edge_ccd`, :func:`edge_edge_ccd_kernel`, :func:`edge_edge_ccd_many`: conservative
   edge-edge continuous collision detection over one step (narrow phase,
   :mod:`fraytool.collision.ccd`).
-- :func:`find_candidate_pairs`: swept-box spatial hash (broad phase,
+- :func:`find_candidate_pairs`: swept-box sort-and-sweep in grid columns (broad phase,
   :mod:`fraytool.collision.broadphase`).
 - :func:`detect_edge_edge_collisions`: broad + narrow phase for all springs
   (:mod:`fraytool.collision.detect`).
 
-Detection only; the response (impulses / position correction) lives with the solver.
+The response (proximity, inelastic correction with friction, failsafe) is
+:mod:`fraytool.collision.response`, which the solver loads only for scenes with self-collision on.
 """
 from fraytool.collision.broadphase import find_candidate_pairs, find_candidate_pairs_kernel
 from fraytool.collision.ccd import (
