@@ -622,11 +622,7 @@ def freeze_pairs(pairs, spring_particle_a, spring_particle_b, particle_inv_mass,
 
 def yarn_segment_ids(model: Model) -> np.ndarray:
     """Yarn id of every spring slot: weft yarn j -> j, warp yarn i -> weft_yarns + i, others -1."""
-    yarn = np.full(model.spring_count, -1, np.int32)
-    weft = model.weft_structural_spring
-    warp = model.warp_structural_spring
-    yarn[weft.ravel()] = np.repeat(np.arange(weft.shape[0], dtype=np.int32), weft.shape[1])
-    yarn[warp.ravel()] = model.weft_yarns + np.repeat(np.arange(warp.shape[0], dtype=np.int32), warp.shape[1])
+    yarn = model.spring_yarn()
     assert ((model.spring_kind == STRUCT_WEFT) | (model.spring_kind == STRUCT_WARP)).sum() == (yarn >= 0).sum()
     return yarn
 

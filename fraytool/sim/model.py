@@ -145,6 +145,15 @@ class Model:
     def attachment_count(self) -> int:
         return int(self.attachment_particle.shape[0])
 
+    def spring_yarn(self) -> np.ndarray:
+        """Yarn of every spring slot: weft yarn j -> j, warp yarn i -> weft_yarns + i, -1 for springs
+        that are not yarn segments (bend, shear), shape (spring_count,), int32."""
+        yarn = np.full(self.spring_count, -1, np.int32)
+        weft, warp = self.weft_structural_spring, self.warp_structural_spring
+        yarn[weft.ravel()] = np.repeat(np.arange(weft.shape[0], dtype=np.int32), weft.shape[1])
+        yarn[warp.ravel()] = self.weft_yarns + np.repeat(np.arange(warp.shape[0], dtype=np.int32), warp.shape[1])
+        return yarn
+
     def state(self) -> "State":
         """A fresh State at rest in the initial configuration."""
         from fraytool.sim.state import initial_state

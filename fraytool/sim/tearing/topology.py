@@ -104,15 +104,12 @@ def build_tear_topology(model: Model) -> TearTopology:
     s_start, s_list = _csr(cell_border[orig].ravel().astype(np.int64), np.repeat(orig, 4), S)
 
     structural = np.nonzero((kind == STRUCT_WEFT) | (kind == STRUCT_WARP))[0].astype(np.int32)
-    yarn_of = np.full(S, -1, np.int32)
-    yarn_of[weft.ravel()] = np.repeat(np.arange(weft.shape[0], dtype=np.int32), weft.shape[1])
-    yarn_of[warp.ravel()] = model.weft_yarns + np.repeat(np.arange(warp.shape[0], dtype=np.int32), warp.shape[1])
     return TearTopology(
         crossing_spring_start=c_start,
         crossing_spring_list=c_list,
         crossing_attached=attached,
         structural_springs=structural,
-        structural_yarn=yarn_of[structural],
+        structural_yarn=model.spring_yarn()[structural],
         structural_bend_start=b_start,
         structural_bend_list=b_list,
         structural_shear_start=s_start,
