@@ -59,3 +59,63 @@ def assert_arrays_equal(expected: dict, actual: dict, names=None) -> None:
         if a.shape != b.shape or a.dtype != b.dtype or a.tobytes() != b.tobytes():
             diff = np.argwhere(a != b)[:3] if a.shape == b.shape else "shape"
             raise AssertionError(f"array {name!r} differs (first differing indices: {diff})")
+
+
+PULLED_STRIP = """
+[scene]
+name = "{name}"
+seed = 1
+[time]
+step_s = 2e-4
+steps_per_frame = 20
+frames = 40
+fps = 24
+[world]
+gravity_m_s2 = [0.0, 0.0, 0.0]
+[cloth]
+warp_yarns = 24
+weft_yarns = 10
+spacing_m = 0.004
+thickness_m = 0.0006
+mass_per_crossing_kg = 5e-6
+origin_m = [0.0, 0.0, 0.0]
+plane = "xy"
+weave = "plain"
+[cloth.springs]
+structural_n_per_m = 40.0
+bend_n_per_m = 1.0
+shear_n_per_m = 5.0
+damping = 0.02
+[cloth.tearing]
+enabled = true
+yarn_level = {yarn_level}
+transition_strain = 0.12
+break_strain = 0.18
+break_strain_spread = {spread}
+{extra}[[bodies]]
+name = "left"
+shape = "box"
+half_extents_m = [0.002, 0.03, 0.002]
+position_m = [0.0, 0.018, 0.0]
+collide = false
+[[bodies]]
+name = "right"
+shape = "box"
+half_extents_m = [0.002, 0.03, 0.002]
+position_m = [0.092, 0.018, 0.0]
+motion = "kinematic"
+path = [[0.0, 0.092, 0.018, 0.0], [0.15, 0.122, 0.018, 0.0]]
+collide = false
+[[attachments]]
+body = "left"
+edge = "left"
+[[attachments]]
+body = "right"
+edge = "right"
+"""
+
+
+def pulled_strip_text(name="strip", yarn_level=False, spread=0.03, extra="") -> str:
+    """A 24 x 10 strip, no gravity, held by a bar at its left edge while a bar pulls its right
+    edge away: it tears. `extra` is inserted after [cloth.tearing] (e.g. a [self_collision] table)."""
+    return PULLED_STRIP.format(name=name, yarn_level="true" if yarn_level else "false", spread=spread, extra=extra)

@@ -7,6 +7,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from helpers import pulled_strip_text
+
 from fraytool.scene import parse_scene
 from fraytool.sim import Simulation
 from fraytool.sim.model import STRUCT_WARP, STRUCT_WEFT
@@ -108,60 +110,6 @@ def test_checker_detects_a_crossing():
     assert crossed_pairs(x0, short, sa, sb, 1e-9) == []
 
 
-TORN_STRIP = """
-[scene]
-name = "torn_strip"
-seed = 1
-[time]
-step_s = 2e-4
-steps_per_frame = 20
-frames = 40
-fps = 24
-[world]
-gravity_m_s2 = [0.0, 0.0, 0.0]
-[cloth]
-warp_yarns = 24
-weft_yarns = 10
-spacing_m = 0.004
-thickness_m = 0.0006
-mass_per_crossing_kg = 5e-6
-origin_m = [0.0, 0.0, 0.0]
-plane = "xy"
-weave = "plain"
-[cloth.springs]
-structural_n_per_m = 40.0
-bend_n_per_m = 1.0
-shear_n_per_m = 5.0
-damping = 0.02
-[cloth.tearing]
-enabled = true
-yarn_level = true
-transition_strain = 0.12
-break_strain = 0.18
-break_strain_spread = 0.03
-[self_collision]
-enabled = true
-[[bodies]]
-name = "left"
-shape = "box"
-half_extents_m = [0.002, 0.03, 0.002]
-position_m = [0.0, 0.018, 0.0]
-collide = false
-[[bodies]]
-name = "right"
-shape = "box"
-half_extents_m = [0.002, 0.03, 0.002]
-position_m = [0.092, 0.018, 0.0]
-motion = "kinematic"
-path = [[0.0, 0.092, 0.018, 0.0], [0.15, 0.122, 0.018, 0.0]]
-collide = false
-[[attachments]]
-body = "left"
-edge = "left"
-[[attachments]]
-body = "right"
-edge = "right"
-"""
 
 
 def _pairs_the_step_can_act_on(state, prev, yarn, contact_distance):
@@ -183,7 +131,9 @@ def test_kept_candidates_cover_every_pair_while_tearing():
     """The broad phase's candidates are kept across steps, re-boxed where segments leave their slack
     and patched where splits re-attach segments (module docstring of fraytool.collision.response):
     after every validation, in a strip torn at yarn level, they hold every pair the step can act on."""
-    sim = Simulation(parse_scene(TORN_STRIP, "torn_strip.toml"))
+    sim = Simulation(parse_scene(pulled_strip_text("torn_strip", yarn_level=True,
+                                                    extra="[self_collision]\nenabled = true\n"),
+                                  "torn_strip.toml"))
     sc = sim.solver.self_collision
     checked = []
     ensure = sc._ensure_valid

@@ -6,6 +6,8 @@ import dataclasses
 import numpy as np
 import pytest
 
+from helpers import pulled_strip_text
+
 from fraytool.io.frame_record import FrameRecord
 from fraytool.scene import load_scene
 from fraytool.sim import Simulation
@@ -103,58 +105,6 @@ def test_resuming_from_a_saved_state_continues_the_same_tear(torn, tmp_path):
     assert isinstance(resumed.record(), FrameRecord)
 
 
-STRIP = """
-[scene]
-name = "strip"
-seed = 1
-[time]
-step_s = 2e-4
-steps_per_frame = 20
-frames = 40
-fps = 24
-[world]
-gravity_m_s2 = [0.0, 0.0, 0.0]
-[cloth]
-warp_yarns = 24
-weft_yarns = 10
-spacing_m = 0.004
-thickness_m = 0.0006
-mass_per_crossing_kg = 5e-6
-origin_m = [0.0, 0.0, 0.0]
-plane = "xy"
-weave = "plain"
-[cloth.springs]
-structural_n_per_m = 40.0
-bend_n_per_m = 1.0
-shear_n_per_m = 5.0
-damping = 0.02
-[cloth.tearing]
-enabled = true
-yarn_level = false
-transition_strain = 0.12
-break_strain = 0.18
-break_strain_spread = {spread}
-[[bodies]]
-name = "left"
-shape = "box"
-half_extents_m = [0.002, 0.03, 0.002]
-position_m = [0.0, 0.018, 0.0]
-collide = false
-[[bodies]]
-name = "right"
-shape = "box"
-half_extents_m = [0.002, 0.03, 0.002]
-position_m = [0.092, 0.018, 0.0]
-motion = "kinematic"
-path = [[0.0, 0.092, 0.018, 0.0], [0.15, 0.122, 0.018, 0.0]]
-collide = false
-[[attachments]]
-body = "left"
-edge = "left"
-[[attachments]]
-body = "right"
-edge = "right"
-"""
 
 
 @pytest.mark.parametrize("spread, straight", [(0.0, True), (0.03, False)])
@@ -165,7 +115,7 @@ def test_random_break_limits_make_the_cut_ragged(spread, straight):
     from fraytool.scene import parse_scene
     from fraytool.sim.model import STRUCT_WEFT
 
-    sim = run(parse_scene(STRIP.format(spread=spread), "strip.toml"), frames=40)
+    sim = run(parse_scene(pulled_strip_text(spread=spread), "strip.toml"), frames=40)
     m, s = sim.model, sim.state
     broken = np.nonzero(s.spring_broken & (m.spring_kind == STRUCT_WEFT))[0]
     assert len(broken) >= m.weft_yarns  # torn through
