@@ -12,8 +12,12 @@ What a step changes (positions, alive flags, spring end points after a split) li
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from fraytool.sim.state import State
 
 # Spring kinds (spring_kind values).
 STRUCT_WEFT = 0

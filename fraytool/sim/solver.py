@@ -24,7 +24,7 @@ from fraytool.sim.kernels.forces import accumulate_spring_forces
 from fraytool.sim.kernels.integrate import integrate_positions, integrate_velocities, velocities_from_positions
 from fraytool.sim.kernels.rigid_contact import collide_rigid
 from fraytool.sim.kernels.strain_limit import limit_strain
-from fraytool.sim.model import MOTION_DYNAMIC, STRUCT_WARP, STRUCT_WEFT, Model
+from fraytool.sim.model import MOTION_DYNAMIC, Model
 from fraytool.sim.rigid import advance_bodies, apply_cloth_impulse
 from fraytool.sim.state import State
 
@@ -62,7 +62,6 @@ class SolverExplicitPBD:
         self.model = model
         self.speed_limit_m_s = speed_limit_m_s
         """Guard: a particle faster than this [m/s] (or non-finite) stops the run."""
-        kinds = model.spring_kind
         self.limited_springs = colour_ordered_structural_springs(model)
         """Structural springs in four colour groups (weft i even, weft i odd, warp j even, warp j odd):
         no two springs of a group share a mass, so a sweep is order-independent inside each group

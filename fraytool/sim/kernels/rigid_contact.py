@@ -15,7 +15,7 @@ import math
 import numba as nb
 import numpy as np
 
-from fraytool.sim.model import SHAPE_BOX, SHAPE_PLANE, SHAPE_SPHERE
+from fraytool.sim.model import SHAPE_PLANE, SHAPE_SPHERE
 
 
 @nb.njit(cache=True, fastmath=False)
