@@ -28,7 +28,8 @@ from fraytool.collision import (  # noqa: E402
     edge_edge_ccd_many,
     find_candidate_pairs,
 )
-from fraytool.collision.queries import load_ccd_query_dir  # noqa: E402
+sys.path.insert(0, str(ROOT / "tests"))  # the sample-query reader is test code (tests/ccd_queries.py)
+from ccd_queries import load_ccd_query_dir  # noqa: E402
 
 DATA_DIR = ROOT / "tests" / "data" / "ccd-sample-queries"
 

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fraytool.collision import response as resp
+from fraytool.sim.stages import self_collision as resp  # the stage module: wrapping its names times its calls
 from fraytool.collision.broadphase import candidate_pairs_of_segments_kernel, find_candidate_pairs_kernel
 from fraytool.scene import load_scene
 from fraytool.sim import Simulation

@@ -1,7 +1,7 @@
 """fraytool: woven cloth that tears with frayed edges, simulated at yarn level and rendered headless.
 
 Method: N. Metaaphanon, Y. Bando, B.-Y. Chen, T. Nishita, "Simulation of Tearing Cloth with Frayed
-Edges", Pacific Graphics 2009 (restated in docs and in ../shared/paper/METHOD.md).
+Edges", Pacific Graphics 2009 (restated in our words in docs/method.md).
 
 Python API (see README):
 

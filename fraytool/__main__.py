@@ -1,4 +1,4 @@
 """`python -m fraytool` runs the command line."""
-from fraytool.cli import main
+from fraytool.commands.main import main
 
 raise SystemExit(main())

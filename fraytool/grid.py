@@ -8,7 +8,7 @@ import numpy as np
 
 
 def crossing_normals(crossing_position_m: np.ndarray, warp_yarns: int, weft_yarns: int) -> np.ndarray:
-    """Unit cloth normal n_c at every crossing (METHOD.md §3.3, Fig. 3a).
+    """Unit cloth normal n_c at every crossing (docs/method.md §3.3, Fig. 3a).
 
     n_c = normalise((x_{i+1,j} - x_{i-1,j}) x (x_{i,j+1} - x_{i,j-1})), with one-sided differences
     at the border. Degenerate crossings (neighbours collinear) get (0, 0, 0) replaced by the mean
@@ -37,6 +37,6 @@ def crossing_normals(crossing_position_m: np.ndarray, warp_yarns: int, weft_yarn
 def base_yarn_points(crossing_position_m: np.ndarray, normals: np.ndarray, weft_on_top: np.ndarray,
                      thickness_m: float) -> tuple[np.ndarray, np.ndarray]:
     """(weft point, warp point) of each base-level crossing: x ± (T/2) n_c, the weft going up where
-    the weave puts it on top (METHOD.md §3.4 and §5)."""
+    the weave puts it on top (docs/method.md §3.4 and §5)."""
     s = np.where(weft_on_top, 0.5 * thickness_m, -0.5 * thickness_m)[:, None]
     return crossing_position_m + s * normals, crossing_position_m - s * normals

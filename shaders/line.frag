@@ -1,5 +1,5 @@
 #version 330 core
-// Base-model springs purple, yarn-level springs blue (METHOD.md §6, Fig. 8), linear RGB.
+// Base-model springs purple, yarn-level springs blue (docs/method.md §6, Fig. 8), linear RGB.
 
 uniform vec3 u_base_color;
 uniform vec3 u_yarn_color;

@@ -6,8 +6,10 @@
   (fraytool.render.context.create_context). This is the only place tests create a context; every
   test that uses it is checked for a clean GL error state afterwards.
 - Synthetic frames for the renderer: the model of a small scene, posed analytically (flat, draped
-  over a ball, torn with yarn-level crossings and cut springs). Tearing is not simulated yet, and
-  the renderer must be pinned independently of the solver, so tests pose frames themselves.
+  over a ball, torn with yarn-level crossings and cut springs). Tearing is simulated
+  (fraytool.sim.tearing), but the renderer is pinned independently of the solver: its tests pose
+  frames themselves, so a rendering test knows exactly what it draws and a change to the solver or
+  the tearing model cannot move a golden image.
 """
 from __future__ import annotations
 
@@ -54,14 +56,14 @@ class PosedCloth:
     """A built scene and helpers to pose its frame records by hand."""
 
     def __init__(self, scene_path: Path):
-        from fraytool.io.frame_record import FrameRecord
         from fraytool.scene import load_scene
         from fraytool.sim.builder import build_model
+        from fraytool.sim.record import frame_record
 
         self.spec = load_scene(scene_path)
         self.model = build_model(self.spec)
         self.topology = self.model.arrays()
-        self.rest = FrameRecord.from_state(self.model, self.model.state(), 0)
+        self.rest = frame_record(self.model, self.model.state(), 0)
         self.W = self.model.warp_yarns
         self.H = self.model.weft_yarns
         self.C = self.model.crossing_count
@@ -120,7 +122,7 @@ class PosedCloth:
                 rec.particle_position_m[c] = weft[c] + pull
                 rec.particle_position_m[C + c] = warp[c] + 0.3 * pull
         # structural springs of yarn-level crossings end on the couple's masses
-        from fraytool.sim.model import BEND_WARP, STRUCT_WARP
+        from fraytool.kinds import BEND_WARP, STRUCT_WARP
 
         kind = self.topology["spring_kind"]
         level = rec.crossing_yarn_level

@@ -5,7 +5,7 @@ import sys
 
 import pytest
 
-from fraytool.cli import main
+from fraytool.commands.main import main
 from helpers import small_scene_text
 
 GOOD = small_scene_text()

@@ -1,4 +1,4 @@
-"""Tests of the edge-edge CCD narrow phase (fraytool.collision.ccd, METHOD.md §4.2).
+"""Tests of the edge-edge CCD narrow phase (fraytool.collision.ccd, docs/method.md §4.2).
 
 The sample queries (tests/data/ccd-sample-queries, a subset of the Wang et al. 2021 benchmark)
 must give zero false negatives; the false-positive count and the time per query are printed
@@ -20,8 +20,8 @@ from fraytool.collision.boxqueue import ROW, queue_pop, queue_push
 from fraytool.collision.ccd import DELTA_REL
 from fraytool.collision.cubic import coplanarity_bernstein, cubic_range
 from fraytool.collision.interval import round_down, round_up
-from fraytool.collision.queries import load_ccd_query_dir
-from fraytool.collision.segment import segment_closest_params
+from ccd_queries import load_ccd_query_dir
+from fraytool.collision.segment import segment_closest_params_rows
 
 DATA_DIR = Path(__file__).parent / "data" / "ccd-sample-queries"
 QUERY_COUNT = 1324
@@ -378,7 +378,7 @@ def test_segment_closest_params_matches_oracle():
         seg = rng.uniform(-1, 1, (4, 3))
         if rng.random() < 0.2:  # parallel
             seg[3] = seg[2] + 0.7 * (seg[1] - seg[0])
-        u, v = segment_closest_params(seg)
+        u, v = segment_closest_params_rows(seg)
         d = np.linalg.norm(seg[0] + u * (seg[1] - seg[0]) - seg[2] - v * (seg[3] - seg[2]))
         assert 0.0 <= u <= 1.0 and 0.0 <= v <= 1.0
         assert d <= segment_distance(seg[0], seg[1], seg[2], seg[3]) + 1e-12

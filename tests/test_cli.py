@@ -4,7 +4,7 @@ import subprocess
 import sys
 
 from fraytool import __version__
-from fraytool.cli import main
+from fraytool.commands.main import main
 from helpers import small_scene_text
 
 

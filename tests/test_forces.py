@@ -3,7 +3,7 @@ import numpy as np
 
 from fraytool.sim import build_model
 from fraytool.sim.kernels.forces import accumulate_spring_forces
-from fraytool.sim.model import SHEAR, SHEAR_TWIN
+from fraytool.kinds import SHEAR, SHEAR_TWIN
 from helpers import small_scene
 
 TOL = 1e-12

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from fraytool.io.frame_store import FrameStore
-from fraytool.run import simulate_to_disk
+from fraytool.sim.run import simulate_to_disk
 from helpers import assert_arrays_equal, small_scene, small_scene_text
 
 BALL = """

@@ -9,13 +9,14 @@ import numpy as np
 import pytest
 
 import fraytool.sim.simulation as simulation_module
-from fraytool.cli import main
+from fraytool.commands.main import main
 from fraytool.io.frame_store import FrameStore
-from fraytool.run import simulate_to_disk
+from fraytool.sim.run import simulate_to_disk
 from fraytool.scene import load_scene, parse_scene
 from fraytool.sim import Simulation, SimulationUnstable
-from fraytool.sim.guard import LAST_GOOD_STATE, UNSTABLE_JSON, StageFailure, make_stage_check
-from fraytool.sim.kernels.forces import accumulate_spring_forces
+from fraytool.io.failure import LAST_GOOD_STATE, UNSTABLE_JSON
+from fraytool.sim.guard import StageFailure, make_stage_check
+from fraytool.sim.stages import HookStage
 from fraytool.sim.state import State
 
 SCENE = """
@@ -60,14 +61,15 @@ def _poison_position(state, prev, dt):
 
 
 def _with_hook(monkeypatch, slot: str, hook):
-    original = simulation_module.make_solver
+    """Every solver the simulation makes runs `hook` as an extra stage at `slot`."""
+    original = simulation_module.SolverExplicitPBD
 
-    def make(model):
-        solver = original(model)
-        setattr(solver, slot, hook)
-        return solver
+    class Hooked(original):
+        def __init__(self, model, *args, **kwargs):
+            super().__init__(model, *args, **kwargs)
+            self.insert_stage(HookStage(slot, hook))
 
-    monkeypatch.setattr(simulation_module, "make_solver", make)
+    monkeypatch.setattr(simulation_module, "SolverExplicitPBD", Hooked)
 
 
 def _strict_json(path: Path) -> dict:
@@ -120,7 +122,8 @@ def test_injected_nan_stops_the_run_and_no_nan_frame_is_written(tmp_path, monkey
     with np.load(out / "frames" / LAST_GOOD_STATE) as d:
         last = State.from_arrays(d)
     assert last.step_index == INJECT_STEP and np.isfinite(last.particle_position_m).all()
-    frame, state = store.load_checkpoint()
+    frame, arrays = store.load_checkpoint()
+    state = State.from_arrays(arrays)
     sim = Simulation(parse_scene(SCENE, "guarded.toml"), state=state, frame=frame)
     for _ in range(INJECT_STEP - state.step_index):
         sim.step()
@@ -171,10 +174,10 @@ def test_stage_check_flags_non_finite_forces():
     sim.step()
     solver, state = sim.solver, sim.state
     check = make_stage_check(solver, state, sim.dt_s)
-    check("forces", accumulate_spring_forces)  # all sane: nothing raised
-    solver._force[5, 0] = np.inf
+    check("forces", "accumulate_spring_forces")  # all sane: nothing raised
+    solver.buffers.force_n[5, 0] = np.inf
     with pytest.raises(StageFailure) as info:
-        check("forces", accumulate_spring_forces)
+        check("forces", "accumulate_spring_forces")
     assert info.value.diagnostic["particle"] == 5 and info.value.diagnostic["kernel"] == "accumulate_spring_forces"
 
 

@@ -16,7 +16,7 @@ for _ in sim.frames(3):
 print(json.dumps({
     "rigid": len(rigid_contact.collide_rigid.signatures),
     "attach": len(attachments.apply_attachments.signatures),
-    "solver_has_rigid": sim.solver.has_rigid_contact,
+    "solver_has_rigid": any(s.name == "collisions" for s in sim.solver.stages),
     "tearing": sim.solver.tearing is not None,
     "self_collision": sim.solver.self_collision is not None,
     "modules": sorted(m for m in sys.modules if m.startswith("fraytool.sim.tearing") or m.startswith("fraytool.collision")),

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from fraytool.cli import main
+from fraytool.commands.main import main
 from test_render_encode import probe
 
 SCENE = Path(__file__).resolve().parent / "scenes" / "golden_small.toml"   # 4 frames at 24 fps
@@ -96,7 +96,7 @@ def test_no_gl_context_exits_1_before_simulating(tmp_path, capsys, monkeypatch):
 
 
 def test_bench_render_stage_timings(tmp_path):
-    from fraytool.render.bench import render_stage_timings
+    from fraytool.commands.render_bench import render_stage_timings
     from fraytool.scene import load_scene
 
     t = render_stage_timings(load_scene(SCENE), tmp_path, frames=3, resolution=(64, 48), samples=4)

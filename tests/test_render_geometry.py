@@ -174,9 +174,29 @@ def test_translucent_mask_matches_the_triangles_vertices():
     assert expected.any() and not expected.all()
 
 
-def test_triangle_cache_layout_is_independent_of_positions():
-    off = np.array([0, 5, 9])
-    assert np.array_equal(tube_triangles(off, 4), tube_triangles(off.copy(), 4))
+def test_triangle_index_buffer_is_the_documented_layout():
+    """Two pieces of 3 and 2 samples, 3 sides, written out by hand from the layout in the
+    fraytool.render.tube docstring: ring vertex k * 3 + q is side q of sample k (15 of them), then
+    per piece a start cap (centre, 3 rim) and an end cap (centre, 3 rim): 15-18 and 19-22 for
+    piece 0, 23-26 and 27-30 for piece 1. Quad (a, b, c, d) = (sample k side q, k side q+1,
+    k+1 side q, k+1 side q+1) gives triangles (a, b, c) and (b, d, c); start caps (centre, q+1, q)
+    face -T, end caps (centre, q, q+1) face +T. No quad joins sample 2 to sample 3 (another piece).
+    The buffer depends on nothing but the sample counts, so a renderer can cache it."""
+    expected = [
+        # piece 0, samples 0-1
+        [0, 1, 3], [1, 4, 3], [1, 2, 4], [2, 5, 4], [2, 0, 5], [0, 3, 5],
+        # piece 0, samples 1-2
+        [3, 4, 6], [4, 7, 6], [4, 5, 7], [5, 8, 7], [5, 3, 8], [3, 6, 8],
+        # piece 1, samples 3-4
+        [9, 10, 12], [10, 13, 12], [10, 11, 13], [11, 14, 13], [11, 9, 14], [9, 12, 14],
+        # start caps, pieces 0 and 1
+        [15, 17, 16], [15, 18, 17], [15, 16, 18], [23, 25, 24], [23, 26, 25], [23, 24, 26],
+        # end caps, pieces 0 and 1
+        [19, 20, 21], [19, 21, 22], [19, 22, 20], [27, 28, 29], [27, 29, 30], [27, 30, 28],
+    ]
+    tri = tube_triangles(np.array([0, 3, 5]), 3)
+    assert tri.dtype == np.uint32
+    np.testing.assert_array_equal(tri, expected)
 
 
 # -- yarn pieces from frame records ------------------------------------------------------------------

@@ -22,7 +22,7 @@ import pytest
 from PIL import Image
 
 from fraytool.render.geometry import GeometryBuilder, YarnStyle
-from fraytool.render.imagecompare import compare_images, write_failure_images
+from imagecompare import compare_images, write_failure_images
 from fraytool.render.renderer import Renderer
 
 TESTS = Path(__file__).resolve().parent

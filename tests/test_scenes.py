@@ -7,7 +7,7 @@ import pytest
 
 from fraytool.resources import scenes_dir
 from fraytool.scene import load_scene
-from fraytool.scene_checks import run_scene_checks
+from fraytool.sim.checks import run_scene_checks
 from fraytool.sim import Simulation
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -11,7 +11,7 @@ from helpers import pulled_strip_text
 
 from fraytool.scene import parse_scene
 from fraytool.sim import Simulation
-from fraytool.sim.model import STRUCT_WARP, STRUCT_WEFT
+from fraytool.kinds import STRUCT_WARP, STRUCT_WEFT
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -129,7 +129,7 @@ def _pairs_the_step_can_act_on(state, prev, yarn, contact_distance):
 
 def test_kept_candidates_cover_every_pair_while_tearing():
     """The broad phase's candidates are kept across steps, re-boxed where segments leave their slack
-    and patched where splits re-attach segments (module docstring of fraytool.collision.response):
+    and patched where splits re-attach segments (module docstring of fraytool.collision.candidates):
     after every validation, in a strip torn at yarn level, they hold every pair the step can act on."""
     sim = Simulation(parse_scene(pulled_strip_text("torn_strip", yarn_level=True,
                                                     extra="[self_collision]\nenabled = true\n"),

@@ -8,7 +8,7 @@ import pytest
 
 from fraytool.scene import load_scene, parse_scene
 from fraytool.sim import build_model
-from fraytool.sim.model import SHEAR_TWIN
+from fraytool.kinds import SHEAR_TWIN
 from fraytool.sim.stability import (
     gershgorin_omega_max,
     power_iteration,

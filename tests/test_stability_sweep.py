@@ -5,7 +5,7 @@ import csv
 
 import pytest
 
-from fraytool.cli import main
+from fraytool.commands.main import main
 from fraytool.scene import parse_scene
 from fraytool.study import plot
 from fraytool.study.runner import RunResult

@@ -15,7 +15,7 @@ import pytest
 
 from fraytool.scene import parse_scene
 from fraytool.sim import Simulation, SimulationUnstable
-from fraytool.sim.model import STRUCT_WARP
+from fraytool.kinds import STRUCT_WARP
 from fraytool.sim.stability import gershgorin_omega_max, power_iteration_omega_max
 
 TOLERANCE = 0.05

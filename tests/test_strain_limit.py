@@ -3,7 +3,7 @@ import numpy as np
 
 from fraytool.sim import build_model
 from fraytool.sim.kernels.strain_limit import limit_strain
-from fraytool.sim.model import STRUCT_WARP, STRUCT_WEFT
+from fraytool.kinds import STRUCT_WARP, STRUCT_WEFT
 from helpers import small_scene
 
 

@@ -1,4 +1,4 @@
-"""Contact projection at connected mass couples (METHOD.md §3.3) and disconnection."""
+"""Contact projection at connected mass couples (docs/method.md §3.3) and disconnection."""
 from __future__ import annotations
 
 import numpy as np
@@ -8,8 +8,9 @@ from fraytool.grid import crossing_normals
 from fraytool.scene import parse_scene
 from fraytool.sim.builder import build_model
 from fraytool.sim.tearing import YarnTearing, topology_problems
-from fraytool.sim.tearing.contact import crossing_pair_correction, segment_closest_params
-from fraytool.sim.tearing.reference import (assert_named_close, closest_points_reference,
+from fraytool.collision.segment import segment_closest_params
+from fraytool.sim.tearing.contact import crossing_pair_correction
+from tearing_reference import (assert_named_close, closest_points_reference,
                                             project_couples_reference, state_dict)
 
 EXACT_RTOL = 1e-12

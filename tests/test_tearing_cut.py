@@ -6,10 +6,10 @@ import pytest
 
 from fraytool.scene import parse_scene
 from fraytool.sim.builder import build_model
-from fraytool.sim.model import BEND_WARP, BEND_WEFT, SHEAR, SHEAR_TWIN, STRUCT_WARP, STRUCT_WEFT
-from fraytool.sim.simulation import make_solver
+from fraytool.kinds import BEND_WARP, BEND_WEFT, SHEAR, SHEAR_TWIN, STRUCT_WARP, STRUCT_WEFT
+from fraytool.sim.solver import SolverExplicitPBD
 from fraytool.sim.tearing import YarnTearing, fray_lengths, topology_problems
-from fraytool.sim.tearing.reference import free_end_lengths_reference, state_dict
+from tearing_reference import free_end_lengths_reference, state_dict
 
 SCENE = """
 [scene]
@@ -109,7 +109,7 @@ def test_break_strains_are_drawn_once_from_the_seed():
 
 def test_base_only_tearing_has_no_couples_and_no_contact_pass():
     model, state, _ = make(yarn_level="false")
-    solver = make_solver(model)
+    solver = SolverExplicitPBD(model)
     assert solver.tearing is not None and solver.yarn_contact is None
     x = state.particle_position_m
     W = model.warp_yarns

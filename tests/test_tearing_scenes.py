@@ -113,7 +113,7 @@ def test_random_break_limits_make_the_cut_ragged(spread, straight):
     # (a knife cut; the strip is symmetric, so it may cut at both grips: at most two straight
     # cuts); with the scene's spread they break in many columns.
     from fraytool.scene import parse_scene
-    from fraytool.sim.model import STRUCT_WEFT
+    from fraytool.kinds import STRUCT_WEFT
 
     sim = run(parse_scene(pulled_strip_text(spread=spread), "strip.toml"), frames=40)
     m, s = sim.model, sim.state

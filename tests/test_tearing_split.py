@@ -1,4 +1,4 @@
-"""Transition to the yarn level (METHOD.md §3.4): split conservation, re-attachment, propagation."""
+"""Transition to the yarn level (docs/method.md §3.4): split conservation, re-attachment, propagation."""
 from __future__ import annotations
 
 import numpy as np
@@ -8,9 +8,9 @@ from fraytool.grid import base_yarn_points, crossing_normals
 from fraytool.scene import parse_scene
 from fraytool.sim.builder import build_model
 from fraytool.sim.kernels.integrate import velocities_from_positions
-from fraytool.sim.model import BEND_WARP, BEND_WEFT, SHEAR, STRUCT_WARP, STRUCT_WEFT
+from fraytool.kinds import BEND_WARP, BEND_WEFT, SHEAR, STRUCT_WARP, STRUCT_WEFT
 from fraytool.sim.tearing import YarnTearing, topology_problems
-from fraytool.sim.tearing.reference import assert_named_close, split_reference, state_dict
+from tearing_reference import assert_named_close, split_reference, state_dict
 
 CONSERVE_RTOL = 1e-12
 POSITION_ATOL = 1e-15  # [m]: the kernel's normal vs grid.crossing_normals, last-bit differences

@@ -8,8 +8,8 @@ from hypothesis import strategies as st
 
 from fraytool.scene import parse_scene
 from fraytool.sim.builder import build_model
-from fraytool.sim.model import STRUCT_WARP, STRUCT_WEFT
-from fraytool.sim.simulation import make_solver
+from fraytool.kinds import STRUCT_WARP, STRUCT_WEFT
+from fraytool.sim.solver import SolverExplicitPBD
 from fraytool.sim.tearing import topology_problems
 
 SCENE = """
@@ -71,7 +71,7 @@ def test_topology_stays_valid_after_any_tear_sequence(weave, ops):
     model = MODELS[weave]
     structural = STRUCTURAL[weave]
     state = model.state()
-    solver = make_solver(model)
+    solver = SolverExplicitPBD(model)
     tear = solver.tearing
     for op, arg in ops:
         if op == "split":

@@ -1,4 +1,4 @@
-"""Self-collision detection for yarn segments (springs), METHOD.md §4.2.
+"""Self-collision detection for yarn segments (springs), docs/method.md §4.2.
 
 - :func:`edge_edge_ccd`, :func:`edge_edge_ccd_kernel`, :func:`edge_edge_ccd_many`: conservative
   edge-edge continuous collision detection over one step (narrow phase,
@@ -8,8 +8,11 @@
 - :func:`detect_edge_edge_collisions`: broad + narrow phase for all springs
   (:mod:`fraytool.collision.detect`).
 
-The response (proximity, inelastic correction with friction, failsafe) is
-:mod:`fraytool.collision.response`, which the solver loads only for scenes with self-collision on.
+- :mod:`fraytool.collision.candidates`: candidate pairs kept valid across steps (re-box, patch);
+  :mod:`fraytool.collision.narrow`: separation pre-tests and the CCD over candidate pairs.
+
+Pure geometry: nothing here knows the solver. The self-collision stage that uses it (response,
+failsafe) is :mod:`fraytool.sim.stages.self_collision`, loaded only for scenes with self-collision on.
 """
 from fraytool.collision.broadphase import find_candidate_pairs, find_candidate_pairs_kernel
 from fraytool.collision.ccd import (

@@ -1,4 +1,4 @@
-"""Edge-edge continuous collision detection (narrow phase) for yarn segments (METHOD.md §4.2).
+"""Edge-edge continuous collision detection (narrow phase) for yarn segments (docs/method.md §4.2).
 
 Two segments ``a = a0 a1`` and ``b = b0 b1`` whose end points move linearly over a step,
 ``p(t) = p_s + t (p_e - p_s)`` for ``t`` in [0, 1]. They are in contact at time ``t`` when the
@@ -83,7 +83,7 @@ from fraytool.collision.interval import (
     round_down,
     round_up,
 )
-from fraytool.collision.segment import segment_closest_params
+from fraytool.collision.segment import segment_closest_params_rows
 
 DELTA_REL = 1e-6
 """Spatial tolerance of a hit relative to the largest |coordinate|: a hit means the segments come
@@ -224,7 +224,7 @@ def _proximity_status(
     # h |n| (conservative advancement).
     t_free = t0
     _positions_at(work, t0, u0, u1, v0, v1)
-    su, sv = segment_closest_params(work[4])
+    su, sv = segment_closest_params_rows(work[4])
     n0 = (work[4, 0, 0] + su * (work[4, 1, 0] - work[4, 0, 0])) - (
         work[4, 2, 0] + sv * (work[4, 3, 0] - work[4, 2, 0])
     )

@@ -2,7 +2,7 @@
 
 For segments a0 a1 and b0 b1 whose end points move linearly over t in [0, 1], the four points
 are coplanar when (Bridson, Fedkiw & Anderson 2002, "Robust treatment of collisions, contact and
-friction for cloth animation", SIGGRAPH 2002; METHOD.md §4.2)
+friction for cloth animation", SIGGRAPH 2002; docs/method.md §4.2)
 
     f(t) = r(t) . (p(t) x q(t)) = 0,   p = a1 - a0 (x21),  q = b1 - b0 (x43),  r = b0 - a0 (x31),
 

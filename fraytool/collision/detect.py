@@ -1,6 +1,6 @@
 """Spring-spring self-collision detection over one step: broad phase, then narrow phase per pair.
 
-For the solver's collision response (METHOD.md §4.2): every candidate pair from
+For the solver's collision response (docs/method.md §4.2): every candidate pair from
 :func:`fraytool.collision.broadphase.find_candidate_pairs_kernel` (boxes inflated by the
 thickness, so every pair that comes within the thickness is a candidate) is tested with
 :func:`fraytool.collision.ccd.edge_edge_ccd_kernel`; the pairs that hit are returned with their

@@ -22,17 +22,19 @@ def _clamp01(x: float) -> float:
 
 
 @numba.njit(cache=True, fastmath=False)
-def segment_closest_params(seg: np.ndarray) -> tuple[float, float]:
-    """(u, v) of the closest points of segments seg[0] seg[1] and seg[2] seg[3], seg (4, 3) [m]."""
-    d1x = seg[1, 0] - seg[0, 0]
-    d1y = seg[1, 1] - seg[0, 1]
-    d1z = seg[1, 2] - seg[0, 2]
-    d2x = seg[3, 0] - seg[2, 0]
-    d2y = seg[3, 1] - seg[2, 1]
-    d2z = seg[3, 2] - seg[2, 2]
-    rx = seg[0, 0] - seg[2, 0]
-    ry = seg[0, 1] - seg[2, 1]
-    rz = seg[0, 2] - seg[2, 2]
+def segment_closest_params(pax, pay, paz, qax, qay, qaz, pbx, pby, pbz, qbx, qby, qbz):
+    """Parameters (u, v) in [0, 1] of the closest points of segments p_a q_a and p_b q_b [m], scalars
+    in (no allocation): the one closest-points routine of fraytool, used by the yarn contact at mass
+    couples, the self-collision response and the CCD. Parallel segments take u = 0."""
+    d1x = qax - pax
+    d1y = qay - pay
+    d1z = qaz - paz
+    d2x = qbx - pbx
+    d2y = qby - pby
+    d2z = qbz - pbz
+    rx = pax - pbx
+    ry = pay - pby
+    rz = paz - pbz
     a = d1x * d1x + d1y * d1y + d1z * d1z
     e = d2x * d2x + d2y * d2y + d2z * d2z
     f = d2x * rx + d2y * ry + d2z * rz
@@ -53,3 +55,10 @@ def segment_closest_params(seg: np.ndarray) -> tuple[float, float]:
     if v > 1.0:
         return _clamp01((b - c) / a), 1.0
     return u, v
+
+
+@numba.njit(cache=True, fastmath=False)
+def segment_closest_params_rows(seg: np.ndarray) -> tuple[float, float]:
+    """(u, v) of the closest points of segments seg[0] seg[1] and seg[2] seg[3], seg (4, 3) [m]."""
+    return segment_closest_params(seg[0, 0], seg[0, 1], seg[0, 2], seg[1, 0], seg[1, 1], seg[1, 2],
+                                  seg[2, 0], seg[2, 1], seg[2, 2], seg[3, 0], seg[3, 1], seg[3, 2])

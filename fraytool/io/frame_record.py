@@ -1,6 +1,6 @@
 """FrameRecord: what one frame of a simulation hands to the renderer (and to tests), saved as .npz.
 
-A record holds only what changes per frame; the static topology (grid size, weave, spring kinds,
+A record holds only what changes per frame (made from a State by fraytool.sim.record); the static topology (grid size, weave, spring kinds,
 rest lengths, bodies' shapes) is saved once per run as topology.npz (`Model.arrays()`).
 See docs/architecture.md for the on-disk layout.
 """
@@ -10,13 +10,8 @@ import os
 import tempfile
 from dataclasses import dataclass, fields
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
-
-if TYPE_CHECKING:  # the io package stays importable without the simulation (renderer side)
-    from fraytool.sim.model import Model
-    from fraytool.sim.state import State
 
 
 @dataclass(eq=False)
@@ -39,25 +34,6 @@ class FrameRecord:
     """Shape (body_count, 3), float32."""
     body_rotation: np.ndarray
     """Shape (body_count, 3, 3), float32."""
-
-    @staticmethod
-    def from_state(model: Model, state: State, frame: int) -> "FrameRecord":
-        pos = state.particle_position_m.astype(np.float32)
-        n = model.crossing_count
-        idle = ~state.particle_active[n:]
-        pos[n:][idle] = pos[:n][idle]
-        return FrameRecord(
-            frame=frame,
-            time_s=state.time_s,
-            particle_position_m=pos,
-            particle_active=state.particle_active.copy(),
-            crossing_yarn_level=state.crossing_yarn_level.copy(),
-            spring_particle_a=state.spring_particle_a.copy(),
-            spring_particle_b=state.spring_particle_b.copy(),
-            spring_alive=state.spring_alive.copy(),
-            body_position_m=state.body_position_m.astype(np.float32),
-            body_rotation=model.body_rotation.astype(np.float32),
-        )
 
     def save(self, path: Path) -> None:
         atomic_save_npz(path, {f.name: np.asarray(getattr(self, f.name)) for f in fields(self)})

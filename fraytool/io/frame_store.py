@@ -14,16 +14,13 @@ from __future__ import annotations
 import json
 import shutil
 from pathlib import Path
-from typing import TYPE_CHECKING, Optional
+from typing import Optional
 
 import numpy as np
 
 from fraytool import __version__
+from fraytool.io.failure import LAST_GOOD_STATE, UNSTABLE_JSON
 from fraytool.io.frame_record import FrameRecord, atomic_save_npz, atomic_write_bytes
-
-if TYPE_CHECKING:
-    from fraytool.sim.model import Model
-    from fraytool.sim.state import State
 
 MANIFEST = "manifest.json"
 TOPOLOGY = "topology.npz"
@@ -57,12 +54,12 @@ class FrameStore:
         m = self.manifest()
         return int(m["frames_complete"]) if m else 0
 
-    def start(self, model: "Model", scene_hash: str, info: dict) -> None:
-        """Begin a fresh run: clear old frames, write topology and an empty manifest."""
+    def start(self, topology: dict[str, np.ndarray], scene_hash: str, info: dict) -> None:
+        """Begin a fresh run: clear old frames, write the topology (Model.arrays()) and an empty manifest."""
         if self.dir.exists():
             shutil.rmtree(self.dir)
         self.dir.mkdir(parents=True)
-        atomic_save_npz(self.dir / TOPOLOGY, model.arrays())
+        atomic_save_npz(self.dir / TOPOLOGY, topology)
         self._write_manifest({**info, "scene_hash": scene_hash, "fraytool_version": __version__,
                               "frames_complete": 0})
 
@@ -70,9 +67,10 @@ class FrameStore:
         text = json.dumps(data, indent=2, sort_keys=True).encode()
         atomic_write_bytes(self.dir / MANIFEST, lambda f: f.write(text))
 
-    def write_frame(self, record: FrameRecord, state: "State") -> None:
+    def write_frame(self, record: FrameRecord, checkpoint: dict[str, np.ndarray]) -> None:
+        """Write a frame's record, then the checkpoint (State.arrays() after it), then the manifest."""
         record.save(self.frame_path(record.frame))
-        atomic_save_npz(self.dir / CHECKPOINT, {**state.arrays(), "frame": np.asarray(record.frame)})
+        atomic_save_npz(self.dir / CHECKPOINT, {**checkpoint, "frame": np.asarray(record.frame)})
         m = self.manifest() or {}
         m["frames_complete"] = record.frame + 1
         self._write_manifest(m)
@@ -84,19 +82,17 @@ class FrameStore:
 
     def clear_failure(self) -> None:
         """Forget a failure written by the stability guard (unstable.json and the manifest entry)."""
-        for name in ("unstable.json", "unstable_last_good_state.npz"):
+        for name in (UNSTABLE_JSON, LAST_GOOD_STATE):
             (self.dir / name).unlink(missing_ok=True)
         m = self.manifest()
         if m is not None and "unstable" in m:
             m.pop("unstable")
             self._write_manifest(m)
 
-    def load_checkpoint(self) -> tuple[int, "State"]:
-        """(frame, state) of the last checkpoint."""
-        from fraytool.sim.state import State
-
+    def load_checkpoint(self) -> tuple[int, dict[str, np.ndarray]]:
+        """(frame, state arrays) of the last checkpoint (State.from_arrays makes the State)."""
         with np.load(self.dir / CHECKPOINT) as data:
-            return int(data["frame"]), State.from_arrays(data)
+            return int(data["frame"]), {k: data[k] for k in data.files if k != "frame"}
 
     def load_frame(self, frame: int) -> FrameRecord:
         return FrameRecord.load(self.frame_path(frame))

@@ -12,7 +12,7 @@ from typing import Mapping
 
 import numpy as np
 
-from fraytool.sim.model import SHAPE_BOX, SHAPE_PLANE, SHAPE_SPHERE
+from fraytool.kinds import SHAPE_BOX, SHAPE_PLANE, SHAPE_SPHERE
 
 
 @dataclass(frozen=True)

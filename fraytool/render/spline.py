@@ -1,4 +1,4 @@
-"""Centripetal Catmull-Rom splines through many polylines at once (METHOD.md §5).
+"""Centripetal Catmull-Rom splines through many polylines at once (docs/method.md §5).
 
 Each yarn piece is a polyline of control points; the curve passes through every control point.
 The centripetal parametrisation (knot spacing |P_{k+1} - P_k|^alpha with alpha = 1/2) has no

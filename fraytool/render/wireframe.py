@@ -1,4 +1,4 @@
-"""Spring lines for the wireframe view (METHOD.md §6, Fig. 8).
+"""Spring lines for the wireframe view (docs/method.md §6, Fig. 8).
 
 Every live structural and shear spring (and live shear twin) becomes a line between its current
 end particles. Bend springs are left out: they run along the structural springs and would only
@@ -13,7 +13,7 @@ from typing import Mapping
 import numpy as np
 
 from fraytool.io.frame_record import FrameRecord
-from fraytool.sim.model import SHEAR, SHEAR_TWIN, STRUCT_WARP, STRUCT_WEFT
+from fraytool.kinds import SHEAR, SHEAR_TWIN, STRUCT_WARP, STRUCT_WEFT
 
 DRAWN_KINDS = (STRUCT_WEFT, STRUCT_WARP, SHEAR, SHEAR_TWIN)
 

@@ -3,7 +3,7 @@
 Input contract (docs/architecture.md): crossing c = j * warp_yarns + i; weft yarn j runs through
 crossings (0, j), (1, j), ...; warp yarn i through (i, 0), (i, 1), ....
 - A base-level crossing gives a weft point and a warp point x_c ± (T/2) n_c, the weft up where the
-  weave says so (METHOD.md §5, `fraytool.grid.base_yarn_points`).
+  weave says so (docs/method.md §5, `fraytool.grid.base_yarn_points`).
 - A yarn-level crossing (mass couple, §3.3) gives its own masses: particle slot c is the weft mass,
   slot crossing_count + c the warp mass.
 - A dead structural spring (`weft_structural_spring[j, i]` between crossings i and i+1 of weft j,

@@ -8,15 +8,14 @@ from __future__ import annotations
 
 import hashlib
 import json
-import math
 import tomllib
 from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
 from fraytool.errors import SceneError
-from fraytool.scene import schema, weave
-from fraytool.scene.schema import REQUIRED, Key
+from fraytool.scene import rules, schema
+from fraytool.scene.keys import REQUIRED, Key, show
 from fraytool.scene.spec import (
     AttachmentSpec,
     BodySpec,
@@ -46,81 +45,11 @@ class _Problems:
         if key is None:
             self.lines.append(f"{self.source}: [{where}]: {allowed}")
         else:
-            self.lines.append(f"{self.source}: [{where}] {key} = {_show(value)}: {allowed}")
+            self.lines.append(f"{self.source}: [{where}] {key} = {show(value)}: {allowed}")
 
-
-def _show(value: Any) -> str:
-    if isinstance(value, str):
-        return json.dumps(value)
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, dict):
-        return "{...}"
-    return repr(value) if not isinstance(value, (list, tuple)) else json.dumps(value, default=str)
-
-
-def _is_number(v: Any) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool)
-
-
-def _convert(key: Key, value: Any) -> tuple[bool, Any]:
-    """Convert a TOML value to the key's Python type; (ok, converted)."""
-    k = key.kind
-    if k == "float":
-        if not _is_number(value) or not key.in_range(float(value)):
-            return False, None
-        return True, float(value)
-    if k == "int":
-        if not isinstance(value, int) or isinstance(value, bool) or not key.in_range(value):
-            return False, None
-        return True, int(value)
-    if k == "bool":
-        return (True, value) if isinstance(value, bool) else (False, None)
-    if k == "str":
-        if not isinstance(value, str) or (key.choices and value not in key.choices):
-            return False, None
-        return True, value
-    if k in ("vec3", "color"):
-        if not isinstance(value, list) or len(value) != 3 or not all(_is_number(v) for v in value):
-            return False, None
-        out = tuple(float(v) for v in value)
-        if not all(math.isfinite(v) for v in out):
-            return False, None
-        if k == "color" and not all(0.0 <= v <= 1.0 for v in out):
-            return False, None
-        return True, out
-    if k == "int2":
-        if not isinstance(value, list) or len(value) != 2:
-            return False, None
-        if not all(isinstance(v, int) and not isinstance(v, bool) for v in value):
-            return False, None
-        if not all(key.in_range(v) for v in value):
-            return False, None
-        return True, (int(value[0]), int(value[1]))
-    if k == "path":
-        if not isinstance(value, list):
-            return False, None
-        rows = []
-        for row in value:
-            if not isinstance(row, list) or len(row) != 4 or not all(_is_number(v) for v in row):
-                return False, None
-            rows.append(tuple(float(v) for v in row))
-        times = [r[0] for r in rows]
-        if any(b <= a for a, b in zip(times, times[1:])) or any(t < 0 for t in times):
-            return False, None
-        return True, tuple(rows)
-    if k == "table2d":
-        if not isinstance(value, list) or not value:
-            return False, None
-        width = None
-        for row in value:
-            if not isinstance(row, list) or not row or not all(v in (0, 1) and not isinstance(v, float) for v in row):
-                return False, None
-            width = len(row) if width is None else width
-            if len(row) != width:
-                return False, None
-        return True, [[int(v) for v in row] for row in value]
-    raise AssertionError(k)
+    def extend(self, where: str, problems: list[rules.Problem]) -> None:
+        for key, value, allowed in problems:
+            self.add(where, key, value, allowed)
 
 
 def _read_table(doc: dict, where: str, keys: dict[str, Key], problems: _Problems) -> dict[str, Any]:
@@ -133,39 +62,19 @@ def _read_table(doc: dict, where: str, keys: dict[str, Key], problems: _Problems
             problems.add(where, name, value, "unknown key; allowed keys: " + ", ".join(sorted(keys)))
             continue
         key = keys[name]
-        ok, converted = _convert(key, value)
+        ok, converted = key.convert(value)
         if not ok:
-            problems.add(where, name, value, key.allowed() + (f" ({key.doc})" if key.doc else ""))
+            problems.add(where, name, value, key.explain())
             continue
         out[name] = converted
     for name, key in keys.items():
         if name not in out:
             if key.default is REQUIRED:
                 if name not in doc:
-                    problems.add(where, None, None, f"missing required key `{name}`: {key.allowed()}"
-                                 + (f" ({key.doc})" if key.doc else ""))
+                    problems.add(where, None, None, f"missing required key `{name}`: {key.explain()}")
             else:
                 out[name] = key.default
     return out
-
-
-def _weave_table(cloth: dict, problems: _Problems) -> tuple[tuple[bool, ...], ...]:
-    kind = cloth.get("weave", "plain")
-    try:
-        if kind == "plain":
-            return weave.plain()
-        if kind == "twill":
-            return weave.twill(cloth.get("twill", "2/1"))
-        if kind == "satin":
-            return weave.satin(cloth.get("satin_shafts", 5))
-        if kind == "table":
-            if cloth.get("table") is None:
-                problems.add("cloth", "weave", kind, 'weave = "table" needs a `table` key: rows of 0/1')
-                return weave.plain()
-            return weave.from_rows(cloth["table"])
-    except ValueError as exc:
-        problems.add("cloth", "twill", cloth.get("twill"), str(exc))
-    return weave.plain()
 
 
 def parse_scene(text: str, source: str = "<string>") -> SceneSpec:
@@ -205,9 +114,9 @@ def parse_scene(text: str, source: str = "<string>") -> SceneSpec:
 
     values = {path: _read_table(table(path), path, keys, problems)
               for path, keys in schema.TOP.items() if path not in schema.ARRAY_TABLES}
-    bodies_raw = [(_read_table(b, f"bodies.{i}", schema.BODY, problems), i)
+    bodies_raw = [(_read_table(b, f"bodies.{i}", schema.TOP["bodies"], problems), i)
                   for i, b in enumerate(doc.get("bodies", []))]
-    att_raw = [(_read_table(a, f"attachments.{i}", schema.ATTACHMENT, problems), i)
+    att_raw = [(_read_table(a, f"attachments.{i}", schema.TOP["attachments"], problems), i)
                for i, a in enumerate(doc.get("attachments", []))]
     if problems.lines:
         raise SceneError(problems.lines)
@@ -219,83 +128,36 @@ def parse_scene(text: str, source: str = "<string>") -> SceneSpec:
 
 
 def _assemble(values: dict, bodies_raw: list, att_raw: list, source: str, problems: _Problems) -> SceneSpec:
+    """Build the SceneSpec from checked tables, applying the rules that tie keys together."""
     s, t, c = values["scene"], values["time"], values["cloth"]
     name = s["name"] or Path(source).stem
     tear = TearingSpec(**values["cloth.tearing"])
-    if tear.enabled and tear.yarn_level and tear.transition_strain >= tear.break_strain:
-        problems.add("cloth.tearing", "transition_strain", tear.transition_strain,
-                     f"must be below break_strain = {tear.break_strain:g} (splitting comes before cutting)")
-    cloth = ClothSpec(
-        warp_yarns=c["warp_yarns"], weft_yarns=c["weft_yarns"], spacing_m=c["spacing_m"],
-        thickness_m=c["thickness_m"], mass_per_crossing_kg=c["mass_per_crossing_kg"],
-        origin_m=c["origin_m"], plane=c["plane"], weave=c["weave"],
-        weave_table=_weave_table(c, problems), springs=SpringSpec(**values["cloth.springs"]),
-        strain=StrainSpec(**values["cloth.strain"]), tearing=tear, twill=c["twill"],
-        satin_shafts=c["satin_shafts"],
-    )
-    if cloth.thickness_m >= cloth.spacing_m:
-        problems.add("cloth", "thickness_m", cloth.thickness_m,
-                     f"must be below spacing_m = {cloth.spacing_m:g} (yarns would overlap)")
+    problems.extend("cloth.tearing", rules.tearing_problems(tear))
+    table, weave_problems = rules.weave_table(c["weave"], c["twill"], c["satin_shafts"], c["table"])
+    problems.extend("cloth", weave_problems)
+    cloth = ClothSpec(**{k: v for k, v in c.items() if k != "table"}, weave_table=table,
+                      springs=SpringSpec(**values["cloth.springs"]), strain=StrainSpec(**values["cloth.strain"]),
+                      tearing=tear)
+    problems.extend("cloth", rules.cloth_problems(cloth.spacing_m, cloth.thickness_m))
 
     bodies = []
     names: set[str] = set()
     for b, i in bodies_raw:
-        where = f"bodies.{i}"
-        if b["name"] in names:
-            problems.add(where, "name", b["name"], "must be unique among [[bodies]]")
-        names.add(b["name"])
-        if b["shape"] == "sphere" and b["radius_m"] is None:
-            problems.add(where, None, None, "a sphere needs `radius_m` (> 0)")
-        if b["shape"] == "box":
-            he = b["half_extents_m"]
-            if he is None or min(he) <= 0:
-                problems.add(where, "half_extents_m", he, "a box needs half_extents_m: 3 numbers > 0")
-        if b["shape"] == "plane":
-            if b["motion"] == "dynamic":
-                problems.add(where, "motion", b["motion"], 'a plane is "static" or "kinematic"')
-            if math.sqrt(sum(v * v for v in b["normal"])) < 1e-12:
-                problems.add(where, "normal", list(b["normal"]), "must be a non-zero vector")
-        if b["path"] and b["motion"] != "kinematic":
-            problems.add(where, "path", "[...]", 'a path needs motion = "kinematic"')
-        bodies.append(BodySpec(
-            name=b["name"], shape=b["shape"], motion=b["motion"], position_m=b["position_m"],
-            radius_m=b["radius_m"] or 0.0, half_extents_m=b["half_extents_m"] or (0.0, 0.0, 0.0),
-            normal=b["normal"], rotation_deg=b["rotation_deg"], velocity_m_s=b["velocity_m_s"],
-            path=b["path"], mass_kg=b["mass_kg"], gravity=b["gravity"], friction=b["friction"],
-            collide=b["collide"], start_s=b["start_s"],
-        ))
+        body = BodySpec(**b)
+        problems.extend(f"bodies.{i}", rules.body_name_problems(body.name, names) + rules.body_problems(body))
+        names.add(body.name)
+        bodies.append(body)
 
     attachments = []
     for a, i in att_raw:
-        where = f"attachments.{i}"
-        if a["body"] not in names:
-            problems.add(where, "body", a["body"], "must name one of the [[bodies]]: "
-                         + (", ".join(sorted(names)) or "(none defined)"))
-        chosen = [k for k in ("edge", "corner", "warp_range", "region_center_m") if a[k] is not None]
-        if a["weft_range"] is not None and "warp_range" not in chosen:
-            chosen.append("weft_range")
-        if len(chosen) != 1:
-            problems.add(where, None, None, "give exactly one selection: edge, corner, warp_range + "
-                         f"weft_range, or region_center_m + region_radius_m (got {chosen or 'none'})")
-        for rk, n in (("warp_range", cloth.warp_yarns), ("weft_range", cloth.weft_yarns)):
-            r = a[rk]
-            if r is not None and not (0 <= r[0] <= r[1] < n):
-                problems.add(where, rk, list(r), f"must be [first, last] with 0 <= first <= last <= {n - 1}")
-        if (a["warp_range"] is None) != (a["weft_range"] is None) and "edge" not in chosen and "corner" not in chosen:
-            problems.add(where, None, None, "warp_range and weft_range go together")
-        if a["region_center_m"] is not None and a["region_radius_m"] <= 0:
-            problems.add(where, "region_radius_m", a["region_radius_m"], "must be > 0 with region_center_m")
-        attachments.append(AttachmentSpec(**a))
+        att = AttachmentSpec(**a)
+        problems.extend(f"attachments.{i}", rules.attachment_problems(att, names, cloth.warp_yarns, cloth.weft_yarns))
+        attachments.append(att)
 
-    r = values["render"]
-    if r["resolution"][0] % 2 or r["resolution"][1] % 2:
-        problems.add("render", "resolution", list(r["resolution"]),
-                     "width and height must be even (H.264 with yuv420p needs even sizes)")
-    cam = values["camera"]
-    if math.dist(cam["position_m"], cam["target_m"]) < 1e-9:
-        problems.add("camera", "target_m", list(cam["target_m"]), "must differ from position_m")
-    if values["checks"]["frames"] > t["frames"]:
-        problems.add("checks", "frames", values["checks"]["frames"], f"must be <= [time] frames = {t['frames']}")
+    render, camera = RenderSpec(**values["render"]), CameraSpec(**values["camera"])
+    problems.extend("render", rules.render_problems(render))
+    problems.extend("camera", rules.camera_problems(camera))
+    problems.extend("checks", rules.checks_problems(values["checks"]["frames"], t["frames"]))
 
     return SceneSpec(
         source=source,
@@ -306,8 +168,8 @@ def _assemble(values: dict, bodies_raw: list, att_raw: list, source: str, proble
         bodies=tuple(bodies),
         attachments=tuple(attachments),
         self_collision=SelfCollisionSpec(**values["self_collision"]),
-        camera=CameraSpec(**cam),
-        render=RenderSpec(**r),
+        camera=camera,
+        render=render,
         output=OutputSpec(**values["output"]),
         checks=CheckSpec(**values["checks"]),
     )

@@ -1,212 +1,230 @@
-"""SceneSpec: the plain, validated description of a scene, as read from a TOML file.
+"""SceneSpec: the plain, validated description of a scene, and the one declaration of every scene key.
 
-Every field is SI (metres, kilograms, seconds, newtons). The TOML schema, with defaults and
-allowed ranges, is in `fraytool.scene.schema` and documented in docs/scene-format.md.
-A SceneSpec is immutable and hashable to a stable digest (`scene_hash`), which names the
-simulated frames so that a render can reuse them.
+Every field that a scene file sets is declared here once with `key(type, default, range, doc)`:
+the dataclass default, the TOML schema (`fraytool.scene.schema`, which the file loader checks
+against) and the checks on `ModelBuilder`'s arguments all come from that declaration;
+docs/scene-format.md documents the same keys for people (tests/test_docs.py keeps them in step).
+Fields that are not keys (`source`, `ClothSpec.weave_table`, the sub-tables) have docstrings.
+
+Every value is SI (metres, kilograms, seconds, newtons). A SceneSpec is immutable and hashable to a
+stable digest (`scene_hash`), which names the simulated frames so that a render can reuse them.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 from typing import Optional
 
+from fraytool.kinds import MOTION_NAMES, SHAPE_NAMES
+from fraytool.scene.keys import key
+
 Vec3 = tuple[float, float, float]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class SceneInfo:
-    name: str
-    """Scene name; default output folder is outputs/<name>/."""
-    description: str = ""
-    seed: int = 0
-    """Seed of every random draw (break strains); same seed, same frames."""
+    """[scene]"""
+
+    name: str = key("str", "", doc="scene name; outputs go to outputs/<name>/ (default: file name without .toml)")
+    description: str = key("str", "", doc="free text")
+    seed: int = key("int", 0, lo=0, doc="seed of every random draw (break strains); same seed, same frames")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class TimeSpec:
-    step_s: float
-    """Explicit Euler step h [s]."""
-    steps_per_frame: int
-    frames: int
-    """Number of frames to simulate and render (frame 0 is the initial state)."""
-    fps: float
-    """Playback frame rate of the video [1/s]."""
-    stability: str = "warn"
-    """What to do when step_s exceeds the explicit stability bound: "warn" or "refuse"."""
+    """[time]"""
+
+    step_s: float = key("float", lo=0, lo_open=True, hi=0.1, doc="explicit Euler step h [s]")
+    steps_per_frame: int = key("int", lo=1, hi=100000, doc="steps between two frames")
+    frames: int = key("int", lo=1, hi=1000000, doc="frames to simulate and render; frame 0 is the initial state")
+    fps: float = key("float", 24.0, lo=0, lo_open=True, hi=1000, doc="playback frame rate of the video [1/s]")
+    stability: str = key("str", "warn", choices=("warn", "refuse"),
+                         doc="what to do when step_s exceeds the explicit stability bound")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class SpringSpec:
-    structural_n_per_m: float
-    bend_n_per_m: float
-    shear_n_per_m: float
-    """Shear springs act only in compression (METHOD.md §3.2)."""
-    damping: float
-    """PBD velocity damping k_damping in [0, 1] per step (Müller et al. 2007 §3.5)."""
+    """[cloth.springs]"""
+
+    structural_n_per_m: float = key("float", lo=0, lo_open=True, hi=1e9,
+                                    doc="stiffness of springs between grid neighbours along weft and warp [N/m]")
+    bend_n_per_m: float = key("float", 0.0, lo=0, hi=1e9,
+                              doc="stiffness of skip-one springs along weft and warp [N/m]; 0: none")
+    shear_n_per_m: float = key("float", 0.0, lo=0, hi=1e9,
+                               doc="stiffness of diagonal springs, acting only in compression [N/m]; 0: none")
+    damping: float = key("float", 0.01, lo=0, hi=1,
+                         doc="PBD velocity damping k_damping per step (Müller et al. 2007 §3.5)")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class StrainSpec:
-    limit: float = 0.10
-    """Strain limit: springs are projected to at most (1 + limit) x rest length (§4.1)."""
-    max_iterations: int = 40
-    """Cap on strain-limiting projection sweeps per step."""
-    tolerance: float = 1e-4
-    """Projection stops once every structural spring is within limit + tolerance."""
+    """[cloth.strain]"""
+
+    limit: float = key("float", 0.10, lo=0, lo_open=True, hi=10,
+                       doc="structural springs are projected to at most (1 + limit) x rest length (§4.1)")
+    max_iterations: int = key("int", 40, lo=0, hi=100000, doc="cap on strain-limiting projection sweeps per step")
+    tolerance: float = key("float", 1e-4, lo=0, hi=1,
+                           doc="projection stops once every structural spring is within limit + tolerance")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class TearingSpec:
-    enabled: bool = False
-    """Cut springs whose strain exceeds their (randomised) break strain."""
-    yarn_level: bool = True
-    """Switch torn regions to the yarn-level model (frays); false = base-model-only tear (clean cut)."""
-    transition_strain: float = 0.12
-    """Strain above which both end masses of a spring split into mass couples (§3.4)."""
-    break_strain: float = 0.2
-    """Mean break strain of a spring."""
-    break_strain_spread: float = 0.03
-    """Standard deviation of the per-spring break strain (normal, clipped above the transition)."""
-    disconnect_factor: float = 3.0
-    """A couple disconnects when its weft and warp springs are farther apart than this x thickness."""
+    """[cloth.tearing]"""
+
+    enabled: bool = key("bool", False, doc="cut springs whose strain exceeds their (randomised) break strain")
+    yarn_level: bool = key("bool", True, doc="torn regions switch to the yarn-level model and fray; "
+                                             "false: base-model-only tearing (a clean cut)")
+    transition_strain: float = key("float", 0.12, lo=0, lo_open=True, hi=10,
+                                   doc="strain above which a spring's end masses split into mass couples (§3.4)")
+    break_strain: float = key("float", 0.2, lo=0, lo_open=True, hi=10, doc="mean break strain of a spring")
+    break_strain_spread: float = key("float", 0.03, lo=0, hi=10,
+                                     doc="standard deviation of the per-spring break strain, drawn from the seed")
+    disconnect_factor: float = key("float", 3.0, lo=1, hi=1000,
+                                   doc="a couple disconnects when its weft and warp springs are farther apart "
+                                       "than this x thickness")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class ClothSpec:
-    warp_yarns: int
-    """Number of warp yarns (columns, index i); they run along the cloth's second axis."""
-    weft_yarns: int
-    """Number of weft yarns (rows, index j); they run along the cloth's first axis."""
-    spacing_m: float
-    """Distance between neighbouring yarns at rest [m]."""
-    thickness_m: float
-    """Cloth thickness T [m]: weft and warp masses of a couple are T apart (§3.3)."""
-    mass_per_crossing_kg: float
-    origin_m: Vec3
-    """World position of crossing (i=0, j=0) [m]."""
-    plane: str
-    """Plane the cloth spans at rest: "xz" (horizontal, y up), "xy" (vertical) or "yz"."""
-    weave: str
-    """"plain", "twill", "satin" or "table"."""
+    """[cloth] with its sub-tables [cloth.springs], [cloth.strain] and [cloth.tearing]."""
+
+    warp_yarns: int = key("int", lo=2, hi=4096,
+                          doc="number of warp yarns (columns, index i); they run along the cloth's second axis")
+    weft_yarns: int = key("int", lo=2, hi=4096,
+                          doc="number of weft yarns (rows, index j); they run along the cloth's first axis")
+    spacing_m: float = key("float", lo=0, lo_open=True, hi=1.0, doc="distance between neighbouring yarns at rest [m]")
+    thickness_m: float = key("float", lo=0, lo_open=True, hi=0.1,
+                             doc="cloth thickness T [m]: weft and warp masses of a couple are T apart")
+    mass_per_crossing_kg: float = key("float", lo=0, lo_open=True, hi=10.0, doc="mass of one crossing [kg]")
+    origin_m: Vec3 = key("vec3", (0.0, 0.0, 0.0), doc="world position of crossing (i = 0, j = 0) [m]")
+    plane: str = key("str", "xz", choices=("xz", "xy", "yz"),
+                     doc='plane the cloth spans at rest ("xz" flat, y up; "xy" vertical); weft along its first axis')
+    weave: str = key("str", "plain", choices=("plain", "twill", "satin", "table"), doc="weave pattern")
     weave_table: tuple[tuple[bool, ...], ...]
-    """Resolved repeat: weave_table[j % rows][i % cols] is True where the weft lies on top."""
+    """Resolved repeat (from weave, twill, satin_shafts or the `table` key):
+    weave_table[j % rows][i % cols] is True where the weft lies on top."""
     springs: SpringSpec
-    strain: StrainSpec
-    tearing: TearingSpec
-    twill: str = "2/1"
-    satin_shafts: int = 5
+    strain: StrainSpec = field(default_factory=StrainSpec)
+    tearing: TearingSpec = field(default_factory=TearingSpec)
+    twill: str = key("str", "2/1", doc='with weave = "twill": floats over/under, e.g. "2/1", "2/2", "3/1"')
+    satin_shafts: int = key("int", 5, lo=5, hi=16, doc='with weave = "satin": threads per repeat')
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class BodySpec:
-    name: str
-    shape: str
-    """"sphere", "box" or "plane"."""
-    motion: str
-    """"static", "kinematic" or "dynamic"."""
-    position_m: Vec3
-    radius_m: float = 0.0
-    half_extents_m: Vec3 = (0.0, 0.0, 0.0)
-    normal: Vec3 = (0.0, 1.0, 0.0)
-    rotation_deg: Vec3 = (0.0, 0.0, 0.0)
-    """Fixed orientation as x, y, z Euler angles [degrees] (boxes)."""
-    velocity_m_s: Vec3 = (0.0, 0.0, 0.0)
-    """Kinematic: constant velocity. Dynamic: initial velocity."""
-    path: tuple[tuple[float, float, float, float], ...] = ()
-    """Kinematic keyframes (t [s], x, y, z [m]), linearly interpolated; held after the last."""
-    mass_kg: float = 1.0
-    gravity: bool = True
-    friction: float = 0.3
-    """Coulomb-style friction coefficient against the cloth."""
-    collide: bool = True
-    """Cloth masses collide with this body."""
-    start_s: float = 0.0
-    """Kinematic/dynamic motion starts at this time [s]; the body rests before it."""
+    """One [[bodies]] entry: a rigid sphere, box or plane."""
+
+    name: str = key("str", doc="unique; attachments refer to the body by it")
+    shape: str = key("str", choices=SHAPE_NAMES, doc="body shape")
+    motion: str = key("str", "static", choices=MOTION_NAMES,
+                      doc="kinematic bodies follow path or velocity_m_s; dynamic ones fly and are pushed by the cloth")
+    position_m: Vec3 = key("vec3", (0.0, 0.0, 0.0), doc="centre (sphere, box) or a point of the plane [m]")
+    radius_m: float = key("float", 0.0, lo=0, lo_open=True, hi=100, doc="sphere radius [m]; required for spheres")
+    half_extents_m: Vec3 = key("vec3", (0.0, 0.0, 0.0), doc="box half sizes [m]; required for boxes")
+    normal: Vec3 = key("vec3", (0.0, 1.0, 0.0), doc="plane normal, pointing to the free side")
+    rotation_deg: Vec3 = key("vec3", (0.0, 0.0, 0.0), doc="fixed orientation as x, y, z Euler angles [degrees]")
+    velocity_m_s: Vec3 = key("vec3", (0.0, 0.0, 0.0),
+                             doc="kinematic: constant velocity; dynamic: initial velocity [m/s]")
+    path: tuple[tuple[float, float, float, float], ...] = key(
+        "path", (), doc="kinematic keyframes (t [s], x, y, z [m]), linearly interpolated; held after the last")
+    mass_kg: float = key("float", 1.0, lo=0, lo_open=True, hi=1e6, doc="mass of a dynamic body [kg]")
+    gravity: bool = key("bool", True, doc="a dynamic body feels gravity")
+    friction: float = key("float", 0.3, lo=0, hi=10, doc="friction coefficient of the cloth against this body")
+    collide: bool = key("bool", True, doc="cloth masses collide with this body")
+    start_s: float = key("float", 0.0, lo=0, doc="kinematic and dynamic bodies rest until this time [s]")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class AttachmentSpec:
-    body: str
-    """Name of the rigid body that holds these cloth masses."""
-    edge: Optional[str] = None
-    corner: Optional[str] = None
-    corner_size: int = 1
-    warp_range: Optional[tuple[int, int]] = None
-    weft_range: Optional[tuple[int, int]] = None
-    region_center_m: Optional[Vec3] = None
-    region_radius_m: float = 0.0
+    """One [[attachments]] entry: cloth masses held by a body. Exactly one selection is given."""
+
+    body: str = key("str", doc="name of the rigid body that holds these cloth masses")
+    edge: Optional[str] = key("str", None, choices=("left", "right", "bottom", "top"), doc="a whole edge")
+    corner: Optional[str] = key("str", None, choices=("bottom_left", "bottom_right", "top_left", "top_right"),
+                                doc="a corner block of corner_size x corner_size masses")
+    corner_size: int = key("int", 1, lo=1, hi=4096, doc="side of the corner block, in crossings")
+    warp_range: Optional[tuple[int, int]] = key("int2", None, doc="inclusive range of warp yarn indices i")
+    weft_range: Optional[tuple[int, int]] = key("int2", None, doc="inclusive range of weft yarn indices j")
+    region_center_m: Optional[Vec3] = key("vec3", None, doc="with region_radius_m: centre of a ball of held masses [m]")
+    region_radius_m: float = key("float", 0.0, lo=0, doc="with region_center_m: masses this close at rest are held [m]")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class CameraSpec:
-    position_m: Vec3 = (0.0, 0.3, 0.6)
-    target_m: Vec3 = (0.0, 0.0, 0.0)
-    up: Vec3 = (0.0, 1.0, 0.0)
-    fov_deg: float = 40.0
+    """[camera]"""
+
+    position_m: Vec3 = key("vec3", (0.0, 0.3, 0.6), doc="eye [m]")
+    target_m: Vec3 = key("vec3", (0.0, 0.0, 0.0), doc="point looked at [m]")
+    up: Vec3 = key("vec3", (0.0, 1.0, 0.0), doc="up direction")
+    fov_deg: float = key("float", 40.0, lo=1, hi=170, doc="vertical field of view [degrees]")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class RenderSpec:
-    resolution: tuple[int, int] = (640, 360)
-    samples: int = 4
-    warp_color: Vec3 = (0.80, 0.30, 0.25)
-    weft_color: Vec3 = (0.90, 0.85, 0.70)
-    background: Vec3 = (0.08, 0.09, 0.11)
-    light_direction: Vec3 = (-0.4, 1.0, 0.6)
-    light_intensity: float = 1.0
-    ambient: float = 0.25
-    specular: float = 0.35
-    shininess: float = 40.0
-    yarn_radius_m: float = 0.0
-    """Tube radius [m]; 0 means half the cloth thickness."""
-    fade_length_m: float = 0.0
-    """Length over which a broken yarn end fades to transparent [m]; 0 means 2 x spacing."""
-    spline_samples: int = 4
-    """Catmull-Rom samples per yarn segment."""
-    tube_sides: int = 6
-    ground_plane: bool = False
-    ground_height_m: float = 0.0
-    body_color: Vec3 = (0.55, 0.6, 0.7)
+    """[render]"""
+
+    resolution: tuple[int, int] = key("int2", (640, 360), lo=2, hi=8192, doc="image width and height [pixels]")
+    samples: int = key("int", 4, lo=0, hi=64, doc="MSAA samples")
+    warp_color: Vec3 = key("color", (0.80, 0.30, 0.25), doc="sRGB colour of warp yarns")
+    weft_color: Vec3 = key("color", (0.90, 0.85, 0.70), doc="sRGB colour of weft yarns")
+    background: Vec3 = key("color", (0.08, 0.09, 0.11), doc="sRGB background colour")
+    light_direction: Vec3 = key("vec3", (-0.4, 1.0, 0.6), doc="direction towards the key light")
+    light_intensity: float = key("float", 1.0, lo=0, hi=100, doc="key light intensity")
+    ambient: float = key("float", 0.25, lo=0, hi=1, doc="ambient light")
+    specular: float = key("float", 0.35, lo=0, hi=10, doc="Kajiya-Kay specular weight")
+    shininess: float = key("float", 40.0, lo=1, hi=10000, doc="Kajiya-Kay specular exponent")
+    yarn_radius_m: float = key("float", 0.0, lo=0, hi=1, doc="tube radius [m]; 0 means half the cloth thickness")
+    fade_length_m: float = key("float", 0.0, lo=0, hi=10,
+                               doc="length over which a broken yarn end fades out [m]; 0 means 2 x spacing")
+    spline_samples: int = key("int", 4, lo=1, hi=64, doc="Catmull-Rom samples per yarn segment (a maximum)")
+    tube_sides: int = key("int", 6, lo=3, hi=64, doc="sides of a yarn tube (a maximum)")
+    ground_plane: bool = key("bool", False, doc="draw a ground plane at ground_height_m")
+    ground_height_m: float = key("float", 0.0, doc="height of the drawn ground plane [m]")
+    body_color: Vec3 = key("color", (0.55, 0.6, 0.7), doc="sRGB colour of rigid bodies")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class OutputSpec:
-    mp4: bool = True
-    png: bool = False
-    crf: int = 18
+    """[output]"""
+
+    mp4: bool = key("bool", True, doc="write <out>/<name>.mp4")
+    png: bool = key("bool", False, doc="also write <out>/png/frame_NNNNNN.png")
+    crf: int = key("int", 18, lo=0, hi=51, doc="H.264 quality (lower is better)")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class SelfCollisionSpec:
-    enabled: bool = False
-    iterations: int = 4
-    """Cap on collision-response passes per step."""
-    friction: float = 0.2
+    """[self_collision]"""
+
+    enabled: bool = key("bool", False, doc="edge-edge continuous collision between yarn segments")
+    iterations: int = key("int", 4, lo=1, hi=1000, doc="cap on collision-response passes per step")
+    friction: float = key("float", 0.2, lo=0, hi=10, doc="friction between yarns")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class CheckSpec:
-    """What must hold after the scene's frames (scenes carry their own checks)."""
+    """[checks]: what must hold after the scene's frames (scenes carry their own checks)."""
 
-    frames: int = 0
-    """Frames to run for the checks; 0 means the scene's frame count."""
-    all_finite: bool = True
-    max_strain_below: Optional[float] = None
-    min_broken_springs: Optional[int] = None
-    max_broken_springs: Optional[int] = None
-    min_yarn_level_masses: Optional[int] = None
-    max_yarn_level_masses: Optional[int] = None
-    attachments_follow: bool = True
+    frames: int = key("int", 0, lo=0, doc="frames to run for the checks; 0 means the scene's frame count")
+    all_finite: bool = key("bool", True, doc="every position stays finite")
+    max_strain_below: Optional[float] = key("float", None, lo=0, lo_open=True,
+                                            doc="largest structural strain at the end")
+    min_broken_springs: Optional[int] = key("int", None, lo=0, doc="fewest springs cut by tearing")
+    max_broken_springs: Optional[int] = key("int", None, lo=0, doc="most springs cut by tearing")
+    min_yarn_level_masses: Optional[int] = key("int", None, lo=0, doc="fewest masses in the yarn-level model")
+    max_yarn_level_masses: Optional[int] = key("int", None, lo=0, doc="most masses in the yarn-level model")
+    attachments_follow: bool = key("bool", True, doc="held masses stay exactly on their body")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class SceneSpec:
+    """A whole scene. Its own key, gravity, is the [world] table."""
+
     source: str
     """Path of the TOML file the scene came from (for messages)."""
     scene: SceneInfo
     time: TimeSpec
     cloth: ClothSpec
-    gravity_m_s2: Vec3
+    gravity_m_s2: Vec3 = key("vec3", (0.0, -9.81, 0.0), doc="gravity [m/s^2]")
     bodies: tuple[BodySpec, ...] = ()
     attachments: tuple[AttachmentSpec, ...] = ()
     self_collision: SelfCollisionSpec = field(default_factory=SelfCollisionSpec)

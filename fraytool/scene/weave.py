@@ -1,4 +1,4 @@
-"""Weave patterns as over/under tables (METHOD.md §3.1).
+"""Weave patterns as over/under tables (docs/method.md §3.1).
 
 A weave repeat is a boolean table `top[j][i]`, True where the weft yarn j lies on top of warp
 yarn i at their crossing; the cloth tiles it: crossing (i, j) uses top[j % rows][i % cols].

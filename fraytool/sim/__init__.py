@@ -1,12 +1,12 @@
-"""Simulation: Builder -> Model (static) + State (changes) -> Solver (METHOD.md §3-§4).
+"""Simulation: Builder -> Model (static) + State (changes) -> Solver (docs/method.md §3-§4).
 
 Never imports rendering: the renderer reads only FrameRecords and the saved topology.
 """
 from fraytool.sim.builder import ModelBuilder, build_model
 from fraytool.sim.model import Model
-from fraytool.sim.simulation import Simulation, make_solver
+from fraytool.sim.simulation import Simulation
 from fraytool.sim.solver import SimulationUnstable, SolverExplicitPBD
 from fraytool.sim.state import State
 
 __all__ = ["ModelBuilder", "build_model", "Model", "State", "Simulation", "SolverExplicitPBD",
-           "SimulationUnstable", "make_solver"]
+           "SimulationUnstable"]

@@ -1,32 +1,63 @@
-"""ModelBuilder: SceneSpec -> Model (METHOD.md §3.2 base model at yarn resolution).
+"""ModelBuilder: a cloth, rigid bodies and attachments, added in code or from a scene file -> Model.
 
-One mass per crossing on a quad grid; springs:
+    builder = ModelBuilder(seed=1)
+    builder.add_cloth(warp_yarns=30, weft_yarns=30, spacing_m=0.005, thickness_m=0.0008,
+                      mass_per_crossing_kg=2.0e-5, structural_n_per_m=20.0)
+    builder.add_sphere("ball", radius_m=0.05, position_m=(0.0, -0.05, 0.0))
+    model = builder.finalize()
+
+Every keyword argument is the scene key of the same name (docs/scene-format.md), in SI units, with
+the same default and allowed range: both come from the key's one declaration in
+`fraytool.scene.spec`, and the rules that tie keys together from `fraytool.scene.rules`. A bad
+argument raises ModelBuilderError (a ValueError) naming the method, the argument, the value and what
+is allowed. `build_model(spec)` is these same calls for a scene read from a file.
+
+The model (docs/method.md §3.2 base model at yarn resolution) has one mass per crossing on a quad grid
+and springs:
 - structural between grid neighbours along weft (i, i+1) and warp (j, j+1);
 - bend between masses two apart (skip one) along weft and warp;
 - shear between diagonal neighbours, acting only in compression;
 - one dead twin slot per shear spring, brought to life when a split duplicates it (§3.4).
-Break strains are drawn here, once, from numpy.random.default_rng(seed) (§3.4 "random break limits").
+Break strains are drawn in `finalize()`, once, from numpy.random.default_rng(seed) (§3.4 "random
+break limits").
 """
 from __future__ import annotations
 
+import dataclasses
+import inspect
 import math
+from typing import Any, Callable, Optional, Sequence
 
 import numpy as np
 
-from fraytool.scene.spec import AttachmentSpec, SceneSpec
-from fraytool.sim.model import (
-    BEND_WARP,
-    BEND_WEFT,
-    MOTION_NAMES,
-    SHAPE_NAMES,
-    SHEAR,
-    SHEAR_TWIN,
-    STRUCT_WARP,
-    STRUCT_WEFT,
-    Model,
+from fraytool.errors import SceneError
+from fraytool.kinds import BEND_WARP, BEND_WEFT, MOTION_NAMES, SHAPE_NAMES, SHEAR, SHEAR_TWIN, STRUCT_WARP, STRUCT_WEFT
+from fraytool.scene import rules, schema
+from fraytool.scene.keys import Key, show
+from fraytool.scene.spec import (
+    AttachmentSpec,
+    BodySpec,
+    ClothSpec,
+    SceneSpec,
+    SelfCollisionSpec,
+    SpringSpec,
+    StrainSpec,
+    TearingSpec,
 )
+from fraytool.sim.model import Model
+
+Vec3 = tuple[float, float, float]
 
 _PLANE_AXES = {"xz": (0, 2), "xy": (0, 1), "yz": (2, 1)}
+
+_SCENE, _WORLD, _CLOTH, _SPRINGS = (schema.TOP[t] for t in ("scene", "world", "cloth", "cloth.springs"))
+_STRAIN, _TEARING, _SELF = (schema.TOP[t] for t in ("cloth.strain", "cloth.tearing", "self_collision"))
+_BODY, _ATTACH = schema.TOP["bodies"], schema.TOP["attachments"]
+
+
+class ModelBuilderError(SceneError, ValueError):
+    """Bad arguments to a ModelBuilder method: one line per problem, "ModelBuilder.method: arg = value:
+    what is allowed". A SceneError (exit code 2 from the CLI) and a ValueError (for Python callers)."""
 
 
 def crossing_index(i: int | np.ndarray, j: int | np.ndarray, warp_yarns: int):
@@ -67,14 +98,212 @@ def select_crossings(att: AttachmentSpec, nx: int, ny: int, rest: np.ndarray) ->
     return np.nonzero(mask)[0].astype(np.int32)
 
 
+def _given(local_vars: dict[str, Any]) -> dict[str, Any]:
+    """A method's arguments (its locals() on entry) without `self`."""
+    return {k: v for k, v in local_vars.items() if k != "self"}
+
+
+def _parameters(method: Callable) -> list[str]:
+    return [p for p in inspect.signature(method).parameters if p != "self"]
+
+
+def _keys_doc(*tables: str) -> Callable:
+    """Append to a method's docstring one line per argument, generated from the keys' declarations
+    (so that help() shows each argument's range, default and meaning without a second copy)."""
+    def decorate(method: Callable) -> Callable:
+        keys = {name: k for t in tables for name, k in schema.TOP[t].items()}
+        lines = []
+        for name, p in inspect.signature(method).parameters.items():
+            if name in keys:
+                k = keys[name]
+                given = ("" if p.default is inspect.Parameter.empty else
+                         ", optional" if p.default is None else f", default {show(p.default)}")
+                lines.append(f"            {name}: {k.allowed()}{given}. {k.doc}")
+        tables_named = ", ".join(f"[{t}]" for t in tables)
+        method.__doc__ = ((method.__doc__ or "").rstrip() + f"\n\n        Arguments (keys of {tables_named}):\n"
+                          + "\n".join(lines) + "\n")
+        return method
+    return decorate
+
+
 class ModelBuilder:
-    """Collects crossings, springs, bodies and attachments, then `finalize()`s them into a Model."""
+    """Collects one cloth, its solver settings, rigid bodies and attachments; `finalize()` makes the Model.
 
-    def __init__(self, spec: SceneSpec):
-        self.spec = spec
+    Settings of the cloth that the solver reads (strain limiting, tearing, self-collision) have their
+    own `set_*` method, one per scene table; without the call, the scene file's defaults hold
+    (strain limit 0.10, no tearing, no self-collision). Seed and gravity are given to the constructor.
+    """
 
-    def _grid(self):
-        c = self.spec.cloth
+    @_keys_doc("scene", "world")
+    def __init__(self, *, seed: int = _SCENE["seed"].default,
+                 gravity_m_s2: Sequence[float] = _WORLD["gravity_m_s2"].default):
+        """A builder with nothing added yet. `seed` seeds every random draw (break strains)."""
+        v = self._check("ModelBuilder", {**_SCENE, **_WORLD}, dict(seed=seed, gravity_m_s2=gravity_m_s2))
+        self.seed: int = v["seed"]
+        self.gravity_m_s2: Vec3 = v["gravity_m_s2"]
+        self.cloth: Optional[ClothSpec] = None
+        self.strain = StrainSpec()
+        self.tearing = TearingSpec()
+        self.self_collision = SelfCollisionSpec()
+        self.bodies: list[BodySpec] = []
+        self.attachments: list[AttachmentSpec] = []
+
+    # --- checking arguments ---------------------------------------------------------------------------
+
+    @staticmethod
+    def _raise(method: str, problems: list[rules.Problem]) -> None:
+        if problems:
+            where = method if method == "ModelBuilder" else f"ModelBuilder.{method}"
+            raise ModelBuilderError([f"{where}: {allowed}" if key is None
+                                     else f"{where}: {key} = {show(value)}: {allowed}"
+                                     for key, value, allowed in problems])
+
+    def _check(self, method: str, keys: dict[str, Key], args: dict[str, Any]) -> dict[str, Any]:
+        """Convert every argument against its key; raise one error listing every bad one."""
+        out, problems = {}, []
+        for name, value in args.items():
+            k = keys[name]
+            if value is None and k.default is None:  # an optional key left out
+                out[name] = None
+                continue
+            ok, converted = k.convert(value)
+            if ok:
+                out[name] = converted
+            else:
+                problems.append((name, value, k.explain()))
+        self._raise(method, problems)
+        return out
+
+    # --- the cloth and its solver settings ----------------------------------------------------------
+
+    @_keys_doc("cloth", "cloth.springs")
+    def add_cloth(self, *, warp_yarns: int, weft_yarns: int, spacing_m: float, thickness_m: float,
+                  mass_per_crossing_kg: float, structural_n_per_m: float,
+                  origin_m: Sequence[float] = _CLOTH["origin_m"].default,
+                  plane: str = _CLOTH["plane"].default,
+                  weave: str = _CLOTH["weave"].default,
+                  twill: str = _CLOTH["twill"].default,
+                  satin_shafts: int = _CLOTH["satin_shafts"].default,
+                  table: Optional[Sequence[Sequence[int]]] = _CLOTH["table"].default,
+                  bend_n_per_m: float = _SPRINGS["bend_n_per_m"].default,
+                  shear_n_per_m: float = _SPRINGS["shear_n_per_m"].default,
+                  damping: float = _SPRINGS["damping"].default) -> None:
+        """The woven cloth: a grid of warp_yarns x weft_yarns crossings, spacing_m apart, in `plane`
+        from `origin_m`, with its weave and springs ([cloth] and [cloth.springs]). One per model."""
+        args = _given(locals())
+        if self.cloth is not None:
+            self._raise("add_cloth", [(None, None, "a model holds one cloth; add_cloth was already called")])
+        v = self._check("add_cloth", {**_CLOTH, **_SPRINGS}, args)
+        table, problems = rules.weave_table(v["weave"], v["twill"], v["satin_shafts"], v["table"])
+        self._raise("add_cloth", problems + rules.cloth_problems(v["spacing_m"], v["thickness_m"]))
+        springs = SpringSpec(**{k: v.pop(k) for k in _SPRINGS})
+        del v["table"]
+        # strain and tearing are set apart (set_strain_limit, set_tearing); finalize() reads those.
+        self.cloth = ClothSpec(**v, weave_table=table, springs=springs)
+
+    @_keys_doc("cloth.strain")
+    def set_strain_limit(self, *, limit: float = _STRAIN["limit"].default,
+                         max_iterations: int = _STRAIN["max_iterations"].default,
+                         tolerance: float = _STRAIN["tolerance"].default) -> None:
+        """Strain limiting of structural springs (docs/method.md §4.1), as [cloth.strain]."""
+        self.strain = StrainSpec(**self._check("set_strain_limit", _STRAIN, _given(locals())))
+
+    @_keys_doc("cloth.tearing")
+    def set_tearing(self, *, enabled: bool = True, yarn_level: bool = _TEARING["yarn_level"].default,
+                    transition_strain: float = _TEARING["transition_strain"].default,
+                    break_strain: float = _TEARING["break_strain"].default,
+                    break_strain_spread: float = _TEARING["break_strain_spread"].default,
+                    disconnect_factor: float = _TEARING["disconnect_factor"].default) -> None:
+        """Tearing, as [cloth.tearing]. Calling it turns tearing on (enabled=False turns it off again);
+        without the call the cloth does not tear."""
+        t = TearingSpec(**self._check("set_tearing", _TEARING, _given(locals())))
+        self._raise("set_tearing", rules.tearing_problems(t))
+        self.tearing = t
+
+    @_keys_doc("self_collision")
+    def set_self_collision(self, *, enabled: bool = True, iterations: int = _SELF["iterations"].default,
+                           friction: float = _SELF["friction"].default) -> None:
+        """Edge-edge self-collision between yarn segments (docs/method.md §4.2), as [self_collision]. Calling
+        it turns self-collision on (enabled=False turns it off again); without the call it is off."""
+        self.self_collision = SelfCollisionSpec(**self._check("set_self_collision", _SELF, _given(locals())))
+
+    # --- rigid bodies -------------------------------------------------------------------------------
+
+    def _add_body(self, method: str, shape: str, args: dict[str, Any]) -> int:
+        v = self._check(method, _BODY, args)
+        body = BodySpec(shape=shape, **v)
+        self._raise(method, rules.body_name_problems(body.name, (b.name for b in self.bodies))
+                    + rules.body_problems(body))
+        self.bodies.append(body)
+        return len(self.bodies) - 1
+
+    @_keys_doc("bodies")
+    def add_sphere(self, name: str, *, radius_m: float,
+                   position_m: Sequence[float] = _BODY["position_m"].default,
+                   rotation_deg: Sequence[float] = _BODY["rotation_deg"].default,
+                   motion: str = _BODY["motion"].default,
+                   velocity_m_s: Sequence[float] = _BODY["velocity_m_s"].default,
+                   path: Sequence[Sequence[float]] = _BODY["path"].default,
+                   mass_kg: float = _BODY["mass_kg"].default,
+                   gravity: bool = _BODY["gravity"].default,
+                   friction: float = _BODY["friction"].default,
+                   collide: bool = _BODY["collide"].default,
+                   start_s: float = _BODY["start_s"].default) -> int:
+        """A rigid sphere of radius_m centred at position_m; returns its body index."""
+        return self._add_body("add_sphere", "sphere", _given(locals()))
+
+    @_keys_doc("bodies")
+    def add_box(self, name: str, *, half_extents_m: Sequence[float],
+                position_m: Sequence[float] = _BODY["position_m"].default,
+                rotation_deg: Sequence[float] = _BODY["rotation_deg"].default,
+                motion: str = _BODY["motion"].default,
+                velocity_m_s: Sequence[float] = _BODY["velocity_m_s"].default,
+                path: Sequence[Sequence[float]] = _BODY["path"].default,
+                mass_kg: float = _BODY["mass_kg"].default,
+                gravity: bool = _BODY["gravity"].default,
+                friction: float = _BODY["friction"].default,
+                collide: bool = _BODY["collide"].default,
+                start_s: float = _BODY["start_s"].default) -> int:
+        """A rigid box (a bar is a long thin box) centred at position_m; returns its body index."""
+        return self._add_body("add_box", "box", _given(locals()))
+
+    @_keys_doc("bodies")
+    def add_plane(self, name: str, *, normal: Sequence[float] = _BODY["normal"].default,
+                  position_m: Sequence[float] = _BODY["position_m"].default,
+                  rotation_deg: Sequence[float] = _BODY["rotation_deg"].default,
+                  motion: str = _BODY["motion"].default,
+                  velocity_m_s: Sequence[float] = _BODY["velocity_m_s"].default,
+                  path: Sequence[Sequence[float]] = _BODY["path"].default,
+                  friction: float = _BODY["friction"].default,
+                  collide: bool = _BODY["collide"].default,
+                  start_s: float = _BODY["start_s"].default) -> int:
+        """An infinite plane through position_m, free side towards `normal` (static or kinematic);
+        returns its body index."""
+        return self._add_body("add_plane", "plane", _given(locals()))
+
+    @_keys_doc("attachments")
+    def add_attachment(self, body: str | int, *, edge: Optional[str] = None, corner: Optional[str] = None,
+                       corner_size: int = _ATTACH["corner_size"].default,
+                       warp_range: Optional[Sequence[int]] = None, weft_range: Optional[Sequence[int]] = None,
+                       region_center_m: Optional[Sequence[float]] = None,
+                       region_radius_m: float = _ATTACH["region_radius_m"].default) -> None:
+        """Cloth masses held by a body (its name or index): give exactly one selection. They follow the
+        body exactly; a crossing held twice keeps its first holder. Call after add_cloth and the body."""
+        args = _given(locals())
+        if self.cloth is None:
+            self._raise("add_attachment", [(None, None, "call add_cloth first (selections are on its grid)")])
+        if isinstance(body, int) and not isinstance(body, bool):
+            if not 0 <= body < len(self.bodies):
+                self._raise("add_attachment", [("body", body, f"no body has this index ({len(self.bodies)} added)")])
+            args["body"] = self.bodies[body].name
+        att = AttachmentSpec(**self._check("add_attachment", _ATTACH, args))
+        self._raise("add_attachment", rules.attachment_problems(att, (b.name for b in self.bodies),
+                                                                self.cloth.warp_yarns, self.cloth.weft_yarns))
+        self.attachments.append(att)
+
+    # --- finalize -------------------------------------------------------------------------------------
+
+    def _grid(self, c: ClothSpec):
         nx, ny = c.warp_yarns, c.weft_yarns
         a0, a1 = _PLANE_AXES[c.plane]
         ii, jj = np.meshgrid(np.arange(nx), np.arange(ny))
@@ -86,8 +315,8 @@ class ModelBuilder:
         top = table[jj.ravel() % table.shape[0], ii.ravel() % table.shape[1]]
         return nx, ny, rest, top
 
-    def _springs(self, nx: int, ny: int, rest: np.ndarray):
-        k = self.spec.cloth.springs
+    @staticmethod
+    def _springs(k: SpringSpec, nx: int, ny: int, rest: np.ndarray):
         kinds, a_list, b_list, stiff = [], [], [], []
         weft_struct = np.full((ny, max(nx - 1, 0)), -1, np.int32)
         warp_struct = np.full((nx, max(ny - 1, 0)), -1, np.int32)
@@ -136,18 +365,20 @@ class ModelBuilder:
 
         The floor does not depend on yarn_level, so a base-model-only run of a scene (yarn_level =
         false, for comparison) tears a cloth with exactly the same break strains."""
-        t = self.spec.cloth.tearing
-        rng = np.random.default_rng(self.spec.scene.seed)
+        t = self.tearing
+        rng = np.random.default_rng(self.seed)
         draw = t.break_strain + t.break_strain_spread * rng.standard_normal(count)
         floor = t.transition_strain * 1.01 if t.transition_strain < t.break_strain else 1e-3
         return np.maximum(draw, floor)
 
     def finalize(self) -> Model:
-        spec = self.spec
-        c = spec.cloth
-        nx, ny, rest, top = self._grid()
+        """Turn everything added into the immutable Model (typed arrays); the builder can go on."""
+        c = self.cloth
+        if c is None:
+            self._raise("finalize", [(None, None, "no cloth: call add_cloth first")])
+        nx, ny, rest, top = self._grid(c)
         n = nx * ny
-        kind, a, b, stiff, rest_len, twin, weft_struct, warp_struct = self._springs(nx, ny, rest)
+        kind, a, b, stiff, rest_len, twin, weft_struct, warp_struct = self._springs(c.springs, nx, ny, rest)
 
         cw = np.full((n, 2), -1, np.int32)
         cv = np.full((n, 2), -1, np.int32)
@@ -158,7 +389,7 @@ class ModelBuilder:
         cv[a[s], 1] = s
         cv[b[s], 0] = s
 
-        bodies = spec.bodies
+        bodies = self.bodies
         names = tuple(bd.name for bd in bodies)
         rot = np.array([euler_rotation(bd.rotation_deg) for bd in bodies]).reshape(-1, 3, 3)
         normals = np.array([np.asarray(bd.normal) / np.linalg.norm(bd.normal) for bd in bodies]).reshape(-1, 3)
@@ -168,7 +399,7 @@ class ModelBuilder:
                 body_pos0[k] = bd.path[0][1:]
 
         att_p, att_b, att_off = [], [], []
-        for att in spec.attachments:
+        for att in self.attachments:
             body = names.index(att.body)
             sel = select_crossings(att, nx, ny, rest)
             att_p.extend(sel.tolist())
@@ -179,14 +410,15 @@ class ModelBuilder:
         _, first = np.unique(att_p_arr, return_index=True)
         first = np.sort(first)
 
-        t = c.tearing
+        t = self.tearing
+        strain = self.strain
         return Model(
             warp_yarns=nx,
             weft_yarns=ny,
             crossing_count=n,
             spacing_m=c.spacing_m,
             thickness_m=c.thickness_m,
-            gravity_m_s2=np.asarray(spec.gravity_m_s2, float),
+            gravity_m_s2=np.asarray(self.gravity_m_s2, float),
             crossing_mass_kg=np.full(n, c.mass_per_crossing_kg),
             crossing_rest_position_m=rest,
             crossing_weft_on_top=top,
@@ -219,21 +451,41 @@ class ModelBuilder:
             body_initial_position_m=body_pos0,
             body_initial_velocity_m_s=np.array([bd.velocity_m_s for bd in bodies], float).reshape(-1, 3),
             body_path=tuple(np.asarray(bd.path, float).reshape(-1, 4) for bd in bodies),
-            strain_limit=c.strain.limit,
-            strain_max_iterations=c.strain.max_iterations,
-            strain_tolerance=c.strain.tolerance,
+            strain_limit=strain.limit,
+            strain_max_iterations=strain.max_iterations,
+            strain_tolerance=strain.tolerance,
             damping=c.springs.damping,
             tearing=t.enabled,
             yarn_level=t.enabled and t.yarn_level,
             transition_strain=t.transition_strain,
             disconnect_distance_m=t.disconnect_factor * c.thickness_m,
-            self_collision=spec.self_collision.enabled,
-            self_collision_iterations=spec.self_collision.iterations,
-            self_collision_friction=spec.self_collision.friction,
-            seed=spec.scene.seed,
+            self_collision=self.self_collision.enabled,
+            self_collision_iterations=self.self_collision.iterations,
+            self_collision_friction=self.self_collision.friction,
+            seed=self.seed,
         )
 
 
+_SHAPE_METHOD = {"sphere": "add_sphere", "box": "add_box", "plane": "add_plane"}
+
+
 def build_model(spec: SceneSpec) -> Model:
-    """Build the immutable Model of a scene."""
-    return ModelBuilder(spec).finalize()
+    """Build the immutable Model of a scene: the ModelBuilder calls that the scene's tables stand for."""
+    c = spec.cloth
+    builder = ModelBuilder(seed=spec.scene.seed, gravity_m_s2=spec.gravity_m_s2)
+    builder.add_cloth(warp_yarns=c.warp_yarns, weft_yarns=c.weft_yarns, spacing_m=c.spacing_m,
+                      thickness_m=c.thickness_m, mass_per_crossing_kg=c.mass_per_crossing_kg, origin_m=c.origin_m,
+                      plane=c.plane, weave=c.weave, twill=c.twill, satin_shafts=c.satin_shafts,
+                      table=c.weave_table if c.weave == "table" else None, **dataclasses.asdict(c.springs))
+    builder.set_strain_limit(**dataclasses.asdict(c.strain))
+    builder.set_tearing(**dataclasses.asdict(c.tearing))
+    builder.set_self_collision(**dataclasses.asdict(spec.self_collision))
+    for body in spec.bodies:
+        # Each shape's method takes the keys that apply to it (a sphere has no normal, a plane no
+        # mass); the others keep their defaults in the Model, where nothing reads them.
+        add = getattr(builder, _SHAPE_METHOD[body.shape])
+        takes = _parameters(add)
+        add(**{k: v for k, v in dataclasses.asdict(body).items() if k in takes})
+    for att in spec.attachments:
+        builder.add_attachment(**dataclasses.asdict(att))
+    return builder.finalize()

@@ -3,7 +3,7 @@
 Layout (see docs/architecture.md):
 - crossings c = j * warp_yarns + i, with i the warp yarn (column) and j the weft yarn (row);
 - particle slots: 2 * crossing_count. Slot c is the base mass of crossing c and, once the crossing
-  has split into a mass couple (METHOD.md §3.4), its **weft** mass; slot crossing_count + c is the
+  has split into a mass couple (docs/method.md §3.4), its **weft** mass; slot crossing_count + c is the
   couple's **warp** mass (inactive while the crossing is at base level);
 - springs have fixed slots for their whole life: structural and bend springs along weft and warp,
   shear springs, and for each shear spring a twin slot (dead until a split duplicates it).
@@ -12,27 +12,11 @@ What a step changes (positions, alive flags, spring end points after a split) li
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
-from typing import TYPE_CHECKING
-
 import numpy as np
 
-if TYPE_CHECKING:
-    from fraytool.sim.state import State
+from fraytool.kinds import SHEAR_TWIN
+from fraytool.sim.state import State
 
-# Spring kinds (spring_kind values).
-STRUCT_WEFT = 0
-STRUCT_WARP = 1
-BEND_WEFT = 2
-BEND_WARP = 3
-SHEAR = 4
-SHEAR_TWIN = 5
-SPRING_KIND_NAMES = ("structural_weft", "structural_warp", "bend_weft", "bend_warp", "shear", "shear_twin")
-
-# Rigid body shapes and motions (body_shape, body_motion values).
-SHAPE_SPHERE, SHAPE_BOX, SHAPE_PLANE = 0, 1, 2
-SHAPE_NAMES = ("sphere", "box", "plane")
-MOTION_STATIC, MOTION_KINEMATIC, MOTION_DYNAMIC = 0, 1, 2
-MOTION_NAMES = ("static", "kinematic", "dynamic")
 
 
 @dataclass(frozen=True, eq=False)
@@ -158,11 +142,38 @@ class Model:
         yarn[warp.ravel()] = self.weft_yarns + np.repeat(np.arange(warp.shape[0], dtype=np.int32), warp.shape[1])
         return yarn
 
-    def state(self) -> "State":
-        """A fresh State at rest in the initial configuration."""
-        from fraytool.sim.state import initial_state
-
-        return initial_state(self)
+    def state(self) -> State:
+        """State at rest: base-level crossings at their rest positions, bodies at their start poses."""
+        n = self.crossing_count
+        pos = np.zeros((2 * n, 3))
+        pos[:n] = self.crossing_rest_position_m
+        pos[n:] = self.crossing_rest_position_m
+        mass = np.zeros(2 * n)
+        mass[:n] = self.crossing_mass_kg
+        active = np.zeros(2 * n, dtype=bool)
+        active[:n] = True
+        inv_mass = np.zeros(2 * n)
+        inv_mass[:n] = 1.0 / self.crossing_mass_kg
+        inv_mass[self.attachment_particle] = 0.0
+        alive = self.spring_kind != SHEAR_TWIN  # shear twins are born dead; a split brings them to life
+        return State(
+            time_s=0.0,
+            step_index=0,
+            particle_position_m=pos,
+            particle_velocity_m_s=np.zeros((2 * n, 3)),
+            particle_mass_kg=mass,
+            particle_inv_mass=inv_mass,
+            particle_active=active,
+            crossing_yarn_level=np.zeros(n, dtype=bool),
+            couple_connected=np.zeros(n, dtype=bool),
+            spring_particle_a=self.spring_crossing_a.copy(),
+            spring_particle_b=self.spring_crossing_b.copy(),
+            spring_alive=alive,
+            spring_broken=np.zeros(self.spring_count, dtype=bool),
+            spring_stiffness_n_per_m=np.where(alive, self.spring_base_stiffness_n_per_m, 0.0),
+            body_position_m=self.body_initial_position_m.copy(),
+            body_velocity_m_s=np.zeros((self.body_count, 3)),
+        )
 
     def arrays(self) -> dict[str, np.ndarray]:
         """All array fields, for saving (topology.npz)."""

@@ -8,7 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from fraytool.sim.model import MOTION_DYNAMIC, MOTION_KINEMATIC, Model
+from fraytool.sim.model import Model
+from fraytool.kinds import MOTION_DYNAMIC, MOTION_KINEMATIC
 from fraytool.sim.state import State
 
 

@@ -15,25 +15,13 @@ from typing import Iterator, Optional
 import numpy as np
 
 from fraytool.io.frame_record import FrameRecord
+from fraytool.kinds import STRUCT_WARP, STRUCT_WEFT
 from fraytool.scene.spec import SceneSpec
 from fraytool.sim.builder import build_model
-from fraytool.sim.model import STRUCT_WARP, STRUCT_WEFT, Model
+from fraytool.sim.model import Model
+from fraytool.sim.record import frame_record
 from fraytool.sim.solver import SolverExplicitPBD
 from fraytool.sim.state import State
-
-
-def make_solver(model: Model) -> SolverExplicitPBD:
-    """The solver with exactly the passes the model needs plugged in."""
-    solver = SolverExplicitPBD(model)
-    if model.tearing:
-        from fraytool.sim.tearing import attach_tearing  # only scenes that tear load the yarn-level model
-
-        attach_tearing(solver)
-    if model.self_collision:
-        from fraytool.collision.response import attach_self_collision
-
-        attach_self_collision(solver)
-    return solver
 
 
 class Simulation:
@@ -44,7 +32,7 @@ class Simulation:
         self.spec = spec
         self.model = model if model is not None else build_model(spec)
         self.state = state if state is not None else self.model.state()
-        self.solver = make_solver(self.model)
+        self.solver = SolverExplicitPBD(self.model)
         self.frame = frame
         """Index of the frame the current state belongs to."""
         self.dt_s = spec.time.step_s
@@ -61,7 +49,7 @@ class Simulation:
         return self.record()
 
     def record(self) -> FrameRecord:
-        return FrameRecord.from_state(self.model, self.state, self.frame)
+        return frame_record(self.model, self.state, self.frame)
 
     def frames(self, count: Optional[int] = None) -> Iterator[FrameRecord]:
         """Yield the current frame's record, then advance until `count` frames (default: the scene's)."""
@@ -96,8 +84,5 @@ class Simulation:
             "strain_cap_hits": self.solver.strain_cap_hits,
             "all_finite": bool(np.isfinite(s.particle_position_m).all() and np.isfinite(s.particle_velocity_m_s).all()),
         }
-        if self.solver.tearing is not None and hasattr(self.solver.tearing, "summary"):
-            out.update(self.solver.tearing.summary(self.state))
-        if self.solver.self_collision is not None:
-            out.update(self.solver.self_collision.summary())
+        out.update(self.solver.summary(self.state))
         return out

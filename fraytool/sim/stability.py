@@ -1,4 +1,4 @@
-"""The explicit stability bound of the step (METHOD.md §4; issue "numerical stability").
+"""The explicit stability bound of the step (docs/method.md §4; issue "numerical stability").
 
 Symplectic (semi-implicit) Euler, v += h M^-1 f(x); x += h v, applied to a linear spring network
 is stable while h <= 2 / ω_max, with ω_max^2 the largest eigenvalue of M^-1 K: a mode of angular
@@ -11,7 +11,7 @@ adds only k (1 - L / l) < k, so this K bounds the true Hessian of every stretche
 (and equals it for motion along a straight chain). Held masses (attachments) are fixed: their rows
 and columns are removed. Every spring slot counts except the unborn shear twins; shear springs
 count at full stiffness although they act only in compression. Springs of the yarn-level model
-(METHOD.md §3.3) join half masses and are not part of this base-model bound.
+(docs/method.md §3.3) join half masses and are not part of this base-model bound.
 
 Two estimates of ω_max bracket the true value:
 - `gershgorin_omega_max`: Gershgorin's circle theorem, ω_max^2 <= max_i (2 / m_i) Σ_{s at i} k_s,
@@ -27,7 +27,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fraytool.sim.model import SHEAR_TWIN, Model
+from fraytool.sim.model import Model
+from fraytool.kinds import SHEAR_TWIN
 
 POWER_ITERATIONS = 2000
 """Default cap on power-iteration sweeps (at most about 0.3 s for the 4096-mass scene)."""

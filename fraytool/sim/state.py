@@ -9,7 +9,6 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from fraytool.sim.model import SHEAR_TWIN, Model
 
 
 @dataclass(eq=False)
@@ -66,37 +65,3 @@ class State:
             else:
                 kw[f.name] = v.copy()
         return State(**kw)
-
-
-def initial_state(model: Model) -> State:
-    """State at rest: base-level crossings at their rest positions, bodies at their start poses."""
-    n = model.crossing_count
-    pos = np.zeros((2 * n, 3))
-    pos[:n] = model.crossing_rest_position_m
-    pos[n:] = model.crossing_rest_position_m
-    mass = np.zeros(2 * n)
-    mass[:n] = model.crossing_mass_kg
-    active = np.zeros(2 * n, dtype=bool)
-    active[:n] = True
-    inv_mass = np.zeros(2 * n)
-    inv_mass[:n] = 1.0 / model.crossing_mass_kg
-    inv_mass[model.attachment_particle] = 0.0
-    alive = model.spring_kind != SHEAR_TWIN  # shear twins are born dead; a split brings them to life
-    return State(
-        time_s=0.0,
-        step_index=0,
-        particle_position_m=pos,
-        particle_velocity_m_s=np.zeros((2 * n, 3)),
-        particle_mass_kg=mass,
-        particle_inv_mass=inv_mass,
-        particle_active=active,
-        crossing_yarn_level=np.zeros(n, dtype=bool),
-        couple_connected=np.zeros(n, dtype=bool),
-        spring_particle_a=model.spring_crossing_a.copy(),
-        spring_particle_b=model.spring_crossing_b.copy(),
-        spring_alive=alive,
-        spring_broken=np.zeros(model.spring_count, dtype=bool),
-        spring_stiffness_n_per_m=np.where(alive, model.spring_base_stiffness_n_per_m, 0.0),
-        body_position_m=model.body_initial_position_m.copy(),
-        body_velocity_m_s=np.zeros((model.body_count, 3)),
-    )

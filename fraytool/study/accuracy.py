@@ -15,7 +15,7 @@ Choices (stated in the report):
   breaks one step later sends its yarn elsewhere), so for errors every run and the reference have
   tearing off. A tearing scene is also run with tearing on over the step sweep and compared to a
   tearing reference by statistics: time of the first break, broken springs, torn length.
-- PBD damping (METHOD.md §4, Müller et al. 2007 §3.5) is a fraction k removed per *step*; at a fixed
+- PBD damping (docs/method.md §4, Müller et al. 2007 §3.5) is a fraction k removed per *step*; at a fixed
   k a smaller step would damp more per second and the runs would not converge to one motion. The
   study keeps the damping per second of the scene: k(h) = 1 - (1 - k0)^(h / h0).
 - Errors are over all masses (base model, tearing off), against the reference at every frame:

@@ -26,7 +26,7 @@ import numpy as np
 
 from fraytool.scene.spec import SceneSpec
 from fraytool.sim.guard import explain_failure, jitter_ratio
-from fraytool.sim.model import STRUCT_WARP, STRUCT_WEFT
+from fraytool.kinds import STRUCT_WARP, STRUCT_WEFT
 from fraytool.sim.simulation import Simulation
 from fraytool.sim.solver import SimulationUnstable
 

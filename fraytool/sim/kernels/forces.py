@@ -1,4 +1,4 @@
-"""Spring forces of the base and yarn-level models (METHOD.md §3.2).
+"""Spring forces of the base and yarn-level models (docs/method.md §3.2).
 
 Hooke springs f = k (|x_b - x_a| - L) u along the unit vector u from a to b. Shear springs
 (kinds SHEAR and SHEAR_TWIN) act only in compression: no force when longer than rest.
@@ -9,7 +9,7 @@ import math
 
 import numba as nb
 
-from fraytool.sim.model import SHEAR, SHEAR_TWIN
+from fraytool.kinds import SHEAR, SHEAR_TWIN
 
 
 @nb.njit(cache=True, fastmath=False)

@@ -1,4 +1,4 @@
-"""Cloth masses against rigid spheres, boxes and planes, with friction (METHOD.md §4.3).
+"""Cloth masses against rigid spheres, boxes and planes, with friction (docs/method.md §4.3).
 
 A particle closer than `margin` (half the cloth thickness) to a body's surface is projected out
 along the surface normal n by the penetration depth d. Friction acts on the tangential
@@ -15,7 +15,7 @@ import math
 import numba as nb
 import numpy as np
 
-from fraytool.sim.model import SHAPE_PLANE, SHAPE_SPHERE
+from fraytool.kinds import SHAPE_PLANE, SHAPE_SPHERE
 
 
 @nb.njit(cache=True, fastmath=False)

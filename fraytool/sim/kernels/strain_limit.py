@@ -1,4 +1,4 @@
-"""Strain limiting by constraint projection (METHOD.md §4.1; Provot 1995; Müller et al. 2007).
+"""Strain limiting by constraint projection (docs/method.md §4.1; Provot 1995; Müller et al. 2007).
 
 A stretched spring of rest length L and current length l > (1 + limit) L is projected back to
 l* = (1 + limit) L, moving its ends along u (unit, a to b) by their inverse-mass shares:
@@ -13,21 +13,6 @@ from __future__ import annotations
 import math
 
 import numba as nb
-
-
-@nb.njit(cache=True, fastmath=False)
-def project_distance_max(xa, xb, w_a, w_b, max_length):
-    """Corrections (dxa, dxb) that shorten segment a-b to max_length; zeros if already shorter.
-    Pure function: positions, inverse masses, target length in; corrections out."""
-    dx = xb[0] - xa[0]
-    dy = xb[1] - xa[1]
-    dz = xb[2] - xa[2]
-    length = math.sqrt(dx * dx + dy * dy + dz * dz)
-    w = w_a + w_b
-    if length <= max_length or w == 0.0 or length < 1e-15:
-        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-    c = (length - max_length) / (length * w)
-    return w_a * c * dx, w_a * c * dy, w_a * c * dz, -w_b * c * dx, -w_b * c * dy, -w_b * c * dz
 
 
 @nb.njit(cache=True, fastmath=False)
@@ -80,15 +65,3 @@ def limit_strain(
         if worst <= tolerance:
             return it + 1, True
     return max_iterations, max_iterations == 0
-
-
-@nb.njit(cache=True, fastmath=False)
-def spring_strains(particle_position_m, spring_particle_a, spring_particle_b, spring_rest_length_m, strain_out):
-    """strain = |x_b - x_a| / L - 1 for every spring slot."""
-    for s in range(spring_particle_a.shape[0]):
-        a = spring_particle_a[s]
-        b = spring_particle_b[s]
-        dx = particle_position_m[b, 0] - particle_position_m[a, 0]
-        dy = particle_position_m[b, 1] - particle_position_m[a, 1]
-        dz = particle_position_m[b, 2] - particle_position_m[a, 2]
-        strain_out[s] = math.sqrt(dx * dx + dy * dy + dz * dz) / spring_rest_length_m[s] - 1.0

@@ -1,4 +1,4 @@
-"""Yarn contact at connected mass couples (METHOD.md §3.3), stage 5 of the step.
+"""Yarn contact at connected mass couples (docs/method.md §3.3), stage 5 of the step.
 
 Only the springs of a couple's own masses are checked: its live weft structural springs (at most
 2, on the weft mass) against its live warp structural springs (at most 2, on the warp mass), so at
@@ -41,6 +41,7 @@ when the couple has no live weft or no live warp spring left, the couple is disc
 it is never corrected again, and the shear copies at it are cut (no woven cell left to keep).
 
 Serial Gauss-Seidel over couples in crossing order and over pairs in slot order: deterministic.
+The kernels take the argument groups of `groups.py` (model_in: TearModel; the State groups).
 """
 from __future__ import annotations
 
@@ -49,8 +50,8 @@ import math
 import numba as nb
 import numpy as np
 
-from fraytool.segments import segment_closest_params
-from fraytool.sim.model import SHEAR
+from fraytool.collision.segment import segment_closest_params
+from fraytool.kinds import SHEAR
 
 SIN_PARALLEL = 1e-2
 """Pairs whose springs are closer to parallel than this |sin(angle)| have no crossing normal."""
@@ -119,10 +120,13 @@ def _pair_distance(pa, qa, pb, qb, particle_position_m):
 
 
 @nb.njit(cache=True, fastmath=False)
-def disconnect_couple(c, spring_kind, spring_twin, crossing_spring_start, crossing_spring_list, couple_connected,
-                spring_alive):
+def disconnect_couple(c, model_in, crossings_inout, springs_inout):
     """Disconnect couple c and cut the shear springs (both copies) at it: once weft and warp part
-    there is no woven cell left for a diagonal to keep."""
+    there is no woven cell left for a diagonal to keep. Writes couple_connected and spring_alive."""
+    spring_kind, spring_twin = model_in.spring_kind, model_in.spring_twin
+    crossing_spring_start, crossing_spring_list = model_in.crossing_spring_start, model_in.crossing_spring_list
+    couple_connected = crossings_inout.couple_connected
+    spring_alive = springs_inout.spring_alive
     couple_connected[c] = False
     for k in range(crossing_spring_start[c], crossing_spring_start[c + 1]):
         s = crossing_spring_list[k]
@@ -132,24 +136,25 @@ def disconnect_couple(c, spring_kind, spring_twin, crossing_spring_start, crossi
 
 
 @nb.njit(cache=True, fastmath=False)
-def project_couples(
-    # model
-    thickness_m, disconnect_distance_m, crossing_weft_on_top, crossing_weft_springs, crossing_warp_springs,
-    spring_kind, spring_crossing_a, spring_crossing_b, spring_twin, crossing_spring_start, crossing_spring_list,
-    # state in
-    particle_inv_mass, spring_particle_a, spring_particle_b, crossing_yarn_level,
-    # state in/out
-    particle_position_m, couple_connected, spring_alive, couple_list, couple_count,
-):
-    """Project the contact of every couple in couple_list[:couple_count] (module docstring).
+def project_couples(model_in, particles_inout, crossings_inout, springs_inout, couple_list_inout, couple_count):
+    """Project the contact of every couple in couple_list_inout[:couple_count] (module docstring).
     Couples that disconnect are flagged in couple_connected (their shear copies cut) and dropped
-    from the list, which is compacted in place (order kept). Returns the new couple_count."""
-    x = particle_position_m
+    from the list, which is compacted in place (order kept). Returns the new couple_count.
+    Writes particle_position_m, couple_connected and spring_alive (reads the other State arrays)."""
+    thickness_m, disconnect_distance_m = model_in.thickness_m, model_in.disconnect_distance_m
+    crossing_weft_on_top = model_in.crossing_weft_on_top
+    crossing_weft_springs, crossing_warp_springs = model_in.crossing_weft_springs, model_in.crossing_warp_springs
+    spring_crossing_a, spring_crossing_b = model_in.spring_crossing_a, model_in.spring_crossing_b
+    particle_inv_mass = particles_inout.particle_inv_mass
+    crossing_yarn_level, couple_connected = crossings_inout.crossing_yarn_level, crossings_inout.couple_connected
+    spring_particle_a, spring_particle_b = springs_inout.spring_particle_a, springs_inout.spring_particle_b
+    spring_alive = springs_inout.spring_alive
+    x = particles_inout.particle_position_m
     kept = 0
     weft = np.zeros(2, np.int64)
     warp = np.zeros(2, np.int64)
     for k in range(couple_count):
-        c = couple_list[k]
+        c = couple_list_inout[k]
         if not couple_connected[c]:
             continue  # disconnected elsewhere: drop from the list
         n_weft = 0
@@ -166,8 +171,7 @@ def project_couples(
                 n_warp += 1
         if n_weft == 0 or n_warp == 0:
             # One yarn is cut on both sides here: nothing left to hold.
-            disconnect_couple(c, spring_kind, spring_twin, crossing_spring_start, crossing_spring_list,
-                              couple_connected, spring_alive)
+            disconnect_couple(c, model_in, crossings_inout, springs_inout)
             continue
         dmin = 1e300
         for u in range(n_weft):
@@ -179,8 +183,7 @@ def project_couples(
                     dmin = d
         if not (dmin <= disconnect_distance_m):
             # Weft and warp have parted (or NaN): never corrected again.
-            disconnect_couple(c, spring_kind, spring_twin, crossing_spring_start, crossing_spring_list,
-                              couple_connected, spring_alive)
+            disconnect_couple(c, model_in, crossings_inout, springs_inout)
             continue
         side = 1.0 if crossing_weft_on_top[c] else -1.0
         slide = n_weft < 2 or n_warp < 2
@@ -212,6 +215,6 @@ def project_couples(
                 x[qb, 0] += kqb * nx
                 x[qb, 1] += kqb * ny
                 x[qb, 2] += kqb * nz
-        couple_list[kept] = c
+        couple_list_inout[kept] = c
         kept += 1
     return kept

@@ -1,4 +1,4 @@
-"""Cutting springs over their randomised break strain (METHOD.md §3.4 "random break limits", §4.1).
+"""Cutting springs over their randomised break strain (docs/method.md §3.4 "random break limits", §4.1).
 
 Runs in stage 7 of the step, after strain limiting (stage 5), yarn contact and collisions, and
 after the transitions of the same step. Rules (docs/tearing.md "Cutting"):
@@ -15,7 +15,8 @@ after the transitions of the same step. Rules (docs/tearing.md "Cutting"):
   grid cell: a torn cell has no diagonal left to keep. (The contact pass also cuts the shear
   copies at a couple when it disconnects, `contact.py`.)
 An unborn shear twin (alive = broken = False) is never born once its shear spring is cut, since
-a split duplicates only a live shear spring. Serial in slot order: deterministic.
+a split duplicates only a live shear spring. Serial in slot order: deterministic. The kernels take
+the argument groups of `groups.py` (model_in: TearModel, particles_in, springs_inout).
 """
 from __future__ import annotations
 
@@ -33,15 +34,14 @@ def cut_spring(s, spring_alive):
 
 
 @nb.njit(cache=True, fastmath=False)
-def cut_structural(
-    s,
-    # model
-    spring_twin, structural_bend_start, structural_bend_list, structural_shear_start, structural_shear_list,
-    # state in/out
-    spring_alive, spring_broken,
-):
+def cut_structural(s, model_in, springs_inout):
     """Break structural spring s (spring_broken) and cut the bend springs spanning it and the shear
-    springs (and twins) of the cells beside it; returns the number of springs cut."""
+    springs (and twins) of the cells beside it; returns the number of springs cut. Writes only
+    spring_alive and spring_broken."""
+    spring_twin = model_in.spring_twin
+    structural_bend_start, structural_bend_list = model_in.structural_bend_start, model_in.structural_bend_list
+    structural_shear_start, structural_shear_list = model_in.structural_shear_start, model_in.structural_shear_list
+    spring_alive, spring_broken = springs_inout.spring_alive, springs_inout.spring_broken
     if not spring_alive[s]:
         return 0  # already cut
     spring_broken[s] = True
@@ -56,21 +56,19 @@ def cut_structural(
 
 
 @nb.njit(cache=True, fastmath=False)
-def cut_overstrained(
-    # model
-    structural_springs, structural_yarn, yarn_count, spring_rest_length_m, spring_break_strain, spring_twin,
-    structural_bend_start, structural_bend_list, structural_shear_start, structural_shear_list,
-    # state in
-    particle_position_m, spring_particle_a, spring_particle_b,
-    # state in/out
-    spring_alive, spring_broken,
-):
+def cut_overstrained(model_in, particles_in, springs_inout):
     """Break, on each yarn, the live structural spring furthest over its break strain (ratio of
     length to break length; the lower slot on a tie), with its bend and shear springs: springs are
-    cut one by one (METHOD.md §1), so a yarn under tension snaps at its weakest point and the rest
+    cut one by one (docs/method.md §1), so a yarn under tension snaps at its weakest point and the rest
     of it relaxes before the next step instead of shattering into loose bits. Returns (structural
     springs broken, all springs cut). A spring within its limit costs one squared length and a
-    compare."""
+    compare. Reads the positions, writes only spring_alive and spring_broken."""
+    structural_springs, structural_yarn = model_in.structural_springs, model_in.structural_yarn
+    yarn_count = model_in.yarn_count
+    spring_rest_length_m, spring_break_strain = model_in.spring_rest_length_m, model_in.spring_break_strain
+    particle_position_m = particles_in.particle_position_m
+    spring_particle_a, spring_particle_b = springs_inout.spring_particle_a, springs_inout.spring_particle_b
+    spring_alive = springs_inout.spring_alive
     worst = np.zeros(yarn_count)
     pick = np.full(yarn_count, -1, np.int64)
     for k in range(structural_springs.shape[0]):
@@ -97,6 +95,5 @@ def cut_overstrained(
         if pick[y] < 0:
             continue
         yarn_cuts += 1
-        total += cut_structural(pick[y], spring_twin, structural_bend_start, structural_bend_list,
-                                structural_shear_start, structural_shear_list, spring_alive, spring_broken)
+        total += cut_structural(pick[y], model_in, springs_inout)
     return yarn_cuts, total

@@ -20,7 +20,8 @@ import math
 import numba as nb
 import numpy as np
 
-from fraytool.sim.model import STRUCT_WEFT
+from fraytool.kinds import STRUCT_WEFT
+from fraytool.sim.tearing.groups import state_groups, tear_model
 
 
 @nb.njit(cache=True, fastmath=False)
@@ -29,12 +30,16 @@ def _woven(k, crossing_yarn_level, couple_connected):
 
 
 @nb.njit(cache=True, fastmath=False)
-def _free_length(start, step, along_weft, warp_yarns, weft_yarns, weft_structural_spring, warp_structural_spring,
-                 particle_position_m, spring_particle_a, spring_particle_b, spring_alive, crossing_yarn_level,
-                 couple_connected):
+def _free_length(start, step, along_weft, model_in, particles_in, crossings_in, springs_in):
     """Yarn length from cut-end crossing `start`, walking by `step` (+1/-1) along a weft
     (along_weft) or warp yarn, to the first woven crossing or the end of the piece."""
-    x = particle_position_m
+    warp_yarns, weft_yarns = model_in.warp_yarns, model_in.weft_yarns
+    weft_structural_spring = model_in.weft_structural_spring
+    warp_structural_spring = model_in.warp_structural_spring
+    crossing_yarn_level, couple_connected = crossings_in.crossing_yarn_level, crossings_in.couple_connected
+    spring_particle_a, spring_particle_b = springs_in.spring_particle_a, springs_in.spring_particle_b
+    spring_alive = springs_in.spring_alive
+    x = particles_in.particle_position_m
     length = 0.0
     k = start
     while not _woven(k, crossing_yarn_level, couple_connected):
@@ -65,18 +70,13 @@ def _free_length(start, step, along_weft, warp_yarns, weft_yarns, weft_structura
 
 
 @nb.njit(cache=True, fastmath=False)
-def free_end_lengths(
-    # model
-    warp_yarns, weft_yarns, structural_springs, spring_kind, spring_crossing_a, spring_crossing_b,
-    weft_structural_spring, warp_structural_spring,
-    # state in
-    particle_position_m, spring_particle_a, spring_particle_b, spring_alive, spring_broken, crossing_yarn_level,
-    couple_connected,
-    # out
-    length_out, crossing_out,
-):
+def free_end_lengths(model_in, particles_in, crossings_in, springs_in, length_out, crossing_out):
     """Free length [m] of every cut end (module docstring) into length_out, the crossing of the
-    end into crossing_out; returns the number of cut ends (2 per cut structural spring)."""
+    end into crossing_out; returns the number of cut ends (2 per cut structural spring). Reads the
+    groups of `groups.py` (model_in: TearModel; the State groups), writes only the two outputs."""
+    structural_springs, spring_kind = model_in.structural_springs, model_in.spring_kind
+    spring_crossing_a, spring_crossing_b = model_in.spring_crossing_a, model_in.spring_crossing_b
+    spring_broken = springs_in.spring_broken
     count = 0
     for k in range(structural_springs.shape[0]):
         s = structural_springs[k]
@@ -86,14 +86,10 @@ def free_end_lengths(
         ca = spring_crossing_a[s]
         cb = spring_crossing_b[s]
         # a lies before the cut (walk backwards), b after it (walk forwards).
-        length_out[count] = _free_length(ca, -1, along_weft, warp_yarns, weft_yarns, weft_structural_spring,
-                                         warp_structural_spring, particle_position_m, spring_particle_a,
-                                         spring_particle_b, spring_alive, crossing_yarn_level, couple_connected)
+        length_out[count] = _free_length(ca, -1, along_weft, model_in, particles_in, crossings_in, springs_in)
         crossing_out[count] = ca
         count += 1
-        length_out[count] = _free_length(cb, 1, along_weft, warp_yarns, weft_yarns, weft_structural_spring,
-                                         warp_structural_spring, particle_position_m, spring_particle_a,
-                                         spring_particle_b, spring_alive, crossing_yarn_level, couple_connected)
+        length_out[count] = _free_length(cb, 1, along_weft, model_in, particles_in, crossings_in, springs_in)
         crossing_out[count] = cb
         count += 1
     return count
@@ -101,14 +97,11 @@ def free_end_lengths(
 
 def fray_lengths(model, topo, state) -> tuple[np.ndarray, np.ndarray]:
     """(free length [m], crossing) of every cut end of `state`, in structural-slot order."""
+    particles_in, crossings_in, springs_in = state_groups(state)
     k = topo.structural_springs.shape[0]
     lengths = np.zeros(2 * k)
     crossings = np.zeros(2 * k, np.int32)
-    count = free_end_lengths(model.warp_yarns, model.weft_yarns, topo.structural_springs, model.spring_kind,
-                             model.spring_crossing_a, model.spring_crossing_b, model.weft_structural_spring,
-                             model.warp_structural_spring, state.particle_position_m, state.spring_particle_a,
-                             state.spring_particle_b, state.spring_alive, state.spring_broken,
-                             state.crossing_yarn_level, state.couple_connected, lengths, crossings)
+    count = free_end_lengths(tear_model(model, topo), particles_in, crossings_in, springs_in, lengths, crossings)
     return lengths[:count], crossings[:count]
 
 

@@ -1,4 +1,4 @@
-"""Transition from the base model to the yarn-level model (METHOD.md §3.4): split and propagate.
+"""Transition from the base model to the yarn-level model (docs/method.md §3.4): split and propagate.
 
 Split of a base crossing c into a mass couple
 ---------------------------------------------
@@ -35,7 +35,9 @@ in a 2/2 twill the float partner of each end splits too. The walk is repeated wh
 over the threshold (crossings already split are skipped), so the split set does not depend on the
 order in which springs were found over-strained.
 
-Kernels are serial numba (cache=True, fastmath=False): same inputs, bit-identical results.
+Kernels are serial numba (cache=True, fastmath=False): same inputs, bit-identical results. They take
+the argument groups of `groups.py` (model_in: TearModel; particles_inout, crossings_inout,
+springs_inout: the State groups) and the step's previous positions, prev_position_m_inout.
 """
 from __future__ import annotations
 
@@ -43,7 +45,7 @@ import math
 
 import numba as nb
 
-from fraytool.sim.model import BEND_WARP, SHEAR, STRUCT_WARP, STRUCT_WEFT
+from fraytool.kinds import BEND_WARP, SHEAR, STRUCT_WARP, STRUCT_WEFT
 
 
 @nb.njit(cache=True, fastmath=False)
@@ -119,18 +121,27 @@ def _upper(k, crossing_count, crossing_weft_on_top):
 
 
 @nb.njit(cache=True, fastmath=False)
-def split_crossing(
-    c,
-    # model
-    warp_yarns, weft_yarns, thickness_m, crossing_weft_on_top, crossing_attached, spring_kind,
-    spring_crossing_a, spring_crossing_b, spring_twin, crossing_spring_start, crossing_spring_list,
-    # state in/out
-    particle_position_m, prev_position_m, particle_velocity_m_s, particle_mass_kg, particle_inv_mass,
-    particle_active, crossing_yarn_level, couple_connected, spring_particle_a, spring_particle_b,
-    spring_alive, spring_broken, spring_stiffness_n_per_m,
-):
+def split_crossing(c, model_in, particles_inout, crossings_inout, springs_inout, prev_position_m_inout):
     """Split base crossing c into a connected weft/warp mass couple (module docstring); returns
-    True if it split, False if it was already yarn level or is held by a body."""
+    True if it split, False if it was already yarn level or is held by a body.
+
+    Writes the couple's two particles (and their previous positions), the crossing's flags, and the
+    ends, stiffnesses and alive flags (a shear twin is born) of the springs at c."""
+    warp_yarns, weft_yarns = model_in.warp_yarns, model_in.weft_yarns
+    thickness_m = model_in.thickness_m
+    crossing_weft_on_top, crossing_attached = model_in.crossing_weft_on_top, model_in.crossing_attached
+    spring_kind, spring_twin = model_in.spring_kind, model_in.spring_twin
+    spring_crossing_a, spring_crossing_b = model_in.spring_crossing_a, model_in.spring_crossing_b
+    crossing_spring_start, crossing_spring_list = model_in.crossing_spring_start, model_in.crossing_spring_list
+    particle_position_m = particles_inout.particle_position_m
+    particle_velocity_m_s = particles_inout.particle_velocity_m_s
+    particle_mass_kg = particles_inout.particle_mass_kg
+    particle_inv_mass = particles_inout.particle_inv_mass
+    particle_active = particles_inout.particle_active
+    crossing_yarn_level, couple_connected = crossings_inout.crossing_yarn_level, crossings_inout.couple_connected
+    spring_particle_a, spring_particle_b = springs_inout.spring_particle_a, springs_inout.spring_particle_b
+    spring_alive, spring_broken = springs_inout.spring_alive, springs_inout.spring_broken
+    spring_stiffness_n_per_m = springs_inout.spring_stiffness_n_per_m
     if crossing_yarn_level[c]:
         return False  # already a couple
     if crossing_attached[c]:
@@ -142,19 +153,21 @@ def split_crossing(
     ox, oy, oz = half_t * nx, half_t * ny, half_t * nz
     x0, x1, x2 = particle_position_m[c, 0], particle_position_m[c, 1], particle_position_m[c, 2]
     # Step displacement of the old mass: both new masses keep it, so v = (x - x_prev)/dt is unchanged.
-    d0, d1, d2 = x0 - prev_position_m[c, 0], x1 - prev_position_m[c, 1], x2 - prev_position_m[c, 2]
+    d0 = x0 - prev_position_m_inout[c, 0]
+    d1 = x1 - prev_position_m_inout[c, 1]
+    d2 = x2 - prev_position_m_inout[c, 2]
     particle_position_m[c, 0] = x0 + ox
     particle_position_m[c, 1] = x1 + oy
     particle_position_m[c, 2] = x2 + oz
     particle_position_m[w, 0] = x0 - ox
     particle_position_m[w, 1] = x1 - oy
     particle_position_m[w, 2] = x2 - oz
-    prev_position_m[c, 0] = particle_position_m[c, 0] - d0
-    prev_position_m[c, 1] = particle_position_m[c, 1] - d1
-    prev_position_m[c, 2] = particle_position_m[c, 2] - d2
-    prev_position_m[w, 0] = particle_position_m[w, 0] - d0
-    prev_position_m[w, 1] = particle_position_m[w, 1] - d1
-    prev_position_m[w, 2] = particle_position_m[w, 2] - d2
+    prev_position_m_inout[c, 0] = particle_position_m[c, 0] - d0
+    prev_position_m_inout[c, 1] = particle_position_m[c, 1] - d1
+    prev_position_m_inout[c, 2] = particle_position_m[c, 2] - d2
+    prev_position_m_inout[w, 0] = particle_position_m[w, 0] - d0
+    prev_position_m_inout[w, 1] = particle_position_m[w, 1] - d1
+    prev_position_m_inout[w, 2] = particle_position_m[w, 2] - d2
     for d in range(3):
         particle_velocity_m_s[w, d] = particle_velocity_m_s[c, d]
     m = particle_mass_kg[c]
@@ -221,19 +234,15 @@ def split_crossing(
 
 
 @nb.njit(cache=True, fastmath=False)
-def _walk_and_split(
-    start, step, s_dir,
-    # model
-    warp_yarns, weft_yarns, thickness_m, crossing_weft_on_top, crossing_attached, spring_kind,
-    spring_crossing_a, spring_crossing_b, spring_twin, crossing_spring_start, crossing_spring_list,
-    weft_structural_spring, warp_structural_spring,
-    # state in/out
-    particle_position_m, prev_position_m, particle_velocity_m_s, particle_mass_kg, particle_inv_mass,
-    particle_active, crossing_yarn_level, couple_connected, spring_particle_a, spring_particle_b,
-    spring_alive, spring_broken, spring_stiffness_n_per_m,
-):
+def _walk_and_split(start, step, s_dir, model_in, particles_inout, crossings_inout, springs_inout,
+                    prev_position_m_inout):
     """From crossing `start`, walk along a weft (s_dir = 0) or warp (1) yarn by `step` (+1/-1) and
     split while the weave flag stays the same; returns the number of crossings split."""
+    warp_yarns, weft_yarns = model_in.warp_yarns, model_in.weft_yarns
+    crossing_weft_on_top, crossing_attached = model_in.crossing_weft_on_top, model_in.crossing_attached
+    weft_structural_spring = model_in.weft_structural_spring
+    warp_structural_spring = model_in.warp_structural_spring
+    spring_alive = springs_inout.spring_alive
     if crossing_attached[start]:
         return 0  # a held crossing is a wall
     count = 0
@@ -259,31 +268,18 @@ def _walk_and_split(
             break  # the weave flips: the float ends
         if crossing_attached[k2]:
             break
-        if split_crossing(k2, warp_yarns, weft_yarns, thickness_m, crossing_weft_on_top, crossing_attached,
-                          spring_kind, spring_crossing_a, spring_crossing_b, spring_twin, crossing_spring_start,
-                          crossing_spring_list, particle_position_m, prev_position_m, particle_velocity_m_s,
-                          particle_mass_kg, particle_inv_mass, particle_active, crossing_yarn_level,
-                          couple_connected, spring_particle_a, spring_particle_b, spring_alive, spring_broken,
-                          spring_stiffness_n_per_m):
+        if split_crossing(k2, model_in, particles_inout, crossings_inout, springs_inout, prev_position_m_inout):
             count += 1
         k = k2
     return count
 
 
 @nb.njit(cache=True, fastmath=False)
-def transition_spring(
-    s,
-    # model
-    warp_yarns, weft_yarns, thickness_m, crossing_weft_on_top, crossing_attached, spring_kind,
-    spring_crossing_a, spring_crossing_b, spring_twin, crossing_spring_start, crossing_spring_list,
-    weft_structural_spring, warp_structural_spring,
-    # state in/out
-    particle_position_m, prev_position_m, particle_velocity_m_s, particle_mass_kg, particle_inv_mass,
-    particle_active, crossing_yarn_level, couple_connected, spring_particle_a, spring_particle_b,
-    spring_alive, spring_broken, spring_stiffness_n_per_m,
-):
+def transition_spring(s, model_in, particles_inout, crossings_inout, springs_inout, prev_position_m_inout):
     """Split both ends of structural spring s and propagate along its yarn (module docstring);
-    returns the number of crossings split."""
+    returns the number of crossings split. Writes what split_crossing writes."""
+    spring_kind = model_in.spring_kind
+    spring_crossing_a, spring_crossing_b = model_in.spring_crossing_a, model_in.spring_crossing_b
     kind = spring_kind[s]
     if kind != STRUCT_WEFT and kind != STRUCT_WARP:
         return 0  # only yarn (structural) springs trigger a transition
@@ -292,39 +288,25 @@ def transition_spring(
     s_dir = 0 if kind == STRUCT_WEFT else 1
     count = 0
     for c in (ca, cb):
-        if split_crossing(c, warp_yarns, weft_yarns, thickness_m, crossing_weft_on_top, crossing_attached,
-                          spring_kind, spring_crossing_a, spring_crossing_b, spring_twin, crossing_spring_start,
-                          crossing_spring_list, particle_position_m, prev_position_m, particle_velocity_m_s,
-                          particle_mass_kg, particle_inv_mass, particle_active, crossing_yarn_level,
-                          couple_connected, spring_particle_a, spring_particle_b, spring_alive, spring_broken,
-                          spring_stiffness_n_per_m):
+        if split_crossing(c, model_in, particles_inout, crossings_inout, springs_inout, prev_position_m_inout):
             count += 1
     for start, step in ((cb, 1), (ca, -1)):
-        count += _walk_and_split(start, step, s_dir, warp_yarns, weft_yarns, thickness_m, crossing_weft_on_top,
-                                 crossing_attached, spring_kind, spring_crossing_a, spring_crossing_b, spring_twin,
-                                 crossing_spring_start, crossing_spring_list, weft_structural_spring,
-                                 warp_structural_spring, particle_position_m, prev_position_m,
-                                 particle_velocity_m_s, particle_mass_kg, particle_inv_mass, particle_active,
-                                 crossing_yarn_level, couple_connected, spring_particle_a, spring_particle_b,
-                                 spring_alive, spring_broken, spring_stiffness_n_per_m)
+        count += _walk_and_split(start, step, s_dir, model_in, particles_inout, crossings_inout, springs_inout,
+                                 prev_position_m_inout)
     return count
 
 
 @nb.njit(cache=True, fastmath=False)
-def transition_overstrained(
-    # model
-    structural_springs, spring_rest_length_m, transition_strain,
-    warp_yarns, weft_yarns, thickness_m, crossing_weft_on_top, crossing_attached, spring_kind,
-    spring_crossing_a, spring_crossing_b, spring_twin, crossing_spring_start, crossing_spring_list,
-    weft_structural_spring, warp_structural_spring,
-    # state in/out
-    particle_position_m, prev_position_m, particle_velocity_m_s, particle_mass_kg, particle_inv_mass,
-    particle_active, crossing_yarn_level, couple_connected, spring_particle_a, spring_particle_b,
-    spring_alive, spring_broken, spring_stiffness_n_per_m,
-):
+def transition_overstrained(model_in, particles_inout, crossings_inout, springs_inout, prev_position_m_inout):
     """Transition every live structural spring whose strain exceeds `transition_strain`, in slot
     order; returns the number of crossings split. A spring within the threshold costs one squared
-    length and a compare."""
+    length and a compare. Writes what split_crossing writes."""
+    structural_springs = model_in.structural_springs
+    spring_rest_length_m = model_in.spring_rest_length_m
+    transition_strain = model_in.transition_strain
+    particle_position_m = particles_inout.particle_position_m
+    spring_particle_a, spring_particle_b = springs_inout.spring_particle_a, springs_inout.spring_particle_b
+    spring_alive = springs_inout.spring_alive
     count = 0
     stretch = 1.0 + transition_strain
     for k in range(structural_springs.shape[0]):
@@ -339,11 +321,5 @@ def transition_overstrained(
         limit = stretch * spring_rest_length_m[s]
         if dx * dx + dy * dy + dz * dz <= limit * limit:
             continue
-        count += transition_spring(s, warp_yarns, weft_yarns, thickness_m, crossing_weft_on_top, crossing_attached,
-                                   spring_kind, spring_crossing_a, spring_crossing_b, spring_twin,
-                                   crossing_spring_start, crossing_spring_list, weft_structural_spring,
-                                   warp_structural_spring, particle_position_m, prev_position_m,
-                                   particle_velocity_m_s, particle_mass_kg, particle_inv_mass, particle_active,
-                                   crossing_yarn_level, couple_connected, spring_particle_a, spring_particle_b,
-                                   spring_alive, spring_broken, spring_stiffness_n_per_m)
+        count += transition_spring(s, model_in, particles_inout, crossings_inout, springs_inout, prev_position_m_inout)
     return count

@@ -1,7 +1,7 @@
 """TearTopology: static lookup tables of the yarn-level model, derived once from a Model.
 
 They answer the questions the tearing kernels ask without searching:
-- which springs touch crossing c (to re-attach them when c splits, METHOD.md §3.4);
+- which springs touch crossing c (to re-attach them when c splits, docs/method.md §3.4);
 - which bend springs span a structural spring, and which shear springs lie in the two grid cells
   beside it (to cut them with it, docs/tearing.md "Cutting");
 - which crossings are held by a rigid body (they never split).
@@ -14,7 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fraytool.sim.model import BEND_WARP, BEND_WEFT, SHEAR, SHEAR_TWIN, STRUCT_WARP, STRUCT_WEFT, Model
+from fraytool.sim.model import Model
+from fraytool.kinds import BEND_WARP, BEND_WEFT, SHEAR, SHEAR_TWIN, STRUCT_WARP, STRUCT_WEFT
 
 
 @dataclass(frozen=True, eq=False)

@@ -89,7 +89,7 @@ def _load(path: str):
 
 
 def cmd_simulate(args) -> int:
-    from fraytool.run import default_out_dir, simulate_to_disk
+    from fraytool.sim.run import default_out_dir, simulate_to_disk
 
     spec = _load(args.scene)
     out = args.out or default_out_dir(spec)
@@ -102,9 +102,9 @@ def cmd_simulate(args) -> int:
 
 
 def cmd_check(args) -> int:
-    from fraytool.run import check_step
+    from fraytool.sim.run import check_step
     from fraytool.sim.builder import build_model
-    from fraytool.sim.model import SPRING_KIND_NAMES
+    from fraytool.kinds import SPRING_KIND_NAMES
     from fraytool.sim.stability import stability_report
 
     spec = _load(args.scene)
@@ -126,7 +126,7 @@ def cmd_check(args) -> int:
         "simulated_s_per_frame": spec.time.step_s * spec.time.steps_per_frame,
     }
     if args.run:
-        from fraytool.scene_checks import run_scene_checks
+        from fraytool.sim.checks import run_scene_checks
 
         info["checks"] = run_scene_checks(spec)
     if args.json:
@@ -146,19 +146,19 @@ def cmd_check(args) -> int:
 
 
 def cmd_bench(args) -> int:
-    from fraytool.bench import bench_command
+    from fraytool.commands.bench import bench_command
 
     return bench_command(args)
 
 
 def cmd_render(args) -> int:
-    from fraytool.render.command import render_command
+    from fraytool.commands.render import render_command
 
     return render_command(args)
 
 
 def cmd_study(args) -> int:
-    from fraytool.study.command import study_command
+    from fraytool.commands.study import study_command
 
     return study_command(args)
 

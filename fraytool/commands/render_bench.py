@@ -32,7 +32,7 @@ DEFAULT_FRAMES = 10
 def _frames_dir(spec: SceneSpec, out_dir: Optional[Path], frames: int, tmp: str) -> FrameStore:
     """A FrameStore holding at least `frames` records of this scene: out_dir (or outputs/<scene>) if
     it already has them, else a fresh simulation in the temporary folder."""
-    from fraytool.run import default_out_dir, simulate_to_disk
+    from fraytool.sim.run import default_out_dir, simulate_to_disk
 
     for candidate in (out_dir, default_out_dir(spec)):
         if candidate is None:

@@ -51,7 +51,7 @@ def build_job(spec: SceneSpec, args) -> RenderJob:
     except InputError as exc:
         where = ", ".join(f for f, v in (("--camera-position", position), ("--camera-target", target)) if v)
         raise InputError(f"{where or spec.source + ': [camera]'}: {exc}") from None
-    from fraytool.run import default_out_dir
+    from fraytool.sim.run import default_out_dir
 
     out = Path(args.out) if getattr(args, "out", None) else default_out_dir(spec)
     return RenderJob(spec=spec, out_dir=out, frames=frames, ranged=ranged,
@@ -61,7 +61,7 @@ def build_job(spec: SceneSpec, args) -> RenderJob:
 def ensure_frames(spec: SceneSpec, out_dir: Path, needed: int, stream: TextIO = sys.stderr) -> FrameStore:
     """Frame records 0..needed-1 in out_dir/frames: reuse them if the manifest's scene hash matches
     and enough are complete, continue a shorter matching run (resume), else simulate afresh."""
-    from fraytool.run import simulate_to_disk
+    from fraytool.sim.run import simulate_to_disk
 
     store = FrameStore(out_dir)
     digest = scene_hash(spec)

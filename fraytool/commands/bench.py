@@ -27,7 +27,7 @@ def bench_simulation(spec, frames: int = DEFAULT_FRAMES, out_dir: Path | None = 
     sim = Simulation(spec)
     with tempfile.TemporaryDirectory() as tmp:
         store = FrameStore(Path(out_dir or tmp))
-        store.start(sim.model, scene_hash(spec), {"scene": spec.name})
+        store.start(sim.model.arrays(), scene_hash(spec), {"scene": spec.name})
         sim.advance_frame()  # compiles (or loads from cache) every kernel the scene uses
         compile_s = time.perf_counter() - t0
         sim.solver.reset_timers()
@@ -36,7 +36,7 @@ def bench_simulation(spec, frames: int = DEFAULT_FRAMES, out_dir: Path | None = 
             t = time.perf_counter()
             record = sim.advance_frame()
             t_sim = time.perf_counter()
-            store.write_frame(record, sim.state)
+            store.write_frame(record, sim.state.arrays())
             t_end = time.perf_counter()
             per_frame.append(t_sim - t)
             export_s.append(t_end - t_sim)
@@ -63,7 +63,7 @@ def bench_command(args) -> int:
     frames = args.frames or DEFAULT_FRAMES
     result = bench_simulation(spec, frames)
     if args.render:
-        from fraytool.render.bench import render_stage_timings
+        from fraytool.commands.render_bench import render_stage_timings  # GL only when asked
 
         result["render_stages"] = render_stage_timings(spec, frames=min(frames, 10))
         result["render_ms_per_frame"] = sum(result["render_stages"].values())

@@ -14,7 +14,8 @@ from __future__ import annotations
 import numpy as np
 
 from fraytool.grid import crossing_normals
-from fraytool.sim.model import BEND_WARP, SHEAR, STRUCT_WARP, STRUCT_WEFT, Model
+from fraytool.sim.model import Model
+from fraytool.kinds import BEND_WARP, SHEAR, STRUCT_WARP, STRUCT_WEFT
 
 STATE_KEYS = ("particle_position_m", "particle_velocity_m_s", "particle_mass_kg", "particle_inv_mass",
               "particle_active", "crossing_yarn_level", "couple_connected", "spring_particle_a",

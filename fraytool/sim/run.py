@@ -17,10 +17,13 @@ from fraytool.progress import Progress
 from fraytool.scene.load import scene_hash
 from fraytool.scene.spec import SceneSpec
 from fraytool.sim.builder import build_model
-from fraytool.sim.guard import explain_failure, record_is_finite, unstable_message, write_failure
+from fraytool.io.failure import write_failure
+from fraytool.sim.diagnostic import unstable_message
+from fraytool.sim.guard import explain_failure, record_is_finite
 from fraytool.sim.model import Model
 from fraytool.sim.simulation import Simulation
 from fraytool.sim.solver import SimulationUnstable
+from fraytool.sim.state import State
 from fraytool.sim.stability import stable_step_bound_s
 
 
@@ -55,17 +58,17 @@ def simulate_to_disk(spec: SceneSpec, out_dir: Path, frames: Optional[int] = Non
         if not store.matches(digest):
             raise InputError(f"{store.dir}: frames were made from a different scene or version "
                              f"(scene hash {store.manifest().get('scene_hash')} != {digest}); run without --resume")
-        frame, state = store.load_checkpoint()
-        sim = Simulation(spec, model=model, state=state, frame=frame)
+        frame, arrays = store.load_checkpoint()
+        sim = Simulation(spec, model=model, state=State.from_arrays(arrays), frame=frame)
         store.clear_failure()  # a failure recorded by an earlier attempt no longer describes this run
     else:
-        store.start(model, digest, {
+        store.start(model.arrays(), digest, {
             "scene": spec.name, "seed": spec.scene.seed, "frames_planned": total,
             "step_s": spec.time.step_s, "steps_per_frame": spec.time.steps_per_frame, "fps": spec.time.fps,
             "particle_count": model.particle_count, "spring_count": model.spring_count,
         })
         sim = Simulation(spec, model=model)
-        store.write_frame(sim.record(), sim.state)
+        store.write_frame(sim.record(), sim.state.arrays())
     bar = Progress(total, spec.name, stream=stream, enabled=progress)
     t_last = time.perf_counter()
     try:
@@ -75,8 +78,8 @@ def simulate_to_disk(spec: SceneSpec, out_dir: Path, frames: Optional[int] = Non
                 raise SimulationUnstable("frame record holds a non-finite value",
                                          {"step": sim.state.step_index, "time_s": sim.state.time_s,
                                           "stage": "frame record", "stage_located": True,
-                                          "kernel": "FrameRecord.from_state"})
-            store.write_frame(record, sim.state)
+                                          "kernel": "frame_record"})
+            store.write_frame(record, sim.state.arrays())
             now = time.perf_counter()
             bar.update(sim.frame + 1, f"{1e3 * (now - t_last):6.1f} ms/frame")
             t_last = now
@@ -94,11 +97,11 @@ def _unstable_run(sim: Simulation, store: FrameStore, exc: SimulationUnstable) -
     manifest, and return the error to raise (one line for the user; exit code 1). The frames on disk
     stay those of the complete, finite frames before the failure."""
     try:
-        _, start = store.load_checkpoint()
+        start = State.from_arrays(store.load_checkpoint()[1])
     except (OSError, KeyError, ValueError):
         start = None
     diag, last_good = explain_failure(sim.solver, start, sim.dt_s, exc.diagnostic)
     diag["last_good_frame"] = store.frames_complete() - 1
-    path = write_failure(store.dir, diag, last_good)
+    path = write_failure(store.dir, diag, last_good.arrays() if last_good is not None else None)
     store.update_manifest(unstable=json.loads(path.read_text()))
     return SimulationUnstable(unstable_message(diag, str(path)), diag)

@@ -1,0 +1,137 @@
+"""Narrow phase over candidate pairs of yarn segments: cheap separation pre-tests, then the interval
+CCD (docs/method.md §4.2; docs/self-collision.md). Pure geometry, numba kernels.
+
+Both per-step passes first skip, cheaply, the candidates that cannot act: end points separated
+along an axis (proximity: by more than d_c at the end of the step; CCD: the two swept boxes, by
+more than a relative 2^-40), then along n, the closest-point vector of the two segments (at the
+end, resp. at the start of the step), by more than d_c (proximity) or 4 delta (CCD, delta its
+tolerance) -- the end points move linearly, so a plane normal to n then separates the segments
+during the whole step. The proximity pass would find them at d_c or more (up to a relative 2^-40
+for rounding); the CCD could only report such a pair through its MAX_BOXES cap (a conservative
+hit), as its hits are within sqrt(3) delta of touching.
+"""
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+
+from fraytool.collision.ccd import DELTA_REL, edge_edge_ccd_kernel
+from fraytool.collision.segment import segment_closest_params_rows
+
+SEPARATION_REL = 2.0**-40
+"""Relative separation above which the CCD pre-test skips a pair: far above the few ulps of the
+CCD's own outward rounding, so its root box would be discarded too."""
+
+CCD_SKIP_DELTAS = 4.0
+"""The CCD pre-test skips pairs a plane keeps this many times the CCD's tolerance delta apart (its
+hits are within sqrt(3) delta of touching, short of its box cap); module docstring."""
+
+
+@nb.njit(cache=True, fastmath=False, inline="always")
+def _share_end(i1, i2, i3, i4):
+    return i1 == i3 or i1 == i4 or i2 == i3 or i2 == i4
+
+
+@nb.njit(cache=True, fastmath=False)
+def _apart_at_end(x, i1, i2, i3, i4, distance):
+    """True if along some axis the end points of segment i1i2 are more than ``distance`` from those
+    of i3i4: every point of one segment is then farther than that from the other (up to rounding
+    of a few ulps, far below the 2^-40 relative tolerance added)."""
+    for k in range(3):
+        lo1 = min(x[i1, k], x[i2, k])
+        hi1 = max(x[i1, k], x[i2, k])
+        lo2 = min(x[i3, k], x[i4, k])
+        hi2 = max(x[i3, k], x[i4, k])
+        tol = distance + SEPARATION_REL * (abs(lo1) + abs(hi1) + abs(lo2) + abs(hi2))
+        if lo2 - hi1 > tol or lo1 - hi2 > tol:
+            return True
+    return False
+
+
+@nb.njit(cache=True, fastmath=False)
+def _apart_swept(xs, xe, i1, i2, i3, i4):
+    """True if along some axis the swept box of segment i1i2 (end points at step start and end) is
+    separated from that of i3i4 by more than a relative SEPARATION_REL: the CCD at thickness 0 would
+    discard the pair at its root box (all of F's outward-rounded corner values on one side of 0).
+    False on NaN."""
+    for k in range(3):
+        lo1 = min(min(xs[i1, k], xs[i2, k]), min(xe[i1, k], xe[i2, k]))
+        hi1 = max(max(xs[i1, k], xs[i2, k]), max(xe[i1, k], xe[i2, k]))
+        lo2 = min(min(xs[i3, k], xs[i4, k]), min(xe[i3, k], xe[i4, k]))
+        hi2 = max(max(xs[i3, k], xs[i4, k]), max(xe[i3, k], xe[i4, k]))
+        tol = SEPARATION_REL * (abs(lo1) + abs(hi1) + abs(lo2) + abs(hi2)) + 1e-300
+        if lo2 - hi1 > tol or lo1 - hi2 > tol:
+            return True
+    return False
+
+
+@nb.njit(cache=True, fastmath=False)
+def _plane_gap(xs, xe, i1, i2, i3, i4, seg):
+    """Gap between the end points of segment i1i2 and those of i3i4, at the step start (xs) and end
+    (xe), along n = the closest-point vector of the two segments at the start (plain floating point:
+    it only chooses n, any n gives a lower bound): min over the first segment's four points of
+    n.x / |n| minus max over the second's. When positive, a plane separates the two segments during
+    the whole step (the points move linearly, their projections too), so they stay at least that
+    far apart. Also returns the largest |coordinate| involved. Pass xs = xe for one instant.
+    ``seg`` is (4, 3) scratch. NaN or touching: a gap of -inf."""
+    scale = 0.0
+    for k in range(3):
+        seg[0, k] = xs[i1, k]
+        seg[1, k] = xs[i2, k]
+        seg[2, k] = xs[i3, k]
+        seg[3, k] = xs[i4, k]
+        scale = max(scale, abs(xs[i1, k]), abs(xs[i2, k]), abs(xs[i3, k]), abs(xs[i4, k]),
+                    abs(xe[i1, k]), abs(xe[i2, k]), abs(xe[i3, k]), abs(xe[i4, k]))
+    u, v = segment_closest_params_rows(seg)
+    n0 = seg[0, 0] + u * (seg[1, 0] - seg[0, 0]) - (seg[2, 0] + v * (seg[3, 0] - seg[2, 0]))
+    n1 = seg[0, 1] + u * (seg[1, 1] - seg[0, 1]) - (seg[2, 1] + v * (seg[3, 1] - seg[2, 1]))
+    n2 = seg[0, 2] + u * (seg[1, 2] - seg[0, 2]) - (seg[2, 2] + v * (seg[3, 2] - seg[2, 2]))
+    length = math.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+    if not length > 0.0:
+        return -math.inf, scale
+    lo_a = min(min(n0 * xs[i1, 0] + n1 * xs[i1, 1] + n2 * xs[i1, 2], n0 * xs[i2, 0] + n1 * xs[i2, 1] + n2 * xs[i2, 2]),
+               min(n0 * xe[i1, 0] + n1 * xe[i1, 1] + n2 * xe[i1, 2], n0 * xe[i2, 0] + n1 * xe[i2, 1] + n2 * xe[i2, 2]))
+    hi_b = max(max(n0 * xs[i3, 0] + n1 * xs[i3, 1] + n2 * xs[i3, 2], n0 * xs[i4, 0] + n1 * xs[i4, 1] + n2 * xs[i4, 2]),
+               max(n0 * xe[i3, 0] + n1 * xe[i3, 1] + n2 * xe[i3, 2], n0 * xe[i4, 0] + n1 * xe[i4, 1] + n2 * xe[i4, 2]))
+    gap = (lo_a - hi_b) / length
+    return (gap if gap == gap else -math.inf), scale
+
+
+@nb.njit(cache=True, fastmath=False)
+def _outside_reach(x, reach, i1, i2, i3, i4):
+    """True if one of the four particles lies outside its ``reach`` (see ``particle_reach``)."""
+    for p in (i1, i2, i3, i4):
+        for d in range(3):
+            if x[p, d] < reach[p, d] or x[p, d] > reach[p, 3 + d]:
+                return True
+    return False
+
+
+@nb.njit(cache=True, fastmath=False)
+def ccd_pairs(x_start, x_end, candidates, spring_particle_a, spring_particle_b, spring_alive, moved=None):
+    """Narrow phase at thickness 0 on candidate pairs: those whose centre lines meet during the
+    step, (K, 2) int32, and their earliest contact times (K,). With `moved` (a flag per particle),
+    only pairs with a flagged end point are tested: the others were tested already with the same
+    positions and did not hit."""
+    hit = np.zeros(candidates.shape[0], np.bool_)
+    t_hit = np.ones(candidates.shape[0])
+    seg = np.empty((4, 3))
+    for k in range(candidates.shape[0]):
+        i = candidates[k, 0]
+        j = candidates[k, 1]
+        if not (spring_alive[i] and spring_alive[j]):
+            continue  # cut since the candidates were built
+        i1, i2 = spring_particle_a[i], spring_particle_b[i]
+        i3, i4 = spring_particle_a[j], spring_particle_b[j]
+        if moved is not None and not (moved[i1] or moved[i2] or moved[i3] or moved[i4]):
+            continue  # unchanged since the last pass, which found no hit here
+        if _share_end(i1, i2, i3, i4) or _apart_swept(x_start, x_end, i1, i2, i3, i4):
+            continue  # (the CCD would report no hit)
+        gap, scale = _plane_gap(x_start, x_end, i1, i2, i3, i4, seg)
+        if gap > CCD_SKIP_DELTAS * DELTA_REL * scale:
+            continue  # never within CCD_SKIP_DELTAS x the CCD's tolerance delta of each other
+        hit[k], t_hit[k] = edge_edge_ccd_kernel(x_start[i1], x_start[i2], x_start[i3], x_start[i4],
+                                                x_end[i1], x_end[i2], x_end[i3], x_end[i4], 0.0)
+    return candidates[hit].copy(), t_hit[hit].copy()

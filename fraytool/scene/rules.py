@@ -1,0 +1,119 @@
+"""Rules that tie several scene keys together (each key's own type and range is in its Key).
+
+Every rule takes already-converted values and returns the problems it finds as
+(key, value, what is allowed), with key None for a problem of the table as a whole. The TOML loader
+prefixes each problem with the file and the table; ModelBuilder with the method that was called.
+So a scene built in code is held to exactly the rules of a scene file.
+"""
+from __future__ import annotations
+
+import math
+from typing import Any, Iterable, Optional
+
+from fraytool.scene import weave as weaves
+from fraytool.scene.spec import AttachmentSpec, BodySpec, CameraSpec, RenderSpec, TearingSpec
+
+Problem = tuple[Optional[str], Any, str]
+"""(key or None for the whole table, the value, what is allowed)."""
+WeaveTable = tuple[tuple[bool, ...], ...]
+
+
+def weave_table(weave: str, twill: str, satin_shafts: int,
+                table: Optional[list[list[int]]]) -> tuple[WeaveTable, list[Problem]]:
+    """The weave repeat of a [cloth] table (plain if the keys are inconsistent, with the problem)."""
+    try:
+        if weave == "twill":
+            return weaves.twill(twill), []
+        if weave == "satin":
+            return weaves.satin(satin_shafts), []
+        if weave == "table":
+            if table is None:
+                return weaves.plain(), [("weave", weave, 'weave = "table" needs a `table` key: rows of 0/1')]
+            return weaves.from_rows(table), []
+    except ValueError as exc:
+        return weaves.plain(), [("twill", twill, str(exc))]
+    return weaves.plain(), []
+
+
+def cloth_problems(spacing_m: float, thickness_m: float) -> list[Problem]:
+    """[cloth]: the two masses of a couple must fit between neighbouring yarns."""
+    if thickness_m >= spacing_m:
+        return [("thickness_m", thickness_m, f"must be below spacing_m = {spacing_m:g} (yarns would overlap)")]
+    return []
+
+
+def tearing_problems(t: TearingSpec) -> list[Problem]:
+    """[cloth.tearing]: yarn-level tearing splits a crossing before it cuts the spring."""
+    if t.enabled and t.yarn_level and t.transition_strain >= t.break_strain:
+        return [("transition_strain", t.transition_strain,
+                 f"must be below break_strain = {t.break_strain:g} (splitting comes before cutting)")]
+    return []
+
+
+def body_name_problems(name: str, taken: Iterable[str]) -> list[Problem]:
+    """[[bodies]]: attachments find a body by its name."""
+    return [("name", name, "must be unique among [[bodies]]")] if name in taken else []
+
+
+def body_problems(b: BodySpec) -> list[Problem]:
+    """[[bodies]]: the keys a shape needs, and motions it allows."""
+    out: list[Problem] = []
+    if b.shape == "sphere" and b.radius_m <= 0:
+        out.append((None, None, "a sphere needs `radius_m` (> 0)"))
+    if b.shape == "box":
+        if not any(b.half_extents_m):
+            out.append((None, None, "a box needs `half_extents_m` (3 numbers > 0)"))
+        elif min(b.half_extents_m) <= 0:
+            out.append(("half_extents_m", b.half_extents_m, "a box needs half_extents_m: 3 numbers > 0"))
+    if b.shape == "plane":
+        if b.motion == "dynamic":
+            out.append(("motion", b.motion, 'a plane is "static" or "kinematic"'))
+        if math.sqrt(sum(v * v for v in b.normal)) < 1e-12:
+            out.append(("normal", b.normal, "must be a non-zero vector"))
+    if b.path and b.motion != "kinematic":
+        out.append(("path", "[...]", 'a path needs motion = "kinematic"'))
+    return out
+
+
+def attachment_problems(a: AttachmentSpec, body_names: Iterable[str], warp_yarns: int,
+                        weft_yarns: int) -> list[Problem]:
+    """[[attachments]]: a known body, exactly one selection, indices inside the grid."""
+    out: list[Problem] = []
+    names = set(body_names)
+    if a.body not in names:
+        out.append(("body", a.body,
+                    "must name one of the [[bodies]]: " + (", ".join(sorted(names)) or "(none defined)")))
+    chosen = [k for k in ("edge", "corner", "warp_range", "region_center_m") if getattr(a, k) is not None]
+    if a.weft_range is not None and "warp_range" not in chosen:
+        chosen.append("weft_range")
+    if len(chosen) != 1:
+        out.append((None, None, "give exactly one selection: edge, corner, warp_range + "
+                    f"weft_range, or region_center_m + region_radius_m (got {chosen or 'none'})"))
+    for rk, n in (("warp_range", warp_yarns), ("weft_range", weft_yarns)):
+        r = getattr(a, rk)
+        if r is not None and not (0 <= r[0] <= r[1] < n):
+            out.append((rk, list(r), f"must be [first, last] with 0 <= first <= last <= {n - 1}"))
+    if (a.warp_range is None) != (a.weft_range is None) and "edge" not in chosen and "corner" not in chosen:
+        out.append((None, None, "warp_range and weft_range go together"))
+    if a.region_center_m is not None and a.region_radius_m <= 0:
+        out.append(("region_radius_m", a.region_radius_m, "must be > 0 with region_center_m"))
+    return out
+
+
+def render_problems(r: RenderSpec) -> list[Problem]:
+    if r.resolution[0] % 2 or r.resolution[1] % 2:
+        return [("resolution", list(r.resolution),
+                 "width and height must be even (H.264 with yuv420p needs even sizes)")]
+    return []
+
+
+def camera_problems(c: CameraSpec) -> list[Problem]:
+    if math.dist(c.position_m, c.target_m) < 1e-9:
+        return [("target_m", list(c.target_m), "must differ from position_m")]
+    return []
+
+
+def checks_problems(check_frames: int, frames: int) -> list[Problem]:
+    if check_frames > frames:
+        return [("frames", check_frames, f"must be <= [time] frames = {frames}")]
+    return []

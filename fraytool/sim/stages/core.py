@@ -1,0 +1,175 @@
+"""The stages every cloth runs (docs/method.md §4): forces, velocity and position updates, damping,
+attachments, strain limiting (§4.1), rigid-body contact (§4.3) and the velocity post-process.
+
+Each stage unpacks the model's arrays once, at construction, and calls one numba kernel per run
+(kernels take arrays only; fraytool.sim.kernels)."""
+from __future__ import annotations
+
+import numpy as np
+
+from fraytool.kinds import MOTION_DYNAMIC
+from fraytool.sim.kernels.attachments import apply_attachments
+from fraytool.sim.kernels.damping import pbd_damping
+from fraytool.sim.kernels.forces import accumulate_spring_forces
+from fraytool.sim.kernels.integrate import integrate_positions, integrate_velocities, velocities_from_positions
+from fraytool.sim.kernels.rigid_contact import collide_rigid
+from fraytool.sim.kernels.strain_limit import limit_strain
+from fraytool.sim.model import Model
+from fraytool.sim.rigid import advance_bodies, apply_cloth_impulse
+from fraytool.sim.stages.base import StepBuffers
+from fraytool.sim.state import State
+
+
+def colour_ordered_structural_springs(model: Model) -> np.ndarray:
+    """Slots of the structural springs grouped by colour: weft springs (i, i+1) with i even, then
+    i odd, then warp springs (j, j+1) with j even, then j odd; ascending slots inside a group."""
+    weft = model.weft_structural_spring
+    warp = model.warp_structural_spring
+    groups = [weft[:, 0::2], weft[:, 1::2], warp[:, 0::2], warp[:, 1::2]]
+    return np.concatenate([np.sort(g.ravel()) for g in groups]).astype(np.int32)
+
+
+class _NoSummary:
+    def summary(self, state: State) -> dict:
+        return {}
+
+
+class SpringForces(_NoSummary):
+    """Step 1: spring forces (structural, bend, compression-only shear; §3.2) into buffers.force_n."""
+
+    name = "forces"
+    kernel = "accumulate_spring_forces"
+
+    def __init__(self, model: Model):
+        self.model = model
+
+    def run(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
+        m = self.model
+        accumulate_spring_forces(m.spring_kind, m.spring_rest_length_m, state.particle_position_m,
+                                 state.spring_particle_a, state.spring_particle_b, state.spring_alive,
+                                 state.spring_stiffness_n_per_m, buffers.force_n)
+
+
+class VelocityUpdate(_NoSummary):
+    """Step 2: v += dt (g + f / m)."""
+
+    name = "integration"
+    kernel = "integrate_velocities"
+
+    def __init__(self, model: Model):
+        self.gravity_m_s2 = model.gravity_m_s2
+
+    def run(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
+        integrate_velocities(state.particle_velocity_m_s, buffers.force_n, state.particle_inv_mass,
+                             self.gravity_m_s2, dt_s)
+
+
+class Damping(_NoSummary):
+    """Step 3: PBD damping (Müller et al. 2007 §3.5)."""
+
+    name = "damping"
+    kernel = "pbd_damping"
+
+    def __init__(self, model: Model):
+        self.damping = model.damping
+
+    def run(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
+        pbd_damping(state.particle_position_m, state.particle_velocity_m_s, state.particle_mass_kg,
+                    state.particle_inv_mass, self.damping)
+
+
+class PositionUpdate(_NoSummary):
+    """Step 4: x += dt v (keeping the start-of-step positions), and rigid bodies moved to t + dt."""
+
+    name = "integration"
+    kernel = "integrate_positions"
+
+    def __init__(self, model: Model):
+        self.model = model
+        self.has_bodies = model.body_count > 0
+
+    def run(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
+        integrate_positions(state.particle_position_m, state.particle_velocity_m_s, state.particle_active,
+                            buffers.prev_position_m, dt_s)
+        if self.has_bodies:
+            advance_bodies(self.model, state, state.time_s + dt_s, dt_s)
+
+
+class Attachments(_NoSummary):
+    """Step 5 (first): masses held by a rigid body follow it exactly."""
+
+    name = "strain_limiting"
+    kernel = "apply_attachments"
+
+    def __init__(self, model: Model):
+        self.model = model
+
+    def run(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
+        m = self.model
+        apply_attachments(m.attachment_particle, m.attachment_body, m.attachment_offset_m, state.body_position_m,
+                          m.body_rotation, state.particle_position_m)
+
+
+class StrainLimiting(_NoSummary):
+    """Step 5: strain limiting by constraint projection (§4.1) over the structural springs in four
+    colour groups (weft i even, weft i odd, warp j even, warp j odd): no two springs of a group share
+    a mass, so a sweep is order-independent inside each group and has no spatial sweep direction."""
+
+    name = "strain_limiting"
+    kernel = "limit_strain"
+
+    def __init__(self, model: Model):
+        self.model = model
+        self.limited_springs = colour_ordered_structural_springs(model)
+        self.iterations_last = 0
+        self.iterations_max = 0
+        self.cap_hits = 0
+        """Steps where strain limiting stopped at the iteration cap without converging."""
+
+    def run(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
+        m = self.model
+        it, converged = limit_strain(self.limited_springs, m.spring_rest_length_m, m.strain_limit, m.strain_tolerance,
+                                     m.strain_max_iterations, state.particle_inv_mass, state.spring_particle_a,
+                                     state.spring_particle_b, state.spring_alive, state.particle_position_m)
+        self.iterations_last = it
+        self.iterations_max = max(self.iterations_max, it)
+        self.cap_hits += 0 if converged else 1
+
+
+class RigidContact(_NoSummary):
+    """Step 6: masses against rigid surfaces (§4.3), the reaction given to dynamic bodies."""
+
+    name = "collisions"
+    kernel = "collide_rigid"
+
+    def __init__(self, model: Model):
+        self.model = model
+        self.body_dynamic = model.body_motion == MOTION_DYNAMIC
+        self.any_dynamic = bool(self.body_dynamic.any())
+        self.contacts_last = 0
+
+    def run(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
+        m = self.model
+        self.contacts_last = collide_rigid(
+            m.body_shape, m.body_rotation, m.body_radius_m, m.body_half_extents_m, m.body_normal, m.body_friction,
+            m.body_collide, self.body_dynamic, 0.5 * m.thickness_m, dt_s, state.body_position_m,
+            state.body_velocity_m_s, state.particle_inv_mass, state.particle_mass_kg, buffers.prev_position_m,
+            state.particle_position_m, buffers.body_impulse_n_s)
+        if self.any_dynamic:
+            apply_cloth_impulse(m, state, buffers.body_impulse_n_s)
+
+
+class VelocityPostProcess(_NoSummary):
+    """Step 8: v = (x - x_prev) / dt (PBD), with the guard's end-of-step check: the first particle
+    non-finite or faster than speed_limit_m_s goes to buffers.bad_particle."""
+
+    name = "integration"
+    kernel = "velocities_from_positions"
+
+    def __init__(self, model: Model, speed_limit_m_s: float):
+        self.speed_limit_m_s = speed_limit_m_s
+
+    def run(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
+        buffers.bad_particle = int(velocities_from_positions(
+            state.particle_position_m, buffers.prev_position_m, state.particle_active, state.particle_velocity_m_s,
+            dt_s, self.speed_limit_m_s))
