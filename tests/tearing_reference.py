@@ -6,6 +6,8 @@ the numba kernels' arithmetic:
   minimisation over [0, 1]^2 (the interior stationary point and the four clamped edges);
 - `project_couples_reference`: the contact projection of §3.3, couple by couple, pair by pair;
 - `split_reference`: the split of §3.4, using `fraytool.grid.crossing_normals` on the whole cloth;
+- `propagation_reference`: the crossings a transition splits (§3.4 propagation), by slicing the
+  yarn as a Python list;
 - `free_end_lengths_reference`: the fray metric, walking Python lists.
 Each works on a dict of copies of the State arrays and returns the new dict.
 """
@@ -186,6 +188,41 @@ def split_reference(model: Model, st: dict, c: int, attached=()) -> dict:
             else:
                 here[sp] = up
     return st
+
+
+def propagation_reference(model: Model, spring: int, spring_alive, attached=(), inclusive: bool = True) -> set[int]:
+    """Crossings that the transition of structural `spring` splits on an untorn cloth (split.py
+    docstring): both ends unless held, then from each end outward along the spring's yarn the list of
+    crossings, cut at the first dead structural spring and at the first held crossing, and ended
+    after (inclusive) or before (exclusive) the first crossing whose weave flag differs from the
+    previous one. A held end does not walk."""
+    W, H = model.warp_yarns, model.weft_yarns
+    held = set(int(a) for a in attached)
+    a, b = int(model.spring_crossing_a[spring]), int(model.spring_crossing_b[spring])
+    if model.spring_kind[spring] == STRUCT_WEFT:
+        j = a // W
+        yarn = [j * W + i for i in range(W)]
+        links = [int(model.weft_structural_spring[j, i]) for i in range(W - 1)]
+    else:
+        i = a % W
+        yarn = [j * W + i for j in range(H)]
+        links = [int(model.warp_structural_spring[i, j]) for j in range(H - 1)]
+    flag = [bool(model.crossing_weft_on_top[c]) for c in yarn]
+    pa, pb = yarn.index(a), yarn.index(b)
+    out = {c for c in (a, b) if c not in held}
+    for end, outward in ((pb, range(pb + 1, len(yarn))), (pa, range(pa - 1, -1, -1))):
+        if yarn[end] in held:
+            continue
+        path, prev = [], end
+        for p in outward:
+            if not spring_alive[links[min(p, prev)]] or yarn[p] in held:
+                break
+            path.append(p)
+            prev = p
+        flips = [k for k in range(len(path)) if flag[path[k]] != flag[path[k - 1] if k else end]]
+        stop = len(path) if not flips else (flips[0] + 1 if inclusive else flips[0])
+        out.update(yarn[p] for p in path[:stop])
+    return out
 
 
 def free_end_lengths_reference(model: Model, st: dict) -> list[float]:

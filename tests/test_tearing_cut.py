@@ -40,11 +40,15 @@ yarn_level = {yarn_level}
 transition_strain = 0.12
 break_strain = 0.2
 break_strain_spread = {spread}
+ineffective_length = {ineffective}
 """
 
 
-def make(seed=1, yarn_level="true", spread=0.03):
-    model = build_model(parse_scene(SCENE.format(seed=seed, yarn_level=yarn_level, spread=spread), "cut.toml"))
+def make(seed=1, yarn_level="true", spread=0.03, ineffective=1, warp_yarns=8):
+    """A small cloth; ineffective_length 1 (any spring may break) unless a test is about that rule."""
+    text = SCENE.format(seed=seed, yarn_level=yarn_level, spread=spread, ineffective=ineffective)
+    text = text.replace("warp_yarns = 8", f"warp_yarns = {warp_yarns}")
+    model = build_model(parse_scene(text, "cut.toml"))
     return model, model.state(), YarnTearing(model)
 
 
@@ -180,3 +184,65 @@ def test_springs_are_cut_one_by_one_per_yarn():
     assert state.spring_broken[s1] and not state.spring_broken[s2]
     assert state.spring_broken[other]
     assert state.spring_broken.sum() == 2
+
+
+def _stretch_weft(model, x, row, col, strain):
+    """Move the crossings of weft yarn `row` right of column `col` by `strain` x spacing along x: the
+    spring (col-1, row)-(col, row) takes that strain, the others keep theirs."""
+    n, W = model.crossing_count, model.warp_yarns
+    sel = (np.arange(n) // W == row) & (np.arange(n) % W >= col)
+    x[:n][sel, 0] += strain * model.spacing_m
+
+
+def test_no_break_leaves_a_yarn_piece_shorter_than_the_ineffective_length():
+    """12 crossings on a weft yarn, ineffective length 5: a spring breaks only with at least 5
+    crossings of its yarn on each side up to the border or an earlier cut."""
+    model, state, tear = make(yarn_level="false", spread=0.0, ineffective=5, warp_yarns=12)
+    x = state.particle_position_m
+    near_border = int(model.weft_structural_spring[2, 1])  # (1,2)-(2,2): 2 crossings to its left
+    middle = int(model.weft_structural_spring[2, 5])  # (5,2)-(6,2): 6 and 6
+    _stretch_weft(model, x, 2, 2, 0.5)
+    tear(state, x.copy(), 2e-4)
+    assert not state.spring_broken[near_border]  # 50 % over rest, but a 2-crossing piece would be left
+    _stretch_weft(model, x, 2, 6, 0.5)
+    tear(state, x.copy(), 2e-4)
+    assert state.spring_broken[middle]
+    assert state.spring_broken.sum() == 1
+    # next to the cut: (7,2)-(8,2) would leave crossings 6..7 (2) on the cut's side
+    beside_cut = int(model.weft_structural_spring[2, 7])
+    _stretch_weft(model, x, 2, 8, 0.5)
+    tear(state, x.copy(), 2e-4)
+    assert not state.spring_broken[beside_cut] and state.spring_broken.sum() == 1
+    # with the rule off (1), the same stretch breaks it
+    model1, state1, tear1 = make(yarn_level="false", spread=0.0, ineffective=1, warp_yarns=12)
+    _stretch_weft(model1, state1.particle_position_m, 2, 2, 0.5)
+    tear1(state1, state1.particle_position_m.copy(), 2e-4)
+    assert state1.spring_broken[near_border]
+
+
+def test_a_yarn_sliding_free_towards_a_cut_does_not_break_but_an_anchored_one_does():
+    """Yarn-level crossings (4,2)..(6,2) follow a cut at (3,2)-(4,2): that run reaches a loose end and
+    slides, so its springs (and the one joining it to the weave at (7,2)) hold no tension; springs
+    between base-level crossings beyond still break. (No transitions in this step: yarn_level off,
+    the couples are split by hand.)"""
+    model, state, tear = make(yarn_level="false", spread=0.0, ineffective=1, warp_yarns=12)
+    W = model.warp_yarns
+    tear.cut(state, int(model.weft_structural_spring[2, 3]))
+    tear.split(state, [2 * W + 4, 2 * W + 5, 2 * W + 6])
+    x = state.particle_position_m
+    in_run = int(model.weft_structural_spring[2, 5])  # (5,2)-(6,2)
+    to_anchor = int(model.weft_structural_spring[2, 6])  # (6,2)-(7,2)
+    anchored = int(model.weft_structural_spring[2, 9])  # (9,2)-(10,2), base level
+    n = model.crossing_count
+    strains = np.zeros(W - 1)
+    strains[[5, 6, 9]] = 0.5  # in_run, to_anchor, anchored: each 50 % over rest
+    ends = np.concatenate([[0.0], np.cumsum(model.spacing_m * (1.0 + strains))])
+    for i in range(W):
+        c = 2 * W + i
+        shift = x[c, 0] - x[2 * W, 0] - ends[i]
+        x[c, 0] -= shift
+        if state.crossing_yarn_level[c]:
+            x[n + c, 0] -= shift  # the couple's warp mass moves with it
+    tear(state, x.copy(), 2e-4)
+    assert not state.spring_broken[in_run] and not state.spring_broken[to_anchor]
+    assert state.spring_broken[anchored]

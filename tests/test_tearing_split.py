@@ -10,7 +10,7 @@ from fraytool.sim.builder import build_model
 from fraytool.sim.kernels.integrate import velocities_from_positions
 from fraytool.kinds import BEND_WARP, BEND_WEFT, SHEAR, STRUCT_WARP, STRUCT_WEFT
 from fraytool.sim.tearing import YarnTearing, topology_problems
-from tearing_reference import assert_named_close, split_reference, state_dict
+from tearing_reference import assert_named_close, propagation_reference, split_reference, state_dict
 
 CONSERVE_RTOL = 1e-12
 POSITION_ATOL = 1e-15  # [m]: the kernel's normal vs grid.crossing_normals, last-bit differences
@@ -184,41 +184,10 @@ def _split_after_transition(model, spring):
     return sorted((int(c % W), int(c // W)) for c in np.nonzero(state.crossing_yarn_level)[0])
 
 
-def test_propagation_plain_weave_splits_only_the_two_ends():
-    model, _, _ = make(nx=8, ny=6)
-    assert _split_after_transition(model, model.weft_structural_spring[2, 3]) == [(3, 2), (4, 2)]
-    assert _split_after_transition(model, model.warp_structural_spring[5, 1]) == [(5, 1), (5, 2)]
-
-
-def test_propagation_twill_2_2_splits_the_float_partners():
-    # 2/2 twill: weft j is on top of warp i where (i - j) % 4 < 2.
-    # Row j = 1 reads F T T F F T T F: the spring (2,1)-(3,1) joins floats {1, 2} and {3, 4}.
-    model, _, _ = make(nx=8, ny=6, weave='weave = "twill"\ntwill = "2/2"')
-    assert [bool(model.crossing_weft_on_top[cid(model, i, 1)]) for i in range(8)] == \
-        [False, True, True, False, False, True, True, False]
-    assert _split_after_transition(model, model.weft_structural_spring[1, 2]) == [(1, 1), (2, 1), (3, 1), (4, 1)]
-    # inside one float (1,1)-(2,1): just that float
-    assert _split_after_transition(model, model.weft_structural_spring[1, 1]) == [(1, 1), (2, 1)]
-    # at the border the walk stops at the cloth edge: (0,1) is F and (1,1) is T
-    assert _split_after_transition(model, model.weft_structural_spring[1, 0]) == [(0, 1), (1, 1), (2, 1)]
-    # warp 2 reads down j: F T T F F T; spring (2,2)-(2,3)
-    assert _split_after_transition(model, model.warp_structural_spring[2, 2]) == [(2, 1), (2, 2), (2, 3), (2, 4)]
-
-
-def test_propagation_table_weave_follows_long_floats():
-    # 3/1 table: each weft floats over 3 warps; row 0 reads T T T F T T T F
-    table = 'weave = "table"\ntable = [[1, 1, 1, 0], [0, 1, 1, 1], [1, 0, 1, 1], [1, 1, 0, 1]]'
-    model, _, _ = make(nx=8, ny=4, weave=table)
-    assert _split_after_transition(model, model.weft_structural_spring[0, 2]) == [(0, 0), (1, 0), (2, 0), (3, 0)]
-    assert _split_after_transition(model, model.weft_structural_spring[0, 0]) == [(0, 0), (1, 0), (2, 0)]
-
-
-def test_propagation_stops_at_a_cut_yarn_and_at_held_crossings():
-    model, state, tear = make(nx=8, ny=6, weave='weave = "twill"\ntwill = "2/2"')
-    tear.cut(state, int(model.weft_structural_spring[1, 0]))  # cut between (0,1) and (1,1)
-    tear.transition(state, int(model.weft_structural_spring[1, 1]))
-    assert sorted(np.nonzero(state.crossing_yarn_level)[0].tolist()) == [cid(model, 1, 1), cid(model, 2, 1)]
-    held = """
+EXCLUSIVE = 'propagation = "exclusive"'
+TWILL_2_2 = 'weave = "twill"\ntwill = "2/2"'
+TABLE_3_1 = 'weave = "table"\ntable = [[1, 1, 1, 0], [0, 1, 1, 1], [1, 0, 1, 1], [1, 1, 0, 1]]'
+PIN = """
 [[bodies]]
 name = "pin"
 shape = "sphere"
@@ -227,12 +196,146 @@ position_m = [0.0, 0.0, 0.0]
 collide = false
 [[attachments]]
 body = "pin"
-warp_range = [1, 1]
-weft_range = [1, 1]
+warp_range = [{i}, {i}]
+weft_range = [{j}, {j}]
 """
-    model, state, tear = make(nx=8, ny=6, weave='weave = "twill"\ntwill = "2/2"', attach=held)
-    tear.transition(state, int(model.weft_structural_spring[1, 1]))  # (1,1) is held
-    assert sorted(np.nonzero(state.crossing_yarn_level)[0].tolist()) == [cid(model, 2, 1)]
+
+
+def _weft_row(model, j):
+    return "".join("T" if model.crossing_weft_on_top[cid(model, i, j)] else "F" for i in range(model.warp_yarns))
+
+
+def _warp_column(model, i):
+    return "".join("T" if model.crossing_weft_on_top[cid(model, i, j)] else "F" for j in range(model.weft_yarns))
+
+
+def test_propagation_reading_comes_from_the_scene_key():
+    assert make()[0].propagation_inclusive  # the paper's reading is the default
+    assert not make(extra=EXCLUSIVE)[0].propagation_inclusive
+    assert make(extra='propagation = "inclusive"')[0].propagation_inclusive
+
+
+def test_propagation_plain_weave_inclusive_splits_the_ends_and_the_next_crossing_beyond_each():
+    model, _, _ = make(nx=8, ny=6)
+    assert _weft_row(model, 2) == "TFTFTFTF"
+    # weft spring (3,2)-(4,2): i = 2, 3, 4, 5
+    assert _split_after_transition(model, model.weft_structural_spring[2, 3]) == [(2, 2), (3, 2), (4, 2), (5, 2)]
+    # warp spring (5,1)-(5,2): j = 0, 1, 2, 3
+    assert _split_after_transition(model, model.warp_structural_spring[5, 1]) == [(5, 0), (5, 1), (5, 2), (5, 3)]
+    # at the border there is no crossing beyond the outer end: 3 crossings
+    assert _split_after_transition(model, model.weft_structural_spring[2, 0]) == [(0, 2), (1, 2), (2, 2)]
+    assert _split_after_transition(model, model.weft_structural_spring[2, 6]) == [(5, 2), (6, 2), (7, 2)]
+    assert _split_after_transition(model, model.warp_structural_spring[5, 4]) == [(5, 3), (5, 4), (5, 5)]
+
+
+def test_propagation_plain_weave_exclusive_splits_only_the_two_ends():
+    model, _, _ = make(nx=8, ny=6, extra=EXCLUSIVE)
+    assert _split_after_transition(model, model.weft_structural_spring[2, 3]) == [(3, 2), (4, 2)]
+    assert _split_after_transition(model, model.warp_structural_spring[5, 1]) == [(5, 1), (5, 2)]
+    assert _split_after_transition(model, model.weft_structural_spring[2, 0]) == [(0, 2), (1, 2)]
+
+
+@pytest.mark.parametrize("inclusive", [True, False])
+def test_propagation_twill_2_2(inclusive):
+    # 2/2 twill: weft j is on top of warp i where (i - j) % 4 < 2.
+    model, _, _ = make(nx=12, ny=12, weave=TWILL_2_2, extra="" if inclusive else EXCLUSIVE)
+    assert _weft_row(model, 1) == "FTTFFTTFFTTF"
+    assert _warp_column(model, 2) == "FTTFFTTFFTTF"
+    weft = model.weft_structural_spring
+    warp = model.warp_structural_spring
+    if inclusive:
+        # (6,1)-(7,1) joins the floats {5, 6} (T) and {7, 8} (F): both floats, plus the first
+        # crossing of the next float on each side, 4 (F) and 9 (T)
+        assert _split_after_transition(model, weft[1, 6]) == [(i, 1) for i in range(4, 10)]
+        # (5,1)-(6,1) inside the float {5, 6}: the float, plus 4 and 7 where the weave flips
+        assert _split_after_transition(model, weft[1, 5]) == [(i, 1) for i in range(4, 8)]
+        # (0,1)-(1,1) at the border: 0 | 1, 2 (T) | 3 (F)
+        assert _split_after_transition(model, weft[1, 0]) == [(0, 1), (1, 1), (2, 1), (3, 1)]
+        # the same along warp 2: (2,6)-(2,7) between floats, (2,5)-(2,6) inside one
+        assert _split_after_transition(model, warp[2, 6]) == [(2, j) for j in range(4, 10)]
+        assert _split_after_transition(model, warp[2, 5]) == [(2, j) for j in range(4, 8)]
+    else:
+        # only whole floats: {5, 6} + {7, 8}; {5, 6}; {0} + {1, 2}
+        assert _split_after_transition(model, weft[1, 6]) == [(i, 1) for i in range(5, 9)]
+        assert _split_after_transition(model, weft[1, 5]) == [(5, 1), (6, 1)]
+        assert _split_after_transition(model, weft[1, 0]) == [(0, 1), (1, 1), (2, 1)]
+        assert _split_after_transition(model, warp[2, 6]) == [(2, j) for j in range(5, 9)]
+        assert _split_after_transition(model, warp[2, 5]) == [(2, 5), (2, 6)]
+
+
+@pytest.mark.parametrize("inclusive", [True, False])
+def test_propagation_table_weave_follows_long_floats(inclusive):
+    model, _, _ = make(nx=8, ny=4, weave=TABLE_3_1, extra="" if inclusive else EXCLUSIVE)
+    assert _weft_row(model, 0) == "TTTFTTTF"  # each weft floats over 3 warps
+    last = 4 if inclusive else 3
+    # (2,0)-(3,0): the float {0, 1, 2} (border), {3}, and 4 where the weave flips back (inclusive)
+    assert _split_after_transition(model, model.weft_structural_spring[0, 2]) == [(i, 0) for i in range(last + 1)]
+    # (0,0)-(1,0) inside the float: the float, and 3 where the weave flips (inclusive)
+    assert _split_after_transition(model, model.weft_structural_spring[0, 0]) == [(i, 0) for i in range(last)]
+
+
+@pytest.mark.parametrize("inclusive", [True, False])
+def test_propagation_stops_at_a_cut_yarn_and_at_held_crossings(inclusive):
+    extra = "" if inclusive else EXCLUSIVE
+    # row 1 reads F T T F F T T F; the spring (1,1)-(2,1) lies inside the float {1, 2}, and the
+    # inclusive walk from (2,1) ends at (3,1), where the weave flips
+    model, state, tear = make(nx=8, ny=6, weave=TWILL_2_2, extra=extra)
+    assert _weft_row(model, 1) == "FTTFFTTF"
+    flip = [cid(model, 3, 1)] if inclusive else []
+    tear.cut(state, int(model.weft_structural_spring[1, 0]))  # cut between (0,1) and (1,1)
+    tear.transition(state, int(model.weft_structural_spring[1, 1]))
+    assert sorted(np.nonzero(state.crossing_yarn_level)[0].tolist()) == [cid(model, 1, 1), cid(model, 2, 1)] + flip
+    # an end crossing held: it does not split and does not walk
+    model, state, tear = make(nx=8, ny=6, weave=TWILL_2_2, extra=extra, attach=PIN.format(i=1, j=1))
+    tear.transition(state, int(model.weft_structural_spring[1, 1]))
+    assert sorted(np.nonzero(state.crossing_yarn_level)[0].tolist()) == [cid(model, 2, 1)] + flip
+    assert topology_problems(model, state) == []
+    # a held crossing where the weave flips (0,1): the walk stops before it, even inclusive
+    model, state, tear = make(nx=8, ny=6, weave=TWILL_2_2, extra=extra, attach=PIN.format(i=0, j=1))
+    tear.transition(state, int(model.weft_structural_spring[1, 1]))
+    assert sorted(np.nonzero(state.crossing_yarn_level)[0].tolist()) == [cid(model, 1, 1), cid(model, 2, 1)] + flip
+    assert topology_problems(model, state) == []
+
+
+@pytest.mark.parametrize("inclusive", [True, False])
+@pytest.mark.parametrize("weave", ['weave = "plain"', TWILL_2_2, 'weave = "twill"\ntwill = "2/1"',
+                                   'weave = "satin"', TABLE_3_1])
+def test_propagation_matches_numpy_reference_for_every_spring(weave, inclusive):
+    """Every live structural spring of a cloth with a cut weft, a cut warp and a held crossing."""
+    model, _, tear = make(nx=9, ny=7, weave=weave, extra="" if inclusive else EXCLUSIVE,
+                          attach=PIN.format(i=6, j=4))
+    held = model.attachment_particle.tolist()
+    cuts = [int(model.weft_structural_spring[2, 4]), int(model.warp_structural_spring[3, 2])]
+    for s in np.nonzero((model.spring_kind == STRUCT_WEFT) | (model.spring_kind == STRUCT_WARP))[0]:
+        state = model.state()
+        for cut in cuts:
+            tear.cut(state, cut)
+        if not state.spring_alive[s]:
+            continue
+        expected = propagation_reference(model, int(s), state.spring_alive, held, inclusive)
+        count = tear.transition(state, int(s))
+        got = set(np.nonzero(state.crossing_yarn_level)[0].tolist())
+        assert got == expected, (int(s), sorted(expected), sorted(got))
+        assert count == len(expected)
+
+
+@pytest.mark.parametrize("inclusive", [True, False])
+def test_transition_with_propagation_conserves_mass_and_momentum(inclusive):
+    model, state, tear = make(nx=12, ny=8, weave=TWILL_2_2, extra="" if inclusive else EXCLUSIVE)
+    dt = 2e-4
+    prev = crumple(model, state, seed=5, dt=dt)
+    m0 = state.particle_mass_kg.copy()
+    v0 = (state.particle_position_m - prev) / dt
+    mass_total = m0.sum()
+    p_total = (m0[:, None] * v0).sum(axis=0)
+    count = tear.transition(state, int(model.weft_structural_spring[1, 6]), prev)
+    assert count == (6 if inclusive else 4)
+    m = state.particle_mass_kg
+    assert abs(m.sum() - mass_total) <= CONSERVE_RTOL * mass_total
+    v = np.zeros_like(state.particle_velocity_m_s)
+    velocities_from_positions(state.particle_position_m, prev, state.particle_active, v, dt, 1e3)
+    p_after = (m[:, None] * v).sum(axis=0)
+    assert np.abs(p_after - p_total).max() <= CONSERVE_RTOL * np.abs(m0[:, None] * v0).sum()
     assert topology_problems(model, state) == []
 
 

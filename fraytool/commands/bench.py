@@ -36,7 +36,7 @@ def bench_simulation(spec, frames: int = DEFAULT_FRAMES, out_dir: Path | None = 
             t = time.perf_counter()
             record = sim.advance_frame()
             t_sim = time.perf_counter()
-            store.write_frame(record, sim.state.arrays())
+            store.write_frame(record, sim.checkpoint_arrays())
             t_end = time.perf_counter()
             per_frame.append(t_sim - t)
             export_s.append(t_end - t_sim)

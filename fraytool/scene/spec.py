@@ -75,6 +75,13 @@ class TearingSpec:
                                              "false: base-model-only tearing (a clean cut)")
     transition_strain: float = key("float", 0.12, lo=0, lo_open=True, hi=10,
                                    doc="strain above which a spring's end masses split into mass couples (§3.4)")
+    propagation: str = key("str", "inclusive", choices=("inclusive", "exclusive"),
+                           doc="how far a split spreads along the spring's yarn (§3.4): up to and including "
+                               "the crossing where the weave flips (the paper), or up to just before it")
+    ineffective_length: int = key("int", 5, lo=1, hi=100000,
+                                  doc="crossings a yarn needs from a free end (a cut or the border) to carry "
+                                      "breaking tension again: no break leaves a yarn piece shorter "
+                                      "(docs/tearing.md \"Cutting\")")
     break_strain: float = key("float", 0.2, lo=0, lo_open=True, hi=10, doc="mean break strain of a spring")
     break_strain_spread: float = key("float", 0.03, lo=0, hi=10,
                                      doc="standard deviation of the per-spring break strain, drawn from the seed")

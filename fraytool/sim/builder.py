@@ -211,6 +211,8 @@ class ModelBuilder:
     @_keys_doc("cloth.tearing")
     def set_tearing(self, *, enabled: bool = True, yarn_level: bool = _TEARING["yarn_level"].default,
                     transition_strain: float = _TEARING["transition_strain"].default,
+                    propagation: str = _TEARING["propagation"].default,
+                    ineffective_length: int = _TEARING["ineffective_length"].default,
                     break_strain: float = _TEARING["break_strain"].default,
                     break_strain_spread: float = _TEARING["break_strain_spread"].default,
                     disconnect_factor: float = _TEARING["disconnect_factor"].default) -> None:
@@ -458,6 +460,8 @@ class ModelBuilder:
             tearing=t.enabled,
             yarn_level=t.enabled and t.yarn_level,
             transition_strain=t.transition_strain,
+            propagation_inclusive=t.propagation == "inclusive",
+            ineffective_length=t.ineffective_length,
             disconnect_distance_m=t.disconnect_factor * c.thickness_m,
             self_collision=self.self_collision.enabled,
             self_collision_iterations=self.self_collision.iterations,

@@ -109,6 +109,12 @@ class Model:
     tearing: bool
     yarn_level: bool
     transition_strain: float
+    propagation_inclusive: bool
+    """Propagation of a split (docs/method.md §3.4): True splits up to and including the crossing
+    where the weave flips (the paper's reading), False stops just before it ([cloth.tearing] propagation)."""
+    ineffective_length: int
+    """A structural spring breaks only with at least this many yarn crossings on each side of it up to
+    the nearest free yarn end ([cloth.tearing] ineffective_length; docs/tearing.md "Cutting")."""
     disconnect_distance_m: float
     """A connected couple disconnects beyond this weft-warp distance [m]."""
     self_collision: bool

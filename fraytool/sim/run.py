@@ -60,6 +60,7 @@ def simulate_to_disk(spec: SceneSpec, out_dir: Path, frames: Optional[int] = Non
                              f"(scene hash {store.manifest().get('scene_hash')} != {digest}); run without --resume")
         frame, arrays = store.load_checkpoint()
         sim = Simulation(spec, model=model, state=State.from_arrays(arrays), frame=frame)
+        sim.restore_shot(arrays)
         store.clear_failure()  # a failure recorded by an earlier attempt no longer describes this run
     else:
         store.start(model.arrays(), digest, {
@@ -68,7 +69,7 @@ def simulate_to_disk(spec: SceneSpec, out_dir: Path, frames: Optional[int] = Non
             "particle_count": model.particle_count, "spring_count": model.spring_count,
         })
         sim = Simulation(spec, model=model)
-        store.write_frame(sim.record(), sim.state.arrays())
+        store.write_frame(sim.record(), sim.checkpoint_arrays())
     bar = Progress(total, spec.name, stream=stream, enabled=progress)
     t_last = time.perf_counter()
     try:
@@ -79,7 +80,7 @@ def simulate_to_disk(spec: SceneSpec, out_dir: Path, frames: Optional[int] = Non
                                          {"step": sim.state.step_index, "time_s": sim.state.time_s,
                                           "stage": "frame record", "stage_located": True,
                                           "kernel": "frame_record"})
-            store.write_frame(record, sim.state.arrays())
+            store.write_frame(record, sim.checkpoint_arrays())
             now = time.perf_counter()
             bar.update(sim.frame + 1, f"{1e3 * (now - t_last):6.1f} ms/frame")
             t_last = now
@@ -88,6 +89,9 @@ def simulate_to_disk(spec: SceneSpec, out_dir: Path, frames: Optional[int] = Non
         raise _unstable_run(sim, store, exc) from None
     bar.close()
     store.update_manifest(frames_planned=max(total, store.manifest().get("frames_planned", 0)))
+    warning = sim.woven_strain_warning()
+    if warning:
+        print(f"fraytool: warning: {warning}", file=stream)
     return sim.summary()
 
 

@@ -10,6 +10,7 @@
 """
 from __future__ import annotations
 
+from dataclasses import dataclass, fields
 from typing import Iterator, Optional
 
 import numpy as np
@@ -19,9 +20,39 @@ from fraytool.kinds import STRUCT_WARP, STRUCT_WEFT
 from fraytool.scene.spec import SceneSpec
 from fraytool.sim.builder import build_model
 from fraytool.sim.model import Model
+from fraytool.sim.pieces import piece_figures, woven_strain
 from fraytool.sim.record import frame_record
 from fraytool.sim.solver import SolverExplicitPBD
 from fraytool.sim.state import State
+
+
+@dataclass
+class ShotFigures:
+    """Figures over the whole shot so far, sampled at every frame (saved with the checkpoint, so a
+    resumed run reports the same as an unbroken one)."""
+
+    max_woven_strain: float = 0.0
+    """Largest strain over live structural springs between woven crossings (fraytool.sim.pieces)."""
+    max_woven_strain_frame: int = 0
+    max_woven_strain_spring: int = -1
+    small_pieces_max: int = 0
+    """Most pieces of fewer than SMALL_PIECE_MASSES masses seen at any frame."""
+    small_pieces_first_frame: int = -1
+    """First frame with a small piece, -1 if none."""
+    strain_cap_hits_before: int = 0
+    """Strain-limiting cap hits of the run before a resume."""
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        return {f"shot_{f.name}": np.asarray(getattr(self, f.name)) for f in fields(self)}
+
+    @staticmethod
+    def from_arrays(data) -> "ShotFigures":
+        out = ShotFigures()
+        for f in fields(ShotFigures):
+            key = f"shot_{f.name}"
+            if key in data:
+                setattr(out, f.name, type(getattr(out, f.name))(np.asarray(data[key])))
+        return out
 
 
 class Simulation:
@@ -37,6 +68,32 @@ class Simulation:
         """Index of the frame the current state belongs to."""
         self.dt_s = spec.time.step_s
         self.steps_per_frame = spec.time.steps_per_frame
+        self.shot = ShotFigures()
+        """Figures over the shot (max woven strain, small pieces), updated at every frame."""
+        self._observe()
+
+    def _observe(self) -> None:
+        """Update the shot figures with the current state (every frame)."""
+        strain, spring = woven_strain(self.model, self.state)
+        if strain > self.shot.max_woven_strain:
+            self.shot.max_woven_strain = strain
+            self.shot.max_woven_strain_frame = self.frame
+            self.shot.max_woven_strain_spring = spring
+        if self.model.tearing:
+            small = piece_figures(self.model, self.state)["small_pieces"]
+            if small and self.shot.small_pieces_first_frame < 0:
+                self.shot.small_pieces_first_frame = self.frame
+            self.shot.small_pieces_max = max(self.shot.small_pieces_max, small)
+
+    def checkpoint_arrays(self) -> dict[str, np.ndarray]:
+        """What a checkpoint holds: the State and the shot figures."""
+        shot = ShotFigures(**{f.name: getattr(self.shot, f.name) for f in fields(ShotFigures)})
+        shot.strain_cap_hits_before += self.solver.strain_cap_hits
+        return {**self.state.arrays(), **shot.arrays()}
+
+    def restore_shot(self, data) -> None:
+        """Take the shot figures of a checkpoint (on resume)."""
+        self.shot = ShotFigures.from_arrays(data)
 
     def step(self) -> None:
         self.solver.step(self.state, self.dt_s)
@@ -46,6 +103,7 @@ class Simulation:
         for _ in range(self.steps_per_frame):
             self.solver.step(self.state, self.dt_s)
         self.frame += 1
+        self._observe()
         return self.record()
 
     def record(self) -> FrameRecord:
@@ -81,8 +139,30 @@ class Simulation:
             "yarn_level_masses": int(2 * s.crossing_yarn_level.sum()),
             "max_strain": float(strain.max()) if strain.size else 0.0,
             "strain_iterations_max": self.solver.strain_iterations_max,
-            "strain_cap_hits": self.solver.strain_cap_hits,
+            "strain_cap_hits": self.shot.strain_cap_hits_before + self.solver.strain_cap_hits,
+            "strain_limit": float(self.model.strain_limit),
+            "max_woven_strain": self.shot.max_woven_strain,
+            "max_woven_strain_frame": self.shot.max_woven_strain_frame,
             "all_finite": bool(np.isfinite(s.particle_position_m).all() and np.isfinite(s.particle_velocity_m_s).all()),
         }
+        if self.model.tearing:
+            out.update(piece_figures(self.model, self.state))
+            out["small_pieces_max"] = self.shot.small_pieces_max
+            out["small_pieces_first_frame"] = self.shot.small_pieces_first_frame
         out.update(self.solver.summary(self.state))
         return out
+
+    def woven_strain_warning(self, tolerance: float = 0.01) -> Optional[str]:
+        """One line when strain limiting did not hold where the cloth is woven (max woven strain over
+        the shot above limit + tolerance): by how much and where; None when it held."""
+        m, shot = self.model, self.shot
+        if shot.max_woven_strain <= m.strain_limit + tolerance:
+            return None
+        s = shot.max_woven_strain_spring
+        ca, cb = int(m.spring_crossing_a[s]), int(m.spring_crossing_b[s])
+        w = m.warp_yarns
+        yarn = f"weft yarn {ca // w}" if int(m.spring_kind[s]) == STRUCT_WEFT else f"warp yarn {ca % w}"
+        return (f"strain limiting did not hold where the cloth is woven: strain {shot.max_woven_strain:.4f} "
+                f"(limit {m.strain_limit:g} + {tolerance:g}) at frame {shot.max_woven_strain_frame} on spring {s} "
+                f"({yarn}, crossings ({ca % w},{ca // w})-({cb % w},{cb // w})); "
+                f"strain-limiting cap hits: {shot.strain_cap_hits_before + self.solver.strain_cap_hits}")

@@ -88,3 +88,65 @@ def _solve3(A, b):
     x[1] = (c01 * b[0] + c11 * b[1] + c21 * b[2]) / det
     x[2] = (c02 * b[0] + c12 * b[1] + c22 * b[2]) / det
     return x
+
+
+@nb.njit(cache=True, fastmath=False)
+def pbd_damping_pieces(particle_position_m, particle_velocity_m_s, particle_mass_kg, particle_inv_mass,
+                       particle_piece, piece_count, k_damping):
+    """The same damping applied to each piece of a torn cloth on its own (fraytool.sim.kernels.pieces):
+    every piece keeps its own linear and angular momentum, so pieces moving apart rigidly keep their
+    relative velocity. Particles with piece -1 (inactive) or inverse mass 0 (held) are left alone."""
+    n = particle_position_m.shape[0]
+    m_sum = np.zeros(piece_count)
+    xc = np.zeros((piece_count, 3))
+    vc = np.zeros((piece_count, 3))
+    for p in range(n):
+        k = particle_piece[p]
+        if k < 0 or particle_inv_mass[p] == 0.0:
+            continue
+        m = particle_mass_kg[p]
+        m_sum[k] += m
+        for d in range(3):
+            xc[k, d] += m * particle_position_m[p, d]
+            vc[k, d] += m * particle_velocity_m_s[p, d]
+    for k in range(piece_count):
+        if m_sum[k] > 0.0:
+            for d in range(3):
+                xc[k, d] /= m_sum[k]
+                vc[k, d] /= m_sum[k]
+    L = np.zeros((piece_count, 3))
+    I = np.zeros((piece_count, 3, 3))
+    for p in range(n):
+        k = particle_piece[p]
+        if k < 0 or particle_inv_mass[p] == 0.0:
+            continue
+        m = particle_mass_kg[p]
+        rx = particle_position_m[p, 0] - xc[k, 0]
+        ry = particle_position_m[p, 1] - xc[k, 1]
+        rz = particle_position_m[p, 2] - xc[k, 2]
+        vx, vy, vz = particle_velocity_m_s[p, 0], particle_velocity_m_s[p, 1], particle_velocity_m_s[p, 2]
+        L[k, 0] += m * (ry * vz - rz * vy)
+        L[k, 1] += m * (rz * vx - rx * vz)
+        L[k, 2] += m * (rx * vy - ry * vx)
+        I[k, 0, 0] += m * (ry * ry + rz * rz)
+        I[k, 1, 1] += m * (rx * rx + rz * rz)
+        I[k, 2, 2] += m * (rx * rx + ry * ry)
+        I[k, 0, 1] -= m * rx * ry
+        I[k, 0, 2] -= m * rx * rz
+        I[k, 1, 2] -= m * ry * rz
+    w = np.zeros((piece_count, 3))
+    for k in range(piece_count):
+        I[k, 1, 0] = I[k, 0, 1]
+        I[k, 2, 0] = I[k, 0, 2]
+        I[k, 2, 1] = I[k, 1, 2]
+        w[k] = _solve3(I[k], L[k])
+    for p in range(n):
+        k = particle_piece[p]
+        if k < 0 or particle_inv_mass[p] == 0.0:
+            continue
+        rx = particle_position_m[p, 0] - xc[k, 0]
+        ry = particle_position_m[p, 1] - xc[k, 1]
+        rz = particle_position_m[p, 2] - xc[k, 2]
+        particle_velocity_m_s[p, 0] += k_damping * (vc[k, 0] + w[k, 1] * rz - w[k, 2] * ry - particle_velocity_m_s[p, 0])
+        particle_velocity_m_s[p, 1] += k_damping * (vc[k, 1] + w[k, 2] * rx - w[k, 0] * rz - particle_velocity_m_s[p, 1])
+        particle_velocity_m_s[p, 2] += k_damping * (vc[k, 2] + w[k, 0] * ry - w[k, 1] * rx - particle_velocity_m_s[p, 2])

@@ -9,9 +9,14 @@ import numpy as np
 
 from fraytool.kinds import MOTION_DYNAMIC
 from fraytool.sim.kernels.attachments import apply_attachments
-from fraytool.sim.kernels.damping import pbd_damping
+from fraytool.sim.kernels.damping import pbd_damping, pbd_damping_pieces
 from fraytool.sim.kernels.forces import accumulate_spring_forces
-from fraytool.sim.kernels.integrate import integrate_positions, integrate_velocities, velocities_from_positions
+from fraytool.sim.kernels.integrate import (
+    integrate_positions,
+    integrate_velocities,
+    velocities_from_positions,
+)
+from fraytool.sim.kernels.pieces import label_pieces
 from fraytool.sim.kernels.rigid_contact import collide_rigid
 from fraytool.sim.kernels.strain_limit import limit_strain
 from fraytool.sim.model import Model
@@ -65,17 +70,42 @@ class VelocityUpdate(_NoSummary):
 
 
 class Damping(_NoSummary):
-    """Step 3: PBD damping (Müller et al. 2007 §3.5)."""
+    """Step 3: PBD damping (Müller et al. 2007 §3.5), applied to each piece of the cloth on its own.
+
+    Müller's damping keeps an object's linear and angular momentum; a torn cloth is several objects,
+    so in a scene that tears every piece (fraytool.sim.pieces) is damped about its own centre of mass
+    and two pieces moving apart keep their relative velocity. The pieces are relabelled only when
+    the topology changed: a cut lowers the live spring count, a disconnection the connected couple
+    count, a split raises the active particle count (each strictly), so equal counts mean the same
+    pieces. An untorn cloth is one piece (the single-body kernel)."""
 
     name = "damping"
     kernel = "pbd_damping"
 
     def __init__(self, model: Model):
+        self.model = model
         self.damping = model.damping
+        self.per_piece = bool(model.tearing)
+        self._labels = np.zeros(model.particle_count, np.int64)
+        self._piece_count = 0
+        self._topology_key: tuple = ()
 
     def run(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
-        pbd_damping(state.particle_position_m, state.particle_velocity_m_s, state.particle_mass_kg,
-                    state.particle_inv_mass, self.damping)
+        if not self.per_piece:
+            pbd_damping(state.particle_position_m, state.particle_velocity_m_s, state.particle_mass_kg,
+                        state.particle_inv_mass, self.damping)
+            return
+        key = (int(np.count_nonzero(state.spring_alive)), int(np.count_nonzero(state.couple_connected)),
+               int(np.count_nonzero(state.particle_active)))
+        if key != self._topology_key:
+            m = self.model
+            self._piece_count = label_pieces(m.spring_kind, m.crossing_count, state.particle_active,
+                                             state.crossing_yarn_level, state.couple_connected,
+                                             state.spring_particle_a, state.spring_particle_b,
+                                             state.spring_alive, self._labels)
+            self._topology_key = key
+        pbd_damping_pieces(state.particle_position_m, state.particle_velocity_m_s, state.particle_mass_kg,
+                           state.particle_inv_mass, self._labels, self._piece_count, self.damping)
 
 
 class PositionUpdate(_NoSummary):

@@ -24,6 +24,7 @@ from fraytool.kinds import STRUCT_WARP, STRUCT_WEFT
 from fraytool.sim.state import State
 from fraytool.sim.tearing.contact import disconnect_couple, project_couples
 from fraytool.sim.tearing.cut import cut_overstrained, cut_structural
+from fraytool.sim.tearing.yarn_runs import free_yarn_runs, yarn_fragments
 from fraytool.sim.tearing.fray import fray_lengths, fray_summary
 from fraytool.sim.tearing.groups import (TearCrossings, TearModel, TearParticles, TearSprings, state_groups,
                                          tear_model)
@@ -49,6 +50,11 @@ class YarnTearing:
         """The kernels' read-only group: the model's arrays and the topology tables (references)."""
         self.yarn_level = bool(model.yarn_level)
         self._couples = np.zeros(model.crossing_count, np.int32)
+        self._weft_free = np.zeros(model.crossing_count, np.bool_)
+        """Scratch of the cut rule: crossings whose weft (warp) lies on a free run (contact.free_yarn_runs)."""
+        self._fragment_left = np.full(model.spring_count, 1 << 30, np.int64)
+        self._fragment_right = np.full(model.spring_count, 1 << 30, np.int64)
+        self._warp_free = np.zeros(model.crossing_count, np.bool_)
         self._couple_count = 0
         self._owner: Optional[State] = None
         self._step = -2
@@ -94,7 +100,10 @@ class YarnTearing:
             splits = transition_overstrained(self.model_in, particles, crossings, springs, prev_position_m)
             if splits:
                 self._rebuild(state)
-        _, cuts = cut_overstrained(self.model_in, particles, springs)
+        free_yarn_runs(self.model_in, crossings, springs, self._weft_free, self._warp_free)
+        yarn_fragments(self.model_in, springs, self._fragment_left, self._fragment_right)
+        _, cuts = cut_overstrained(self.model_in, particles, springs, self._weft_free, self._warp_free,
+                                   self._fragment_left, self._fragment_right)
         self.splits_last = int(splits)
         self.cuts_last = int(cuts)
 

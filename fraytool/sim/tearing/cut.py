@@ -3,9 +3,12 @@
 Runs in stage 7 of the step, after strain limiting (stage 5), yarn contact and collisions, and
 after the transitions of the same step. Rules (docs/tearing.md "Cutting"):
 - A structural (yarn) spring is *broken* when its strain |x_b - x_a| / L - 1 exceeds its own break
-  strain `model.spring_break_strain[s]` and it is, of its yarn's springs over their limits, the
-  furthest over (one cut per yarn per step: "springs cut one by one"), drawn once when the model is built from the scene seed:
-  Normal(break_strain, break_strain_spread), floored just above the transition strain. It gets
+  strain `model.spring_break_strain[s]` (drawn once when the model is built from the scene seed:
+  Normal(break_strain, break_strain_spread), floored just above the transition strain), its yarn
+  can carry tension there (fraytool.sim.tearing.yarn_runs: at least `ineffective_length` crossings
+  to the nearest free yarn end on each side, and not on a run sliding free towards a loose end), and
+  it is, of its yarn's springs over their limits, the furthest over (one cut per yarn per step:
+  "springs cut one by one"). It gets
   spring_alive = False and spring_broken = True (the source of the `broken_springs` figure).
   Only yarn springs have a limit of their own: bend springs span two yarn springs and carry a
   fraction of their strain, and shear springs carry no tension at all.
@@ -22,6 +25,8 @@ from __future__ import annotations
 
 import numba as nb
 import numpy as np
+
+from fraytool.kinds import STRUCT_WEFT
 
 
 @nb.njit(cache=True, fastmath=False)
@@ -56,7 +61,8 @@ def cut_structural(s, model_in, springs_inout):
 
 
 @nb.njit(cache=True, fastmath=False)
-def cut_overstrained(model_in, particles_in, springs_inout):
+def cut_overstrained(model_in, particles_in, springs_inout, weft_free_in, warp_free_in, fragment_left_in,
+                     fragment_right_in):
     """Break, on each yarn, the live structural spring furthest over its break strain (ratio of
     length to break length; the lower slot on a tie), with its bend and shear springs: springs are
     cut one by one (docs/method.md §1), so a yarn under tension snaps at its weakest point and the rest
@@ -69,12 +75,21 @@ def cut_overstrained(model_in, particles_in, springs_inout):
     particle_position_m = particles_in.particle_position_m
     spring_particle_a, spring_particle_b = springs_inout.spring_particle_a, springs_inout.spring_particle_b
     spring_alive = springs_inout.spring_alive
+    spring_kind, spring_crossing_a, spring_crossing_b = model_in.spring_kind, model_in.spring_crossing_a, model_in.spring_crossing_b
+    ineffective_length = model_in.ineffective_length
     worst = np.zeros(yarn_count)
     pick = np.full(yarn_count, -1, np.int64)
+    yarn_cuts = 0
+    total = 0
     for k in range(structural_springs.shape[0]):
         s = structural_springs[k]
         if not spring_alive[s]:
             continue  # already cut
+        if fragment_left_in[s] < ineffective_length or fragment_right_in[s] < ineffective_length:
+            continue  # within the ineffective length of a free yarn end: friction has not built up tension
+        free = weft_free_in if spring_kind[s] == STRUCT_WEFT else warp_free_in
+        if free[spring_crossing_a[s]] or free[spring_crossing_b[s]]:
+            continue  # a yarn sliding free towards a loose end here: no tension held by the weave
         a = spring_particle_a[s]
         b = spring_particle_b[s]
         dx = particle_position_m[b, 0] - particle_position_m[a, 0]
@@ -89,8 +104,6 @@ def cut_overstrained(model_in, particles_in, springs_inout):
         if ratio > worst[y]:
             worst[y] = ratio
             pick[y] = s
-    yarn_cuts = 0
-    total = 0
     for y in range(yarn_count):
         if pick[y] < 0:
             continue

@@ -30,6 +30,7 @@ __all__ = ["TearModel", "TearParticles", "TearCrossings", "TearSprings", "tear_m
 TearModel = namedtuple("TearModel", [
     # scalars
     "warp_yarns", "weft_yarns", "yarn_count", "thickness_m", "disconnect_distance_m", "transition_strain",
+    "propagation_inclusive", "ineffective_length",
     # crossings (Model)
     "crossing_weft_on_top", "crossing_weft_springs", "crossing_warp_springs",
     # springs (Model)
@@ -63,7 +64,8 @@ def tear_model(model: Model, topology: TearTopology) -> TearModel:
     return TearModel(
         warp_yarns=m.warp_yarns, weft_yarns=m.weft_yarns, yarn_count=m.warp_yarns + m.weft_yarns,
         thickness_m=m.thickness_m, disconnect_distance_m=m.disconnect_distance_m,
-        transition_strain=m.transition_strain,
+        transition_strain=m.transition_strain, propagation_inclusive=m.propagation_inclusive,
+        ineffective_length=m.ineffective_length,
         crossing_weft_on_top=m.crossing_weft_on_top, crossing_weft_springs=m.crossing_weft_springs,
         crossing_warp_springs=m.crossing_warp_springs,
         spring_kind=m.spring_kind, spring_crossing_a=m.spring_crossing_a, spring_crossing_b=m.spring_crossing_b,

@@ -23,17 +23,20 @@ Split of a base crossing c into a mass couple
   particle slot, and splitting would leave the warp mass unheld. Springs from a held crossing to a
   split one simply attach to the held base mass.
 
-Propagation ("until the weave pattern flips")
---------------------------------------------
+Propagation ("up to and including the crossing where the weave flips")
+----------------------------------------------------------------------
 A structural spring whose strain exceeds the transition strain splits both of its end crossings.
 From each end the split then walks along the spring's own yarn, away from the spring, and splits
-the next crossing while that crossing has the same weave flag as the previous one (the yarn stays
-on the same side: the two are in one float). It stops at the first crossing whose flag differs
-(not split), at the cloth border, at a dead structural spring (the yarn is cut there) and at a held
-crossing (not split). Plain weave flips at every crossing, so exactly the two end crossings split;
-in a 2/2 twill the float partner of each end splits too. The walk is repeated whenever a spring is
-over the threshold (crossings already split are skipped), so the split set does not depend on the
-order in which springs were found over-strained.
+each next crossing; it stops *after* splitting the first crossing whose weave flag differs from the
+previous one (inclusive, the paper's reading and the default). The exclusive reading
+(`model_in.propagation_inclusive` False, scene key `[cloth.tearing] propagation = "exclusive"`)
+stops *before* that crossing instead. Either way the walk also stops at the cloth border, at a dead
+structural spring (the yarn is cut there) and before a held crossing (never split). Inclusive: plain
+weave splits the two ends and the next crossing beyond each (4); a 2/2 twill splits 6 crossings for
+a spring between two floats and 4 for a spring inside a float. Exclusive: plain weave splits only
+the two ends; a 2/2 twill 4 and 2. The walk is repeated whenever a spring is over the threshold
+(crossings already split are skipped), so the split set does not depend on the order in which
+springs were found over-strained.
 
 Kernels are serial numba (cache=True, fastmath=False): same inputs, bit-identical results. They take
 the argument groups of `groups.py` (model_in: TearModel; particles_inout, crossings_inout,
@@ -237,8 +240,11 @@ def split_crossing(c, model_in, particles_inout, crossings_inout, springs_inout,
 def _walk_and_split(start, step, s_dir, model_in, particles_inout, crossings_inout, springs_inout,
                     prev_position_m_inout):
     """From crossing `start`, walk along a weft (s_dir = 0) or warp (1) yarn by `step` (+1/-1) and
-    split while the weave flag stays the same; returns the number of crossings split."""
+    split each next crossing, up to and including the first one whose weave flag differs from the
+    previous one (model_in.propagation_inclusive) or up to just before it (exclusive reading); returns
+    the number of crossings split."""
     warp_yarns, weft_yarns = model_in.warp_yarns, model_in.weft_yarns
+    inclusive = model_in.propagation_inclusive
     crossing_weft_on_top, crossing_attached = model_in.crossing_weft_on_top, model_in.crossing_attached
     weft_structural_spring = model_in.weft_structural_spring
     warp_structural_spring = model_in.warp_structural_spring
@@ -264,12 +270,15 @@ def _walk_and_split(start, step, s_dir, model_in, particles_inout, crossings_ino
             k2 = k + step * warp_yarns
         if not spring_alive[spring]:
             break  # the yarn is cut here
-        if crossing_weft_on_top[k2] != crossing_weft_on_top[k]:
-            break  # the weave flips: the float ends
+        flips = crossing_weft_on_top[k2] != crossing_weft_on_top[k]
+        if flips and not inclusive:
+            break  # exclusive reading: the crossing where the weave flips stays base level
         if crossing_attached[k2]:
-            break
+            break  # held: never splits, and the walk stops before it
         if split_crossing(k2, model_in, particles_inout, crossings_inout, springs_inout, prev_position_m_inout):
             count += 1
+        if flips:
+            break  # inclusive reading (the paper's): the crossing where the weave flips was the last
         k = k2
     return count
 

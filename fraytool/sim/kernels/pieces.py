@@ -1,0 +1,81 @@
+"""The cloth's pieces: connected components of the active masses over live structural (yarn)
+springs and connected mass couples (docs/tearing.md, "Pieces").
+
+A base-level crossing is one mass; a connected couple joins its weft and warp masses; a live
+structural spring joins its two end masses. Bend and shear springs do not join pieces: a bend spring
+is cut with the structural spring it spans, and shear springs alone do not hold yarns together.
+Labels are numbered by their lowest particle slot (deterministic), -1 for inactive slots.
+"""
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+
+STRUCT_KINDS_MAX = 1
+"""Structural spring kinds are 0 (weft) and 1 (warp) (fraytool.kinds)."""
+
+
+@nb.njit(cache=True, fastmath=False, inline="always")
+def _find(parent, p):
+    while parent[p] != p:
+        parent[p] = parent[parent[p]]  # path halving
+        p = parent[p]
+    return p
+
+
+@nb.njit(cache=True, fastmath=False)
+def label_pieces(
+    # model
+    spring_kind, crossing_count,
+    # state in
+    particle_active, crossing_yarn_level, couple_connected, spring_particle_a, spring_particle_b, spring_alive,
+    # out
+    particle_piece_out,
+):
+    """Label every active particle with its piece (0..K-1, by lowest slot); returns K."""
+    n = particle_active.shape[0]
+    parent = np.arange(n)
+    for s in range(spring_kind.shape[0]):
+        if not spring_alive[s] or spring_kind[s] > STRUCT_KINDS_MAX:
+            continue
+        ra = _find(parent, spring_particle_a[s])
+        rb = _find(parent, spring_particle_b[s])
+        if ra != rb:
+            if ra < rb:
+                parent[rb] = ra
+            else:
+                parent[ra] = rb
+    for c in range(crossing_count):
+        if crossing_yarn_level[c] and couple_connected[c]:
+            ra = _find(parent, c)
+            rb = _find(parent, crossing_count + c)
+            if ra != rb:
+                if ra < rb:
+                    parent[rb] = ra
+                else:
+                    parent[ra] = rb
+    root_label = np.full(n, -1, np.int64)
+    count = 0
+    for p in range(n):
+        if not particle_active[p]:
+            particle_piece_out[p] = -1
+            continue
+        r = _find(parent, p)
+        if root_label[r] < 0:
+            root_label[r] = count
+            count += 1
+        particle_piece_out[p] = root_label[r]
+    return count
+
+
+@nb.njit(cache=True, fastmath=False)
+def piece_masses(particle_piece, particle_mass_kg, piece_count):
+    """(mass [kg], mass count) of every piece, each shape (piece_count,)."""
+    mass = np.zeros(piece_count)
+    count = np.zeros(piece_count, np.int64)
+    for p in range(particle_piece.shape[0]):
+        k = particle_piece[p]
+        if k >= 0:
+            mass[k] += particle_mass_kg[p]
+            count[k] += 1
+    return mass, count

@@ -1,0 +1,100 @@
+"""Where a yarn can carry breaking tension: the two yarn-topology scans behind the cut rule
+(docs/tearing.md "Cutting"; numba kernels over the yarns, O(crossings) per step).
+
+- Fragments: a yarn is cut into pieces by its broken springs; for every live structural spring, how
+  many crossings its piece holds on each side of it, up to the nearest free end (a cut, or the
+  yarn's end at the cloth border). Tension in a yarn builds up from a free end only through friction
+  at the crossings it passes, over the *ineffective length* of fibre mechanics (the length over
+  which a broken fibre recovers its load, Cox 1952; for yarns in a weave a few crossings): a spring
+  closer than that to a free end cannot be loaded to its break, so no break leaves a yarn piece
+  shorter than `ineffective_length` crossings.
+- Free runs: along a yarn, a run of yarn-level crossings (mass couples, connected or not) joined by
+  live springs is *anchored* when both its ends reach base-level crossings (the intact weave grips
+  the yarn there) and *free* when it reaches a cut or the cloth border: such a yarn slides out
+  towards its loose end instead of holding tension, so its springs (and the springs joining the run
+  to its anchor) do not break.
+"""
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+
+
+@nb.njit(cache=True, fastmath=False)
+def _yarn_fragments(springs, spring_alive, left_out, right_out):
+    """Along one yarn (its structural springs in order, n springs joining n + 1 crossings): for every
+    live spring k, the crossings its yarn piece holds on each side of it, up to the nearest cut or the
+    yarn's end: left_out[s] = k - a + 1, right_out[s] = b - k, with [a, b] the piece's crossings."""
+    n = springs.shape[0]
+    a = 0
+    for k in range(n):
+        s = springs[k]
+        if not spring_alive[s]:
+            a = k + 1
+            continue
+        left_out[s] = k - a + 1
+    b = n  # crossing index of the piece's right end
+    for k in range(n - 1, -1, -1):
+        s = springs[k]
+        if not spring_alive[s]:
+            b = k
+            continue
+        right_out[s] = b - k
+
+
+@nb.njit(cache=True, fastmath=False)
+def yarn_fragments(model_in, springs_in, left_out, right_out):
+    """For every live structural spring, the yarn crossings on each side of it up to the nearest free
+    yarn end (a cut, or the yarn's end at the cloth border): `_yarn_fragments` on every yarn."""
+    weft_structural_spring, warp_structural_spring = model_in.weft_structural_spring, model_in.warp_structural_spring
+    spring_alive = springs_in.spring_alive
+    for j in range(weft_structural_spring.shape[0]):
+        _yarn_fragments(weft_structural_spring[j], spring_alive, left_out, right_out)
+    for i in range(warp_structural_spring.shape[0]):
+        _yarn_fragments(warp_structural_spring[i], spring_alive, left_out, right_out)
+
+
+
+@nb.njit(cache=True, fastmath=False)
+def _mark_free_runs(crossings, springs, crossing_yarn_level, spring_alive, free_out):
+    """Along one yarn (its crossings in order and the structural springs between them), flag the
+    crossings of every run that reaches a free yarn end (module docstring)."""
+    n = crossings.shape[0]
+    start = 0
+    while start < n:
+        if not crossing_yarn_level[crossings[start]]:
+            start += 1
+            continue
+        end = start  # the run: yarn-level crossings joined by live springs, crossings[start..end]
+        while end + 1 < n and spring_alive[springs[end]] and crossing_yarn_level[crossings[end + 1]]:
+            end += 1
+        # a side is free at the border or across a cut spring; anchored at a base-level crossing
+        free = (start == 0 or not spring_alive[springs[start - 1]]
+                or end == n - 1 or not spring_alive[springs[end]])
+        if free:
+            for k in range(start, end + 1):
+                free_out[crossings[k]] = True
+        start = end + 1
+
+
+@nb.njit(cache=True, fastmath=False)
+def free_yarn_runs(model_in, crossings_in, springs_in, weft_free_out, warp_free_out):
+    """Flag the yarn-level crossings whose weft (resp. warp) is on a free run: a run of yarn-level
+    crossings along that yarn, joined by live springs, that reaches a free yarn end (a cut or the
+    border) before a base-level crossing anchors it (module docstring)."""
+    warp_yarns, weft_yarns = model_in.warp_yarns, model_in.weft_yarns
+    weft_structural_spring, warp_structural_spring = model_in.weft_structural_spring, model_in.warp_structural_spring
+    crossing_yarn_level = crossings_in.crossing_yarn_level
+    spring_alive = springs_in.spring_alive
+    weft_free_out[:] = False
+    warp_free_out[:] = False
+    weft_crossings = np.empty(warp_yarns, np.int64)
+    for j in range(weft_yarns):
+        for i in range(warp_yarns):
+            weft_crossings[i] = j * warp_yarns + i
+        _mark_free_runs(weft_crossings, weft_structural_spring[j], crossing_yarn_level, spring_alive, weft_free_out)
+    warp_crossings = np.empty(weft_yarns, np.int64)
+    for i in range(warp_yarns):
+        for j in range(weft_yarns):
+            warp_crossings[j] = j * warp_yarns + i
+        _mark_free_runs(warp_crossings, warp_structural_spring[i], crossing_yarn_level, spring_alive, warp_free_out)

@@ -1,0 +1,59 @@
+"""`simulate --json` reports the cloth's pieces and the strain where it is still woven, over the
+whole shot and across a resume; a strain limit that did not hold is said once on stderr."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+
+from helpers import pulled_strip_text
+
+from fraytool.commands.main import main
+from fraytool.scene import parse_scene
+from fraytool.sim import Simulation
+from fraytool.sim.pieces import woven_strain
+
+
+def _run(tmp_path, capsys, args):
+    rc = main(args)
+    out, err = capsys.readouterr()
+    assert rc == 0, err
+    return (json.loads(out.strip().splitlines()[-1]) if out.strip() else None), err
+
+
+def test_json_reports_pieces_and_woven_strain_and_resume_keeps_them(tmp_path, capsys):
+    scene = tmp_path / "strip.toml"
+    scene.write_text(pulled_strip_text(yarn_level=True))
+    whole, err = _run(tmp_path, capsys, ["simulate", str(scene), "-o", str(tmp_path / "a"), "--json"])
+    for key in ("pieces", "largest_piece_fractions", "small_pieces", "small_pieces_max", "max_woven_strain",
+                "strain_cap_hits"):
+        assert key in whole, key
+    assert whole["broken_springs"] > 0 and whole["pieces"] >= 2  # the strip is torn through
+    assert len(whole["largest_piece_fractions"]) == 2 and sum(whole["largest_piece_fractions"]) <= 1.0 + 1e-12
+    # stop half way and resume: the shot figures are the same as the unbroken run's
+    spec = parse_scene(scene.read_text(), str(scene))
+    half = spec.time.frames // 2
+    _run(tmp_path, capsys, ["simulate", str(scene), "-o", str(tmp_path / "b"), "--frames", str(half)])
+    resumed, err2 = _run(tmp_path, capsys, ["simulate", str(scene), "-o", str(tmp_path / "b"), "--resume", "--json"])
+    assert resumed == whole
+    # the warning appears once, and only when the woven strain passed limit + 0.01
+    warned = whole["max_woven_strain"] > whole["strain_limit"] + 0.01
+    assert err.count("strain limiting did not hold where the cloth is woven") == (1 if warned else 0)
+
+
+def test_woven_strain_is_the_largest_over_live_springs_between_woven_crossings():
+    spec = parse_scene(pulled_strip_text(yarn_level=True), "strip.toml")
+    sim = Simulation(spec)
+    m, s = sim.model, sim.state
+    W = m.warp_yarns
+    x = s.particle_position_m
+    # stretch one weft spring by 30 %: it is between base-level (woven) crossings
+    spring = int(m.weft_structural_spring[4, 10])
+    x[4 * W + 11:5 * W, 0] += 0.30 * m.spacing_m
+    strain, where = woven_strain(m, s)
+    assert where == spring and np.isclose(strain, 0.30)
+    # once one end is a disconnected couple, that spring no longer counts
+    sim.solver.tearing.split(s, [4 * W + 11])
+    sim.solver.tearing.disconnect(s, 4 * W + 11)
+    strain2, where2 = woven_strain(m, s)
+    assert where2 != spring and strain2 < 0.30
