@@ -41,7 +41,7 @@ def particle_diagnostic(model: Model, state: State, particle: int, limit: int = 
     x = state.particle_position_m
     with np.errstate(invalid="ignore", over="ignore"):
         length = np.linalg.norm(x[state.spring_particle_b[at]] - x[state.spring_particle_a[at]], axis=1)
-        strain = length / model.spring_rest_length_m[at] - 1.0
+        strain = length / state.spring_rest_length_m[at] - 1.0
     badness = np.where(np.isfinite(strain), np.abs(strain), np.inf)
     order = np.argsort(-badness, kind="stable")
     springs = []

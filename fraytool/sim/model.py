@@ -51,6 +51,7 @@ class Model:
     spring_crossing_b: np.ndarray
     """Crossing at end b, shape (spring_count,), int32."""
     spring_rest_length_m: np.ndarray
+    """Rest length at build [m] (State.spring_rest_length_m holds the current one)."""
     """Rest length [m], shape (spring_count,), float64."""
     spring_base_stiffness_n_per_m: np.ndarray
     """Stiffness when first created [N/m], shape (spring_count,), float64."""
@@ -177,6 +178,7 @@ class Model:
             spring_alive=alive,
             spring_broken=np.zeros(self.spring_count, dtype=bool),
             spring_stiffness_n_per_m=np.where(alive, self.spring_base_stiffness_n_per_m, 0.0),
+            spring_rest_length_m=self.spring_rest_length_m.copy(),
             body_position_m=self.body_initial_position_m.copy(),
             body_velocity_m_s=np.zeros((self.body_count, 3)),
         )

@@ -51,6 +51,6 @@ def woven_strain(model: Model, state: State) -> tuple[float, int]:
         return 0.0, -1
     x = state.particle_position_m
     d = x[state.spring_particle_b[sel]] - x[state.spring_particle_a[sel]]
-    strain = np.sqrt((d * d).sum(axis=1)) / model.spring_rest_length_m[sel] - 1.0
+    strain = np.sqrt((d * d).sum(axis=1)) / state.spring_rest_length_m[sel] - 1.0
     k = int(np.argmax(strain))
     return float(strain[k]), int(sel[k])

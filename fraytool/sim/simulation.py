@@ -41,6 +41,8 @@ class ShotFigures:
     """First frame with a small piece, -1 if none."""
     strain_cap_hits_before: int = 0
     """Strain-limiting cap hits of the run before a resume."""
+    strain_iterations_max_before: int = 0
+    """Most strain-limiting sweeps in one step of the run before a resume."""
 
     def arrays(self) -> dict[str, np.ndarray]:
         return {f"shot_{f.name}": np.asarray(getattr(self, f.name)) for f in fields(self)}
@@ -89,6 +91,7 @@ class Simulation:
         """What a checkpoint holds: the State and the shot figures."""
         shot = ShotFigures(**{f.name: getattr(self.shot, f.name) for f in fields(ShotFigures)})
         shot.strain_cap_hits_before += self.solver.strain_cap_hits
+        shot.strain_iterations_max_before = max(shot.strain_iterations_max_before, self.solver.strain_iterations_max)
         return {**self.state.arrays(), **shot.arrays()}
 
     def restore_shot(self, data) -> None:
@@ -123,7 +126,7 @@ class Simulation:
         sel = ((m.spring_kind == STRUCT_WEFT) | (m.spring_kind == STRUCT_WARP)) & s.spring_alive
         x = s.particle_position_m
         d = x[s.spring_particle_b[sel]] - x[s.spring_particle_a[sel]]
-        return np.linalg.norm(d, axis=1) / m.spring_rest_length_m[sel] - 1.0
+        return np.linalg.norm(d, axis=1) / s.spring_rest_length_m[sel] - 1.0
 
     def summary(self) -> dict:
         """Figures of the current state (the `--json` summary of `fraytool simulate`)."""
@@ -138,7 +141,7 @@ class Simulation:
             "broken_springs": int(s.spring_broken.sum()),
             "yarn_level_masses": int(2 * s.crossing_yarn_level.sum()),
             "max_strain": float(strain.max()) if strain.size else 0.0,
-            "strain_iterations_max": self.solver.strain_iterations_max,
+            "strain_iterations_max": max(self.shot.strain_iterations_max_before, self.solver.strain_iterations_max),
             "strain_cap_hits": self.shot.strain_cap_hits_before + self.solver.strain_cap_hits,
             "strain_limit": float(self.model.strain_limit),
             "max_woven_strain": self.shot.max_woven_strain,

@@ -39,6 +39,10 @@ class State:
     """Springs cut because their strain passed their break strain (§4.1), shape (spring_count,), bool."""
     spring_stiffness_n_per_m: np.ndarray
     """Current stiffness [N/m] (shear springs halve on duplication), shape (spring_count,)."""
+    spring_rest_length_m: np.ndarray
+    """Current rest length [m], shape (spring_count,), float64: the model's, except that a split
+    rescales the springs at the crossing so that moving the couple's masses ±T/2 leaves every
+    spring's strain as it was (docs/tearing.md "Split")."""
     body_position_m: np.ndarray
     """Shape (body_count, 3), float64."""
     body_velocity_m_s: np.ndarray

@@ -50,7 +50,7 @@ class SpringForces(_NoSummary):
 
     def run(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
         m = self.model
-        accumulate_spring_forces(m.spring_kind, m.spring_rest_length_m, state.particle_position_m,
+        accumulate_spring_forces(m.spring_kind, state.spring_rest_length_m, state.particle_position_m,
                                  state.spring_particle_a, state.spring_particle_b, state.spring_alive,
                                  state.spring_stiffness_n_per_m, buffers.force_n)
 
@@ -158,7 +158,7 @@ class StrainLimiting(_NoSummary):
 
     def run(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
         m = self.model
-        it, converged = limit_strain(self.limited_springs, m.spring_rest_length_m, m.strain_limit, m.strain_tolerance,
+        it, converged = limit_strain(self.limited_springs, state.spring_rest_length_m, m.strain_limit, m.strain_tolerance,
                                      m.strain_max_iterations, state.particle_inv_mass, state.spring_particle_a,
                                      state.spring_particle_b, state.spring_alive, state.particle_position_m)
         self.iterations_last = it

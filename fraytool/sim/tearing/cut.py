@@ -71,7 +71,7 @@ def cut_overstrained(model_in, particles_in, springs_inout, weft_free_in, warp_f
     compare. Reads the positions, writes only spring_alive and spring_broken."""
     structural_springs, structural_yarn = model_in.structural_springs, model_in.structural_yarn
     yarn_count = model_in.yarn_count
-    spring_rest_length_m, spring_break_strain = model_in.spring_rest_length_m, model_in.spring_break_strain
+    spring_rest_length_m, spring_break_strain = springs_inout.spring_rest_length_m, model_in.spring_break_strain
     particle_position_m = particles_in.particle_position_m
     spring_particle_a, spring_particle_b = springs_inout.spring_particle_a, springs_inout.spring_particle_b
     spring_alive = springs_inout.spring_alive

@@ -34,7 +34,7 @@ TearModel = namedtuple("TearModel", [
     # crossings (Model)
     "crossing_weft_on_top", "crossing_weft_springs", "crossing_warp_springs",
     # springs (Model)
-    "spring_kind", "spring_crossing_a", "spring_crossing_b", "spring_twin", "spring_rest_length_m",
+    "spring_kind", "spring_crossing_a", "spring_crossing_b", "spring_twin",
     "spring_break_strain", "weft_structural_spring", "warp_structural_spring",
     # lookup tables (TearTopology)
     "crossing_spring_start", "crossing_spring_list", "crossing_attached", "structural_springs",
@@ -54,6 +54,7 @@ TearCrossings.__doc__ = "State arrays of the crossings (split? couple still in c
 
 TearSprings = namedtuple("TearSprings", [
     "spring_particle_a", "spring_particle_b", "spring_alive", "spring_broken", "spring_stiffness_n_per_m",
+    "spring_rest_length_m",
 ])
 TearSprings.__doc__ = "State arrays of the springs (ends, alive/broken flags, stiffness), shape (spring_count,)."
 
@@ -69,7 +70,7 @@ def tear_model(model: Model, topology: TearTopology) -> TearModel:
         crossing_weft_on_top=m.crossing_weft_on_top, crossing_weft_springs=m.crossing_weft_springs,
         crossing_warp_springs=m.crossing_warp_springs,
         spring_kind=m.spring_kind, spring_crossing_a=m.spring_crossing_a, spring_crossing_b=m.spring_crossing_b,
-        spring_twin=m.spring_twin, spring_rest_length_m=m.spring_rest_length_m,
+        spring_twin=m.spring_twin,
         spring_break_strain=m.spring_break_strain, weft_structural_spring=m.weft_structural_spring,
         warp_structural_spring=m.warp_structural_spring,
         crossing_spring_start=t.crossing_spring_start, crossing_spring_list=t.crossing_spring_list,
@@ -88,5 +89,5 @@ def state_groups(state: State) -> tuple[TearParticles, TearCrossings, TearSpring
                       s.particle_active),
         TearCrossings(s.crossing_yarn_level, s.couple_connected),
         TearSprings(s.spring_particle_a, s.spring_particle_b, s.spring_alive, s.spring_broken,
-                    s.spring_stiffness_n_per_m),
+                    s.spring_stiffness_n_per_m, s.spring_rest_length_m),
     )

@@ -47,6 +47,7 @@ from __future__ import annotations
 import math
 
 import numba as nb
+import numpy as np
 
 from fraytool.kinds import BEND_WARP, SHEAR, STRUCT_WARP, STRUCT_WEFT
 
@@ -118,6 +119,16 @@ def crossing_normal_at(c, warp_yarns, weft_yarns, particle_position_m, crossing_
 
 
 @nb.njit(cache=True, fastmath=False)
+def _spring_length(s, spring_particle_a, spring_particle_b, particle_position_m):
+    """Current length of spring s [m]."""
+    a, b = spring_particle_a[s], spring_particle_b[s]
+    dx = particle_position_m[b, 0] - particle_position_m[a, 0]
+    dy = particle_position_m[b, 1] - particle_position_m[a, 1]
+    dz = particle_position_m[b, 2] - particle_position_m[a, 2]
+    return math.sqrt(dx * dx + dy * dy + dz * dz)
+
+
+@nb.njit(cache=True, fastmath=False)
 def _upper(k, crossing_count, crossing_weft_on_top):
     """Slot of the upper mass of yarn-level crossing k (its weft mass where the weft is on top)."""
     return k if crossing_weft_on_top[k] else crossing_count + k
@@ -151,6 +162,16 @@ def split_crossing(c, model_in, particles_inout, crossings_inout, springs_inout,
         return False  # held crossings stay base level (an attachment holds one slot)
     n = warp_yarns * weft_yarns
     w = n + c
+    spring_rest_length_m = springs_inout.spring_rest_length_m
+    first, last = crossing_spring_start[c], crossing_spring_start[c + 1]
+    length_before = np.empty(last - first)
+    twin_before = np.zeros(last - first)  # length of an already born shear twin, 0 if unborn
+    for k in range(first, last):
+        s = crossing_spring_list[k]
+        length_before[k - first] = _spring_length(s, spring_particle_a, spring_particle_b, particle_position_m)
+        if spring_kind[s] == SHEAR and (spring_alive[spring_twin[s]] or spring_broken[spring_twin[s]]):
+            twin_before[k - first] = _spring_length(spring_twin[s], spring_particle_a, spring_particle_b,
+                                                    particle_position_m)
     nx, ny, nz = crossing_normal_at(c, warp_yarns, weft_yarns, particle_position_m, crossing_yarn_level)
     half_t = 0.5 * thickness_m if crossing_weft_on_top[c] else -0.5 * thickness_m
     ox, oy, oz = half_t * nx, half_t * ny, half_t * nz
@@ -233,6 +254,22 @@ def split_crossing(c, model_in, particles_inout, crossings_inout, springs_inout,
                 spring_particle_a[s] = up_c
             else:
                 spring_particle_b[s] = up_c
+    # Every spring at c keeps the strain it had: rest length scaled by new length / old length (a
+    # twin born here takes its original's strain).
+    for k in range(first, last):
+        s = crossing_spring_list[k]
+        old = length_before[k - first]
+        if old <= 0.0:
+            continue  # degenerate: no strain to keep
+        ratio = spring_rest_length_m[s] / old
+        new = _spring_length(s, spring_particle_a, spring_particle_b, particle_position_m)
+        if spring_kind[s] == SHEAR:
+            t = spring_twin[s]
+            t_old = twin_before[k - first]
+            t_ratio = spring_rest_length_m[t] / t_old if t_old > 0.0 else ratio  # born now: the original's
+            spring_rest_length_m[t] = _spring_length(t, spring_particle_a, spring_particle_b,
+                                                     particle_position_m) * t_ratio
+        spring_rest_length_m[s] = new * ratio
     return True
 
 
@@ -311,7 +348,7 @@ def transition_overstrained(model_in, particles_inout, crossings_inout, springs_
     order; returns the number of crossings split. A spring within the threshold costs one squared
     length and a compare. Writes what split_crossing writes."""
     structural_springs = model_in.structural_springs
-    spring_rest_length_m = model_in.spring_rest_length_m
+    spring_rest_length_m = springs_inout.spring_rest_length_m
     transition_strain = model_in.transition_strain
     particle_position_m = particles_inout.particle_position_m
     spring_particle_a, spring_particle_b = springs_inout.spring_particle_a, springs_inout.spring_particle_b
