@@ -47,3 +47,71 @@ def test_cap_is_reported_when_limit_cannot_be_met():
     iterations, converged = _run(model, state, x, 25, inv)
     assert iterations == 25 and not converged
     assert _structural_strain(model, state, x).max() > 0.10
+
+
+def _chain(n_springs, rest_m, stretch):
+    """A straight chain of n_springs springs along x, ends held (inverse mass 0), every spring
+    stretched to `stretch` x rest."""
+    x = np.zeros((n_springs + 1, 3))
+    x[:, 0] = np.arange(n_springs + 1) * rest_m * stretch
+    w = np.ones(n_springs + 1)
+    w[0] = w[-1] = 0.0
+    a = np.arange(n_springs, dtype=np.int32)
+    return x, w, a, a + 1
+
+
+def test_compliant_limit_converges_to_the_implicit_step_of_a_stiff_yarn():
+    """Held ends 15 % apart and a 10 % limit: the limit cannot be met. As a compliant constraint
+    (XPBD, k_limit past the limit) the sweeps converge to the minimiser of
+        sum_i m / (2 h^2) (x_i - x0_i)^2 + sum_s k_limit / 2 (x_{s+1} - x_s - (1 + limit) L)^2,
+    one implicit Euler step of a yarn that stiffens past the limit (every spring stays past it here,
+    so the minimiser solves a tridiagonal linear system: the independent reference). The hard
+    projection instead stops at its cap with an uneven residual."""
+    from fraytool.sim.kernels.strain_limit import limit_strain_compliant
+
+    n, rest, limit, k_limit, h, mass = 12, 0.004, 0.10, 400.0, 2e-4, 5e-6
+    x, w, a, b = _chain(n, rest, 1.15)
+    w[1:-1] = 1.0 / mass
+    x[1:-1, 0] += np.random.default_rng(3).uniform(-0.1, 0.1, n - 1) * rest  # uneven to start
+    x0 = x.copy()
+    rest_lengths = np.full(n, rest)
+    alive = np.ones(n, bool)
+    springs = np.arange(n, dtype=np.int32)
+    hard = x.copy()
+    _, hard_converged = limit_strain(springs, rest_lengths, limit, 1e-12, 200, w, a, b, alive, hard)
+    assert not hard_converged  # the hard limit cannot be met: it stops at its cap
+    it, converged = limit_strain_compliant(springs, rest_lengths, limit, 1e-13, 100000, 1.0 / (k_limit * h * h),
+                                           w, a, b, alive, np.zeros(n), x)
+    assert converged
+    # reference: (m/h^2 + 2k) x_i - k x_{i-1} - k x_{i+1} = m/h^2 x0_i (interior; the l_max terms cancel)
+    m_h2 = mass / h ** 2
+    A = np.zeros((n - 1, n - 1))
+    rhs = m_h2 * x0[1:-1, 0]
+    for r in range(n - 1):
+        A[r, r] = m_h2 + 2 * k_limit
+        if r > 0:
+            A[r, r - 1] = -k_limit
+        if r < n - 2:
+            A[r, r + 1] = -k_limit
+    rhs[0] += k_limit * x0[0, 0]
+    rhs[-1] += k_limit * x0[-1, 0]
+    reference = np.linalg.solve(A, rhs)
+    assert (np.diff(np.concatenate([[x0[0, 0]], reference, [x0[-1, 0]]])) > (1 + limit) * rest).all()
+    np.testing.assert_allclose(x[1:-1, 0], reference, atol=1e-10)
+    assert np.ptp(np.diff(x[:, 0])) < np.ptp(np.diff(x0[:, 0]))  # tension evens the yarn out
+
+
+def test_compliant_limit_with_infinite_stiffness_is_the_hard_projection():
+    from fraytool.sim.kernels.strain_limit import limit_strain, limit_strain_compliant
+
+    n, rest = 8, 0.004
+    x, w, a, b = _chain(n, rest, 1.3)
+    w[-1] = 1.0  # one free end: feasible
+    springs = np.arange(n, dtype=np.int32)
+    rest_lengths = np.full(n, rest)
+    alive = np.ones(n, bool)
+    hard = x.copy()
+    limit_strain(springs, rest_lengths, 0.1, 1e-12, 5000, w, a, b, alive, hard)
+    soft = x.copy()
+    limit_strain_compliant(springs, rest_lengths, 0.1, 1e-12, 5000, 0.0, w, a, b, alive, np.zeros(n), soft)
+    np.testing.assert_allclose(soft, hard, atol=1e-12)

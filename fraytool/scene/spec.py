@@ -64,6 +64,10 @@ class StrainSpec:
     max_iterations: int = key("int", 40, lo=0, hi=100000, doc="cap on strain-limiting projection sweeps per step")
     tolerance: float = key("float", 1e-4, lo=0, hi=1,
                            doc="projection stops once every structural spring is within limit + tolerance")
+    stiffness_n_per_m: float = key("float", 0.0, lo=0, hi=1e9,
+                                   doc="stiffness of a yarn spring past the limit [N/m]: 0 holds the limit hard "
+                                       "(the paper's projection); > 0 makes it a compliant constraint (XPBD) "
+                                       "that converges where the limit cannot be met (docs/tearing.md)")
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -204,7 +204,8 @@ class ModelBuilder:
     @_keys_doc("cloth.strain")
     def set_strain_limit(self, *, limit: float = _STRAIN["limit"].default,
                          max_iterations: int = _STRAIN["max_iterations"].default,
-                         tolerance: float = _STRAIN["tolerance"].default) -> None:
+                         tolerance: float = _STRAIN["tolerance"].default,
+                         stiffness_n_per_m: float = _STRAIN["stiffness_n_per_m"].default) -> None:
         """Strain limiting of structural springs (docs/method.md §4.1), as [cloth.strain]."""
         self.strain = StrainSpec(**self._check("set_strain_limit", _STRAIN, _given(locals())))
 
@@ -456,6 +457,7 @@ class ModelBuilder:
             strain_limit=strain.limit,
             strain_max_iterations=strain.max_iterations,
             strain_tolerance=strain.tolerance,
+            strain_stiffness_n_per_m=strain.stiffness_n_per_m,
             damping=c.springs.damping,
             tearing=t.enabled,
             yarn_level=t.enabled and t.yarn_level,

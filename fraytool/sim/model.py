@@ -105,6 +105,8 @@ class Model:
     """Structural springs are projected to at most (1 + strain_limit) x rest length."""
     strain_max_iterations: int
     strain_tolerance: float
+    strain_stiffness_n_per_m: float
+    """Stiffness of a structural spring past the strain limit [N/m]; 0: the limit is hard."""
     damping: float
     """PBD damping coefficient k_damping per step, in [0, 1]."""
     tearing: bool

@@ -21,8 +21,10 @@ start-of-step to its current end points. Three parts, as in Bridson, Fedkiw, And
    tangential relative displacement over the step by μ x (normal correction), Coulomb-style.
    Detection runs again on the corrected positions, up to `iterations` passes;
 3. failsafe: pairs still crossing after the last pass return to their start-of-step positions
-   (which did not cross), round after round until none crosses; the step counts as a cap hit.
-   Yarns therefore never pass through each other.
+   (which did not cross), round after round until none crosses, at most FAILSAFE_ROUNDS rounds;
+   the step counts as a cap hit. Past the cap the stage gives up: every free particle returns to
+   its start-of-step position (the stage module, "Failsafe"). Yarns therefore never pass through
+   each other, unless ends held by bodies push them through (then the stage says so).
 
 The contact distance is d_c = T/2: connected mass couples already keep their weft and warp T apart
 (§3.3), so d_c < T leaves those resting contacts alone. Velocities follow from the corrected
@@ -136,17 +138,20 @@ def repel_close_pairs(
     # model
     contact_distance_m, friction,
     # state in
-    x_start, candidates, spring_particle_a, spring_particle_b, spring_alive, particle_inv_mass, reach,
+    x_start, candidates, first, spring_particle_a, spring_particle_b, spring_alive, particle_inv_mass, reach,
     # state in/out
     x_end,
 ):
-    """Proximity pass: candidate pairs whose segments end the step closer than the contact
-    distance are pushed apart along their end-of-step separation. Returns the pairs moved and
-    whether a moved particle left its ``reach`` (the candidates then need a check)."""
+    """Proximity pass over ``candidates[first:]``, in their (sorted) order: pairs whose segments end
+    the step closer than the contact distance are pushed apart along their end-of-step separation.
+    Returns the pairs moved and ``stop``: -1 when the pass got to the end, else the index of the
+    pair whose correction moved a particle out of its ``reach``; the pass stops right after it, as
+    the candidates after it may then miss a pair that the correction brought close (the stage checks
+    the candidates and goes on after that pair: its results do not depend on which candidates it
+    kept from earlier steps)."""
     moved = 0
-    left = False
     seg = np.empty((4, 3))
-    for k in range(candidates.shape[0]):
+    for k in range(first, candidates.shape[0]):
         i = candidates[k, 0]
         j = candidates[k, 1]
         if not (spring_alive[i] and spring_alive[j]):
@@ -166,16 +171,23 @@ def repel_close_pairs(
         n = d / dist if dist > 1e-12 else _normal(x_start, x_end, i1, i2, i3, i4, 0.0)
         if _correct_pair(contact_distance_m, friction, x_start, i1, i2, i3, i4, n, particle_inv_mass, x_end):
             moved += 1
-            left = left or _outside_reach(x_end, reach, i1, i2, i3, i4)
-    return moved, left
+            if _outside_reach(x_end, reach, i1, i2, i3, i4):
+                return moved, k
+    return moved, -1
 
 
 @nb.njit(cache=True, fastmath=False)
 def freeze_pairs(pairs, spring_particle_a, spring_particle_b, particle_inv_mass, x_start, x_end):
-    """Failsafe: pairs still crossing after the last pass go back to their start-of-step positions
-    (which did not cross), as in an inelastic impact zone that stops for this step."""
+    """Failsafe: the free end particles of pairs still crossing after the last pass go back to their
+    start-of-step positions (which did not cross), as in an inelastic impact zone that stops for
+    this step. Returns how many particles moved (0: every free end was already back, so another
+    round would change nothing)."""
+    restored = 0
     for k in range(pairs.shape[0]):
         for s in (pairs[k, 0], pairs[k, 1]):
             for p in (spring_particle_a[s], spring_particle_b[s]):
                 if particle_inv_mass[p] > 0.0:
+                    if x_end[p, 0] != x_start[p, 0] or x_end[p, 1] != x_start[p, 1] or x_end[p, 2] != x_start[p, 2]:
+                        restored += 1
                     x_end[p] = x_start[p]
+    return restored

@@ -18,7 +18,7 @@ from fraytool.sim.kernels.integrate import (
 )
 from fraytool.sim.kernels.pieces import label_pieces
 from fraytool.sim.kernels.rigid_contact import collide_rigid
-from fraytool.sim.kernels.strain_limit import limit_strain
+from fraytool.sim.kernels.strain_limit import limit_strain, limit_strain_compliant
 from fraytool.sim.model import Model
 from fraytool.sim.rigid import advance_bodies, apply_cloth_impulse
 from fraytool.sim.stages.base import StepBuffers
@@ -143,7 +143,10 @@ class Attachments(_NoSummary):
 class StrainLimiting(_NoSummary):
     """Step 5: strain limiting by constraint projection (§4.1) over the structural springs in four
     colour groups (weft i even, weft i odd, warp j even, warp j odd): no two springs of a group share
-    a mass, so a sweep is order-independent inside each group and has no spatial sweep direction."""
+    a mass, so a sweep is order-independent inside each group and has no spatial sweep direction.
+    With [cloth.strain] stiffness_n_per_m > 0 the limit is a compliant constraint (XPBD,
+    `limit_strain_compliant`): where it cannot be met the yarn stretches by a definite amount, so the
+    sweeps converge instead of stopping at the cap with a residual that depends on the step."""
 
     name = "strain_limiting"
     kernel = "limit_strain"
@@ -151,6 +154,7 @@ class StrainLimiting(_NoSummary):
     def __init__(self, model: Model):
         self.model = model
         self.limited_springs = colour_ordered_structural_springs(model)
+        self._tension = np.zeros(self.limited_springs.shape[0])
         self.iterations_last = 0
         self.iterations_max = 0
         self.cap_hits = 0
@@ -158,6 +162,16 @@ class StrainLimiting(_NoSummary):
 
     def run(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
         m = self.model
+        if m.strain_stiffness_n_per_m > 0.0:
+            it, converged = limit_strain_compliant(
+                self.limited_springs, state.spring_rest_length_m, m.strain_limit, m.strain_tolerance,
+                m.strain_max_iterations, 1.0 / (m.strain_stiffness_n_per_m * dt_s * dt_s), state.particle_inv_mass,
+                state.spring_particle_a, state.spring_particle_b, state.spring_alive, self._tension,
+                state.particle_position_m)
+            self.iterations_last = it
+            self.iterations_max = max(self.iterations_max, it)
+            self.cap_hits += 0 if converged else 1
+            return
         it, converged = limit_strain(self.limited_springs, state.spring_rest_length_m, m.strain_limit, m.strain_tolerance,
                                      m.strain_max_iterations, state.particle_inv_mass, state.spring_particle_a,
                                      state.spring_particle_b, state.spring_alive, state.particle_position_m)

@@ -20,14 +20,22 @@ import numba as nb
 import numpy as np
 
 
+ANCHORED = 1 << 30
+"""Fragment size on a side held by a body: a grip pulls the yarn, whatever its distance to a free end."""
+
+
 @nb.njit(cache=True, fastmath=False)
-def _yarn_fragments(springs, spring_alive, left_out, right_out):
-    """Along one yarn (its structural springs in order, n springs joining n + 1 crossings): for every
-    live spring k, the crossings its yarn piece holds on each side of it, up to the nearest cut or the
-    yarn's end: left_out[s] = k - a + 1, right_out[s] = b - k, with [a, b] the piece's crossings."""
+def _yarn_fragments(springs, crossings, crossing_attached, spring_alive, left_out, right_out):
+    """Along one yarn (n structural springs joining its n + 1 crossings, in order): for every live
+    spring k, the crossings its yarn piece holds on each side of it up to the nearest cut or the
+    yarn's end: left_out[s] = k - a + 1, right_out[s] = b - k, with [a, b] the piece's crossings.
+    A side that reaches a held crossing (an attachment) first counts as ANCHORED: the body pulls the
+    yarn there, so tension does not fade towards that side."""
     n = springs.shape[0]
     a = 0
     for k in range(n):
+        if crossing_attached[crossings[k]]:
+            a = -ANCHORED
         s = springs[k]
         if not spring_alive[s]:
             a = k + 1
@@ -35,6 +43,8 @@ def _yarn_fragments(springs, spring_alive, left_out, right_out):
         left_out[s] = k - a + 1
     b = n  # crossing index of the piece's right end
     for k in range(n - 1, -1, -1):
+        if crossing_attached[crossings[k + 1]]:
+            b = ANCHORED
         s = springs[k]
         if not spring_alive[s]:
             b = k
@@ -45,14 +55,22 @@ def _yarn_fragments(springs, spring_alive, left_out, right_out):
 @nb.njit(cache=True, fastmath=False)
 def yarn_fragments(model_in, springs_in, left_out, right_out):
     """For every live structural spring, the yarn crossings on each side of it up to the nearest free
-    yarn end (a cut, or the yarn's end at the cloth border): `_yarn_fragments` on every yarn."""
+    yarn end (a cut, or the yarn's end at the cloth border), ANCHORED where a held crossing comes first:
+    `_yarn_fragments` on every yarn."""
+    warp_yarns, weft_yarns = model_in.warp_yarns, model_in.weft_yarns
     weft_structural_spring, warp_structural_spring = model_in.weft_structural_spring, model_in.warp_structural_spring
+    crossing_attached = model_in.crossing_attached
     spring_alive = springs_in.spring_alive
-    for j in range(weft_structural_spring.shape[0]):
-        _yarn_fragments(weft_structural_spring[j], spring_alive, left_out, right_out)
-    for i in range(warp_structural_spring.shape[0]):
-        _yarn_fragments(warp_structural_spring[i], spring_alive, left_out, right_out)
-
+    weft_crossings = np.empty(warp_yarns, np.int64)
+    for j in range(weft_yarns):
+        for i in range(warp_yarns):
+            weft_crossings[i] = j * warp_yarns + i
+        _yarn_fragments(weft_structural_spring[j], weft_crossings, crossing_attached, spring_alive, left_out, right_out)
+    warp_crossings = np.empty(weft_yarns, np.int64)
+    for i in range(warp_yarns):
+        for j in range(weft_yarns):
+            warp_crossings[j] = j * warp_yarns + i
+        _yarn_fragments(warp_structural_spring[i], warp_crossings, crossing_attached, spring_alive, left_out, right_out)
 
 
 @nb.njit(cache=True, fastmath=False)
