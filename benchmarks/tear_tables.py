@@ -5,7 +5,7 @@ figures of `fraytool simulate --json` at the last frame and over the shot.
     python benchmarks/tear_tables.py --write             # also replace them in docs/tearing.md
     python benchmarks/tear_tables.py --seeds 1-8 --scenes fig5_corner_grab,fig7_square_grab --jobs 2
 
-Each (scene, seed) runs in its own process (numba's cache is shared); `--jobs` runs that many at once.
+Speed is not in these tables (`fraytool bench` measures it). Each (scene, seed) runs in its own process (numba's cache is shared); `--jobs` runs that many at once.
 The tables go between the markers <!-- tear-tables:begin --> and <!-- tear-tables:end -->.
 """
 from __future__ import annotations
@@ -58,17 +58,17 @@ def run_one(scene: str, seed: int) -> dict:
 
 def table(rows: list[dict]) -> str:
     head = ("| scene | seed | broken | pieces | two largest (mass fraction) | small pieces, most at a frame | "
-            "max woven strain | strain cap hits | mean free end [mm] | ms per frame |\n"
-            "|---|---|---|---|---|---|---|---|---|---|\n")
+            "max woven strain | strain cap hits | mean free end [mm] |\n"
+            "|---|---|---|---|---|---|---|---|---|\n")
     lines = []
     for r in rows:
         if "error" in r:
-            lines.append(f"| {r['scene']} | {r['seed']} | error: {r['error']} | | | | | | | |")
+            lines.append(f"| {r['scene']} | {r['seed']} | error: {r['error']} | | | | | | |")
             continue
         f = r.get("largest_piece_fractions", [0, 0])
         lines.append(f"| {r['scene']} | {r['seed']} | {r['broken_springs']} | {r.get('pieces', '')} | "
                      f"{f[0]:.2f}, {f[1]:.2f} | {r.get('small_pieces_max', '')} | {r['max_woven_strain']:.3f} | "
-                     f"{r['strain_cap_hits']} | {1e3 * r.get('fray_mean_free_end_m', 0.0):.1f} | {r['ms_per_frame']:.0f} |")
+                     f"{r['strain_cap_hits']} | {1e3 * r.get('fray_mean_free_end_m', 0.0):.1f} |")
     return head + "\n".join(lines) + "\n"
 
 

@@ -52,6 +52,7 @@ class YarnTearing:
         self._couples = np.zeros(model.crossing_count, np.int32)
         self._weft_free = np.zeros(model.crossing_count, np.bool_)
         """Scratch of the cut rule: crossings whose weft (warp) lies on a free run (contact.free_yarn_runs)."""
+        self._runs_key: tuple = ()
         self._fragment_left = np.full(model.spring_count, 1 << 30, np.int64)
         self._fragment_right = np.full(model.spring_count, 1 << 30, np.int64)
         self._warp_free = np.zeros(model.crossing_count, np.bool_)
@@ -73,6 +74,7 @@ class YarnTearing:
         if state is not self._owner or state.step_index not in (self._step, self._step + 1):
             self._rebuild(state)
             self._owner = state
+            self._runs_key = ()  # another state (or a jump): scan its yarns afresh
         self._step = state.step_index
 
     @property
@@ -100,8 +102,13 @@ class YarnTearing:
             splits = transition_overstrained(self.model_in, particles, crossings, springs, prev_position_m)
             if splits:
                 self._rebuild(state)
-        free_yarn_runs(self.model_in, crossings, springs, self._weft_free, self._warp_free)
-        yarn_fragments(self.model_in, springs, self._fragment_left, self._fragment_right)
+        # the scans depend on spring_alive and crossing_yarn_level only; a cut lowers the live count and
+        # a split raises the yarn-level count (each strictly), so equal counts mean equal inputs
+        key = (int(np.count_nonzero(state.spring_alive)), int(np.count_nonzero(state.crossing_yarn_level)))
+        if key != self._runs_key:
+            free_yarn_runs(self.model_in, crossings, springs, self._weft_free, self._warp_free)
+            yarn_fragments(self.model_in, springs, self._fragment_left, self._fragment_right)
+            self._runs_key = key
         _, cuts = cut_overstrained(self.model_in, particles, springs, self._weft_free, self._warp_free,
                                    self._fragment_left, self._fragment_right)
         self.splits_last = int(splits)
