@@ -51,7 +51,7 @@ def main() -> None:
         sim.advance_frame()
     sc = sim.solver.self_collision
     state = sim.state
-    x_prev = sim.solver._prev.copy()
+    x_prev = sim.solver.buffers.prev_position_m.copy()
     x = state.particle_position_m.copy()
     margin = 0.5 * sc.contact_distance_m + sc.slack_m
 
@@ -97,6 +97,7 @@ def main() -> None:
     wrap(resp, "particle_reach", "check")
     wrap(resp, "repel_close_pairs", "proximity")
     wrap(resp, "ccd_pairs", "ccd")
+    wrap(resp, "ccd_pairs_all", "ccd")
     wrap(resp, "respond_pairs", "respond")
     wrap(resp, "freeze_pairs", "freeze")
     builds0 = sc.broad_phase_builds

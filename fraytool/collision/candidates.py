@@ -154,6 +154,38 @@ def escaped_segments(x_start, x_end, spring_particle_a, spring_particle_b, sprin
 
 
 @nb.njit(cache=True, fastmath=False)
+def pair_segments(candidates, flag):
+    """The spring slots in ``candidates`` ((K, 2)), each once (in order of first appearance);
+    ``flag`` ((S,) bools, all False) is scratch, all False again on return."""
+    out = np.empty(2 * candidates.shape[0], np.int32)
+    count = 0
+    for k in range(candidates.shape[0]):
+        for c in range(2):
+            s = candidates[k, c]
+            if not flag[s]:
+                flag[s] = True
+                out[count] = s
+                count += 1
+    for q in range(count):
+        flag[out[q]] = False
+    return out[:count].copy()
+
+
+@nb.njit(cache=True, fastmath=False)
+def reattached_segments(spring_particle_a, spring_particle_b, spring_alive, segments, build_ends):
+    """Indices into ``segments`` (increasing) of the live segments whose end particles are no longer
+    those of ``build_ends``."""
+    out = np.empty(segments.shape[0], np.int64)
+    count = 0
+    for k in range(segments.shape[0]):
+        s = segments[k]
+        if spring_alive[s] and (spring_particle_a[s] != build_ends[k, 0] or spring_particle_b[s] != build_ends[k, 1]):
+            out[count] = k
+            count += 1
+    return out[:count].copy()
+
+
+@nb.njit(cache=True, fastmath=False)
 def _rebox_pairs(near, escaped, segments, flag, inflated, spring_particle_a, spring_particle_b, keys):
     """Pairs of the escaped segments (``rebox_segments``) with the ``near`` ones, as keys
     i * S + j (i < j spring slots) stored in ``keys`` when it is long enough; returns how many."""
@@ -211,7 +243,7 @@ def rebox_segments(x_start, x_end, spring_particle_a, spring_particle_b, spring_
             union[3 + d] = max(union[3 + d], inflated[k, 3 + d])
     # segments near any escaped one (inside the union of their boxes), then the pairs, counted and
     # then stored as keys i * S + j (no array reassigned in a loop: see fraytool.collision.broadphase)
-    near = np.empty(segments.shape[0], np.int64)
+    near = np.empty(segments.shape[0], np.int32)
     n_near = 0
     for k in range(segments.shape[0]):
         if (spring_alive[segments[k]] and inflated[k, 0] <= union[3] and union[0] <= inflated[k, 3]
@@ -228,14 +260,30 @@ def rebox_segments(x_start, x_end, spring_particle_a, spring_particle_b, spring_
     for q in range(keys.shape[0]):
         added[q, 0] = keys[q] // spring_count
         added[q, 1] = keys[q] % spring_count
-    kept = np.empty((candidates.shape[0], 2), np.int32)
+    # merge the kept candidates (no escaped segment) with the added pairs (each with one): disjoint
+    # sorted lists, so the merge of merge_pairs without its duplicate case, in one pass
+    out = np.empty((candidates.shape[0] + added.shape[0], 2), np.int32)
     n = 0
+    j = 0
     for q in range(candidates.shape[0]):
-        if not (flag[candidates[q, 0]] or flag[candidates[q, 1]]):
-            kept[n, 0] = candidates[q, 0]
-            kept[n, 1] = candidates[q, 1]
+        c0 = candidates[q, 0]
+        c1 = candidates[q, 1]
+        if flag[c0] or flag[c1]:
+            continue
+        while j < added.shape[0] and (added[j, 0] < c0 or (added[j, 0] == c0 and added[j, 1] < c1)):
+            out[n, 0] = added[j, 0]
+            out[n, 1] = added[j, 1]
             n += 1
-    return merge_pairs(kept[:n], added)
+            j += 1
+        out[n, 0] = c0
+        out[n, 1] = c1
+        n += 1
+    while j < added.shape[0]:
+        out[n, 0] = added[j, 0]
+        out[n, 1] = added[j, 1]
+        n += 1
+        j += 1
+    return out[:n]
 
 
 @nb.njit(cache=True, fastmath=False)

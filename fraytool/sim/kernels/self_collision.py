@@ -37,7 +37,8 @@ import math
 import numba as nb
 import numpy as np
 
-from fraytool.collision.narrow import SEPARATION_REL, _apart_at_end, _outside_reach, _plane_gap, _share_end
+from fraytool.collision.narrow import (SEPARATION_REL, _apart_at_end, _apart_boxes_end, _outside_reach, _plane_gap,
+                                      _share_end, end_segment_boxes)
 from fraytool.collision.segment import segment_closest_params
 
 
@@ -115,21 +116,39 @@ def respond_pairs(
     x_start, pairs, t_hit, spring_particle_a, spring_particle_b, particle_inv_mass, reach,
     # state in/out
     x_end,
+    # out: (P,) flags; scratch: (P, 3)
+    changed, before,
 ):
     """Resolve colliding pairs (CCD hits at times t_hit): normal from the contact time, then the
     inelastic correction with friction. Returns the number of pairs moved and whether a moved
-    particle left its ``reach`` (the candidates then need a check)."""
+    particle left its ``reach`` (the candidates then need a check); ``changed[p]`` tells whether
+    particle p ends the call at another position than it started it (as ``x != x_before``, without
+    copying x)."""
     moved = 0
     left = False
+    changed[:] = False  # first used as "seen": its position before the call is in ``before``
+    touched = np.empty(4 * pairs.shape[0], np.int64)
+    n_touched = 0
     for k in range(pairs.shape[0]):
         i = pairs[k, 0]
         j = pairs[k, 1]
         i1, i2 = spring_particle_a[i], spring_particle_b[i]
         i3, i4 = spring_particle_a[j], spring_particle_b[j]
+        for p in (i1, i2, i3, i4):
+            if not changed[p]:
+                changed[p] = True
+                before[p, 0] = x_end[p, 0]
+                before[p, 1] = x_end[p, 1]
+                before[p, 2] = x_end[p, 2]
+                touched[n_touched] = p
+                n_touched += 1
         n = _normal(x_start, x_end, i1, i2, i3, i4, t_hit[k])
         if _correct_pair(contact_distance_m, friction, x_start, i1, i2, i3, i4, n, particle_inv_mass, x_end):
             moved += 1
             left = left or _outside_reach(x_end, reach, i1, i2, i3, i4)
+    for q in range(n_touched):
+        p = touched[q]
+        changed[p] = x_end[p, 0] != before[p, 0] or x_end[p, 1] != before[p, 1] or x_end[p, 2] != before[p, 2]
     return moved, left
 
 
@@ -141,6 +160,8 @@ def repel_close_pairs(
     x_start, candidates, first, spring_particle_a, spring_particle_b, spring_alive, particle_inv_mass, reach,
     # state in/out
     x_end,
+    # scratch: the segments listed (every segment of the candidates), (S, >= 6) boxes, (P,) flags
+    segments, box, dirty,
 ):
     """Proximity pass over ``candidates[first:]``, in their (sorted) order: pairs whose segments end
     the step closer than the contact distance are pushed apart along their end-of-step separation.
@@ -148,9 +169,15 @@ def repel_close_pairs(
     pair whose correction moved a particle out of its ``reach``; the pass stops right after it, as
     the candidates after it may then miss a pair that the correction brought close (the stage checks
     the candidates and goes on after that pair: its results do not depend on which candidates it
-    kept from earlier steps)."""
+    kept from earlier steps).
+
+    The end boxes of the listed ``segments`` are computed once (``end_segment_boxes``) and the axis
+    pre-test reads them, as long as no correction of this call moved one of the pair's end
+    particles (``dirty``): same answers, bit for bit, as computing them per pair."""
     moved = 0
     seg = np.empty((4, 3))
+    end_segment_boxes(x_end, spring_particle_a, spring_particle_b, segments, box)
+    dirty[:] = False
     for k in range(first, candidates.shape[0]):
         i = candidates[k, 0]
         j = candidates[k, 1]
@@ -158,7 +185,12 @@ def repel_close_pairs(
             continue  # cut since the candidates were built
         i1, i2 = spring_particle_a[i], spring_particle_b[i]
         i3, i4 = spring_particle_a[j], spring_particle_b[j]
-        if _share_end(i1, i2, i3, i4) or _apart_at_end(x_end, i1, i2, i3, i4, contact_distance_m):
+        if not (dirty[i1] or dirty[i2] or dirty[i3] or dirty[i4]):
+            if _apart_boxes_end(box, i, j, contact_distance_m):
+                continue  # (the distance below would be >= d_c)
+            if _share_end(i1, i2, i3, i4):
+                continue
+        elif _share_end(i1, i2, i3, i4) or _apart_at_end(x_end, i1, i2, i3, i4, contact_distance_m):
             continue  # (the distance below would be >= d_c)
         gap, scale = _plane_gap(x_end, x_end, i1, i2, i3, i4, seg)
         if gap > contact_distance_m + SEPARATION_REL * scale:
@@ -171,6 +203,10 @@ def repel_close_pairs(
         n = d / dist if dist > 1e-12 else _normal(x_start, x_end, i1, i2, i3, i4, 0.0)
         if _correct_pair(contact_distance_m, friction, x_start, i1, i2, i3, i4, n, particle_inv_mass, x_end):
             moved += 1
+            dirty[i1] = True
+            dirty[i2] = True
+            dirty[i3] = True
+            dirty[i4] = True
             if _outside_reach(x_end, reach, i1, i2, i3, i4):
                 return moved, k
     return moved, -1

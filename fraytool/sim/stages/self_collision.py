@@ -40,21 +40,26 @@ from fraytool.collision.candidates import (
     escaped_segments,
     inflate_boxes,
     merge_pairs,
+    pair_segments,
     particle_reach,
     reattached_pairs,
+    reattached_segments,
     rebox_segments,
     segment_boxes,
     update_reach,
 )
-from fraytool.collision.narrow import ccd_pairs
+from fraytool.collision.narrow import ccd_pairs, ccd_pairs_all
 from fraytool.kinds import STRUCT_WARP, STRUCT_WEFT
 from fraytool.sim.kernels.self_collision import freeze_pairs, repel_close_pairs, respond_pairs
 from fraytool.sim.model import Model
 
 CONTACT_FRACTION = 0.5
 """d_c = CONTACT_FRACTION x thickness."""
-SLACK_FRACTION = 0.25
-"""Broad-phase slack = SLACK_FRACTION x spacing (fraytool.collision.candidates)."""
+SLACK_FRACTION = 0.15
+"""Broad-phase slack = SLACK_FRACTION x spacing (fraytool.collision.candidates). Results do not depend
+on it (module docstring); only the cost does: a larger slack keeps the candidates valid longer but
+holds more pairs, which every pass of every step tests. Self-collision stage over the full shots
+(ms per frame, 0.25 / 0.2 / 0.15): fig5_corner_grab 25 / 19 / 17, fig7_square_grab 46 / 36 / 35."""
 LOOKAHEAD_STEPS = 3.0
 """A build sweeps every segment on to x + LOOKAHEAD_STEPS (x - x_prev) (fraytool.collision.candidates)."""
 REBOX_LIMIT = 64
@@ -128,6 +133,34 @@ class SelfCollision:
         contact at the step start)."""
         self.warned = False
         """The first give-up of the run printed its warning."""
+        self._box = self._dirty = self._changed = self._before = self._flag = None
+        """Scratch of the kernels, kept across steps (``_scratch``)."""
+        self._segs = self._segs_of = None
+        """The spring slots in the candidates ``self._segs_of`` (``_pair_segments``)."""
+
+    def _scratch(self, state) -> None:
+        """(Re)allocate the kernels' scratch when the particle or spring slot count changed."""
+        p, s = state.particle_position_m.shape[0], state.spring_particle_a.shape[0]
+        if self._box is None or self._box.shape[0] != s or self._dirty.shape[0] != p:
+            self._box = np.empty((s, 6))
+            self._dirty = np.zeros(p, np.bool_)
+            self._changed = np.zeros(p, np.bool_)
+            self._before = np.empty((p, 3))
+            self._flag = np.zeros(s, np.bool_)
+
+    def _pair_segments(self) -> np.ndarray:
+        """The spring slots in the candidates, each once: the segments whose boxes the passes use."""
+        if self._segs_of is not self._cand:
+            self._segs = pair_segments(self._cand, self._flag)
+            self._segs_of = self._cand
+        return self._segs
+
+    def _ccd(self, state, prev_position_m, moved=None):
+        """CCD pass on the candidates (all of them, or those touching ``moved`` particles)."""
+        x, a, b, alive = state.particle_position_m, state.spring_particle_a, state.spring_particle_b, state.spring_alive
+        if moved is None:
+            return ccd_pairs_all(prev_position_m, x, self._cand, a, b, alive, self._pair_segments(), self._box)
+        return ccd_pairs(prev_position_m, x, self._cand, a, b, alive, moved)
 
     def _build(self, state, prev_position_m) -> None:
         """Broad phase on the segments swept from x_prev to the look-ahead x + LOOKAHEAD_STEPS (x - x_prev),
@@ -166,9 +199,9 @@ class SelfCollision:
                 touched[a[self.yarn_segments[escaped]]] = True
                 touched[b[self.yarn_segments[escaped]]] = True
                 self.broad_phase_reboxes += 1
-            ends = np.stack([a[self.yarn_segments], b[self.yarn_segments]], axis=1)
-            changed = np.nonzero(np.any(ends != self._ends, axis=1) & alive[self.yarn_segments])[0]
+            changed = reattached_segments(a, b, alive, self.yarn_segments, self._ends)
             if touched is not None and len(changed):
+                ends = np.stack([a[self.yarn_segments], b[self.yarn_segments]], axis=1)
                 extra, ok = reattached_pairs(a, b, alive, self.yarn_segments, self._ends, self._inflated,
                                              x.shape[0], PATCH_LIMIT)
                 if ok:
@@ -197,7 +230,8 @@ class SelfCollision:
         total, first = 0, 0
         while True:
             moved, stop = repel_close_pairs(self.contact_distance_m, self.friction, prev_position_m, self._cand,
-                                            first, a, b, alive, w, self._reach, x)
+                                            first, a, b, alive, w, self._reach, x, self._pair_segments(), self._box,
+                                            self._dirty)
             total += moved
             if stop < 0:
                 return total
@@ -209,7 +243,8 @@ class SelfCollision:
 
     def __call__(self, state, prev_position_m: np.ndarray, dt_s: float) -> None:
         x = state.particle_position_m
-        a, b, w, alive = state.spring_particle_a, state.spring_particle_b, state.particle_inv_mass, state.spring_alive
+        a, b, w = state.spring_particle_a, state.spring_particle_b, state.particle_inv_mass
+        self._scratch(state)
         self._ensure_valid(state, prev_position_m)
         self.proximity_last = self._proximity(state, prev_position_m)
         self.proximity_total += self.proximity_last
@@ -220,7 +255,7 @@ class SelfCollision:
             if left:  # a correction moved an end point out of its reach: candidates may change
                 self._ensure_valid(state, prev_position_m)
                 moved = None
-            pairs, t = ccd_pairs(prev_position_m, x, self._cand, a, b, alive, moved)
+            pairs, t = self._ccd(state, prev_position_m, moved)
             if it == 0:
                 self.pairs_last = len(pairs)
                 self.pairs_total += len(pairs)
@@ -228,10 +263,9 @@ class SelfCollision:
                 return
             if it == self.iterations:
                 break
-            before = x.copy()
             _, left = respond_pairs(self.contact_distance_m, self.friction, prev_position_m, pairs, t, a, b, w,
-                                    self._reach, x)
-            moved = np.any(x != before, axis=1)  # later passes test only pairs these particles touch
+                                    self._reach, x, self._changed, self._before)
+            moved = self._changed  # later passes test only pairs these particles touch
         self.cap_hits += 1
         self._failsafe(state, prev_position_m, dt_s, pairs)
 
@@ -239,7 +273,7 @@ class SelfCollision:
         """Return crossing pairs to their start positions, at most FAILSAFE_ROUNDS rounds; then give
         up: every free particle back to its start (module docstring, "Failsafe")."""
         x = state.particle_position_m
-        a, b, w, alive = state.spring_particle_a, state.spring_particle_b, state.particle_inv_mass, state.spring_alive
+        a, b, w = state.spring_particle_a, state.spring_particle_b, state.particle_inv_mass
         rounds = 0
         progress = True
         while len(pairs) and rounds < FAILSAFE_ROUNDS:
@@ -248,7 +282,7 @@ class SelfCollision:
                 break
             rounds += 1
             self._ensure_valid(state, prev_position_m)
-            pairs, _ = ccd_pairs(prev_position_m, x, self._cand, a, b, alive)
+            pairs, _ = self._ccd(state, prev_position_m)
         self.failsafe_rounds_max = max(self.failsafe_rounds_max, rounds)
         if not len(pairs):
             return
@@ -257,7 +291,7 @@ class SelfCollision:
             free = w > 0.0
             x[free] = prev_position_m[free]
             self._ensure_valid(state, prev_position_m)
-            pairs, _ = ccd_pairs(prev_position_m, x, self._cand, a, b, alive)
+            pairs, _ = self._ccd(state, prev_position_m)
             action = (f"every free particle went back to its start-of-step position ({len(pairs)} pairs "
                       f"still cross: ends held by bodies, or contact at the step start)")
         else:
