@@ -79,6 +79,10 @@ def build_parser() -> argparse.ArgumentParser:
     st.add_argument("-o", "--out", type=Path, help="output folder (default outputs/<scene name>/)")
     st.add_argument("--stability", action="store_true", help="sweep stiff and extreme cases instead")
     st.add_argument("--quick", action="store_true", help="fewer settings, for a fast look")
+    st.add_argument("--duration", type=float, metavar="S", help="simulated seconds to study (default: a tearing "
+                    "scene's shot; at most 48 frames for trajectories)")
+    st.add_argument("--trajectories", action="store_true", help="tearing scene: also compare trajectories with "
+                    "tearing off")
     return p
 
 

@@ -1,6 +1,10 @@
-"""`fraytool study SCENE [-o DIR] [--stability] [--quick]`: run a study and write its files.
+"""`fraytool study SCENE [-o DIR] [--stability] [--quick] [--duration S] [--trajectories]`: run a study
+and write its files.
 
-Accuracy (default): DIR/study/runs.csv, report.md, error_vs_time.png, convergence.png.
+Accuracy (default): DIR/study/runs.csv, report.md, error_vs_time.png, convergence.png. A tearing scene:
+the convergence of the tear (steps h0 to h0/16, tearing on, compared at one simulated time: the scene's
+shot or --duration S), tearing_convergence.png instead of the trajectory plots; --trajectories adds the
+trajectory study with tearing off. --duration S sets the simulated time of the accuracy study (whole frames).
 Stability (--stability): DIR/study/stability.csv, stability.md, stability.png.
 DIR defaults to outputs/<scene name>/. Without matplotlib the tables and reports are still written
 and the closing message says how to get the plots. Exit code 0; an unusable scene or a reference
@@ -12,7 +16,7 @@ import sys
 from pathlib import Path
 from typing import Optional, TextIO
 
-from fraytool.errors import RunError
+from fraytool.errors import InputError, RunError
 from fraytool.scene import load_scene
 from fraytool.scene.spec import SceneSpec
 from fraytool.study import plot, report
@@ -26,20 +30,27 @@ def study_dir(spec: SceneSpec, out: Optional[Path]) -> Path:
 
 
 def write_accuracy_study(spec: SceneSpec, folder: Path, quick: bool = False, stream: Optional[TextIO] = sys.stderr,
-                         plan=None):
+                         plan=None, duration_s: Optional[float] = None, trajectories: Optional[bool] = None):
     """Run the accuracy study and write its files into `folder`; returns (StudyResult, written paths)."""
     from fraytool.study.accuracy import run_accuracy_study
 
-    result = run_accuracy_study(spec, quick=quick, plan=plan, stream=stream)
+    result = run_accuracy_study(spec, quick=quick, plan=plan, stream=stream, duration_s=duration_s,
+                                trajectories=trajectories)
     folder.mkdir(parents=True, exist_ok=True)
     written = [folder / "runs.csv"]
     report.write_runs_csv(result, written[0])
-    figure = plot.plot_error_vs_time(result, folder / "error_vs_time.png")
-    if figure is not None:
-        written.append(figure)
-        written.append(plot.plot_convergence(result, folder / "convergence.png"))
-        note = ("`error_vs_time.png`: error against wall time (log-log), one line per varied setting; "
-                "`convergence.png`: error against the step, and the error per frame of each step run.")
+    notes = []
+    if plot.have_matplotlib():
+        if result.trajectories:
+            written.append(plot.plot_error_vs_time(result, folder / "error_vs_time.png"))
+            written.append(plot.plot_convergence(result, folder / "convergence.png"))
+            notes.append("`error_vs_time.png`: error against wall time (log-log), one line per varied setting; "
+                         "`convergence.png`: error against the step, and the error per frame of each step run.")
+        if result.tearing is not None:
+            written.append(plot.plot_tearing(result, folder / "tearing_convergence.png"))
+            notes.append("`tearing_convergence.png`: each quantity of the tear against the step, as its difference "
+                         "from the reference, with the criterion.")
+        note = " ".join(notes)
     else:
         note = f"No plots: matplotlib is not installed; {plot.INSTALL_HINT}."
     written.append(folder / "report.md")
@@ -77,6 +88,10 @@ def study_command(args) -> int:
 
 def _study(spec: SceneSpec, folder: Path, args) -> int:
     err = sys.stderr
+    duration = getattr(args, "duration", None)
+    trajectories = getattr(args, "trajectories", False)
+    if args.stability and (duration is not None or trajectories):
+        raise InputError("--duration and --trajectories apply to the accuracy study, not to --stability")
     if args.stability:
         result, written = write_stability_sweep(spec, folder, quick=args.quick, stream=err)
         counts = {}
@@ -85,11 +100,18 @@ def _study(spec: SceneSpec, folder: Path, args) -> int:
         print(f"stability sweep of {spec.name}: {len(result.cases)} cases ("
               + ", ".join(f"{v} {k}" for k, v in sorted(counts.items())) + f"); wrote {folder}", file=err)
     else:
-        result, written = write_accuracy_study(spec, folder, quick=args.quick, stream=err)
-        o = result.order
-        print(f"study of {spec.name}: observed order in the step {o['observed_order']:.2f} (expected "
-              f"{o['expected_order']:g}), error falls monotonically: {'yes' if o['monotonic'] else 'no'}; "
-              f"wrote {folder}", file=err)
+        result, written = write_accuracy_study(spec, folder, quick=args.quick, stream=err, duration_s=duration,
+                                               trajectories=True if trajectories else None)
+        if result.trajectories:
+            o = result.order
+            print(f"study of {spec.name}: observed order in the step {o['observed_order']:.2f} (expected "
+                  f"{o['expected_order']:g}), error falls monotonically: {'yes' if o['monotonic'] else 'no'}; "
+                  f"wrote {folder}", file=err)
+        if result.tearing is not None:
+            tear = result.tearing
+            print(f"study of {spec.name}: tear at t = {tear.duration_s:.4g} s against the reference {tear.reference}: "
+                  + ", ".join(f"{v.label} {'PASS' if v.passed else 'FAIL'}" for v in tear.verdicts)
+                  + f"; wrote {folder}", file=err)
     if not plot.have_matplotlib():
         print(f"fraytool: note: no plot written: {plot.INSTALL_HINT}", file=err)
     for path in written:

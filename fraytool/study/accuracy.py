@@ -10,11 +10,16 @@ A reference run is much finer than the finest setting: its step is the finest st
 4 x the largest iteration caps and a strain tolerance of 1e-6. --quick runs fewer settings (steps
 h0, h0/2, h0/4; reference h0/32) over at most 12 frames.
 
+A tearing scene is studied by the convergence of its tear instead (fraytool.study.tear_convergence:
+tearing on, steps h0 to h0/16, the tear compared at a fixed simulated time against the reference
+h0/8); its trajectories with tearing off are compared as well only when asked (trajectories=True,
+`fraytool study --trajectories`). The simulated time is the scene's shot for the tearing study and
+at most FULL_FRAMES (QUICK_FRAMES) frames for the trajectories, or `duration_s` for both.
+
 Choices (stated in the report):
 - Trajectory errors need trajectories that can converge. A tear makes them diverge (a spring that
   breaks one step later sends its yarn elsewhere), so for errors every run and the reference have
-  tearing off. A tearing scene is also run with tearing on over the step sweep and compared to a
-  tearing reference by statistics: time of the first break, broken springs, torn length.
+  tearing off; the tear itself is compared by its own figures (above).
 - PBD damping (docs/method.md §4, Müller et al. 2007 §3.5) is a fraction k removed per *step*; at a fixed
   k a smaller step would damp more per second and the runs would not converge to one motion. The
   study keeps the damping per second of the scene: k(h) = 1 - (1 - k0)^(h / h0).
@@ -34,16 +39,20 @@ import dataclasses as dc
 import math
 import sys
 from dataclasses import dataclass, field
-from typing import Optional, TextIO
+from typing import TYPE_CHECKING, Optional, TextIO
 
 import numpy as np
 
-from fraytool.errors import RunError
+from fraytool.errors import InputError, RunError
 from fraytool.scene.spec import SceneSpec
 from fraytool.sim.builder import build_model
 from fraytool.sim.guard import JITTER_LIMIT
 from fraytool.sim.stability import power_iteration_omega_max
 from fraytool.study.runner import RunResult, run_variant, warm_up
+from fraytool.study.steps import TEAR_REFERENCE_FACTOR, TEAR_STEP_FACTORS, step_label, with_frames, with_step_factor  # noqa: F401
+
+if TYPE_CHECKING:
+    from fraytool.study.tear_convergence import TearingStudy
 
 EXPECTED_ORDER = 1.0
 """Symplectic Euler (and the first-order PBD projections) converge at order 1 in the step."""
@@ -66,6 +75,13 @@ class StudyPlan:
     collision_iterations: tuple[int, ...]
     reference_strain_iterations: int
     reference_collision_iterations: int
+    tearing_frames: Optional[int] = None
+    """Frames of the tearing study (tearing scenes); None: `frames`."""
+    tearing_step_factors: tuple[float, ...] = TEAR_STEP_FACTORS
+    """Steps of the tearing study as multiples of the scene's step; empty: no tearing study."""
+    tearing_reference_factor: float = TEAR_REFERENCE_FACTOR
+    trajectories: bool = True
+    """Run the trajectory study (tearing off). plan_study leaves it out for a tearing scene unless asked."""
 
 
 @dataclass
@@ -92,16 +108,22 @@ class StudyResult:
     base_step_s: float
     stability_bound_s: float
     """Sharp bound 2 / ω_max (power iteration) of the scene."""
-    reference: StudyRun
+    reference: Optional[StudyRun]
+    """The trajectory reference; None when only the tear was studied."""
     runs: list[StudyRun]
     order: dict
     """observed_order (headline), per-measure fits, pairwise and Richardson orders, monotonic flags."""
-    tearing: list[dict] = field(default_factory=list)
-    """Tearing statistics per step (tearing scenes), reference last."""
+    tearing: Optional["TearingStudy"] = None
+    """The convergence of the tear (tearing scenes; fraytool.study.tear_convergence)."""
     notes: list[str] = field(default_factory=list)
     quick: bool = False
     tears: bool = False
-    """The scene itself tears (trajectories were compared with tearing off)."""
+    """The scene itself tears (trajectories, if any, were compared with tearing off)."""
+
+    @property
+    def trajectories(self) -> bool:
+        """The trajectory study ran (reference, runs and order are filled)."""
+        return self.reference is not None
 
 
 # --- scene variants ---------------------------------------------------------------------------
@@ -109,23 +131,6 @@ class StudyResult:
 def without_tearing(spec: SceneSpec) -> SceneSpec:
     """Tearing off (break limits at infinity) so that trajectories can converge."""
     return dc.replace(spec, cloth=dc.replace(spec.cloth, tearing=dc.replace(spec.cloth.tearing, enabled=False)))
-
-
-def with_frames(spec: SceneSpec, frames: int) -> SceneSpec:
-    return dc.replace(spec, time=dc.replace(spec.time, frames=frames + 1))
-
-
-def with_step_factor(spec: SceneSpec, factor: float) -> SceneSpec:
-    """Step h0 * factor with the same simulated time per frame and the same damping per second."""
-    t = spec.time
-    spf = t.steps_per_frame / factor
-    if abs(spf - round(spf)) > 1e-9 or round(spf) < 1:
-        raise ValueError(f"step factor {factor:g} gives {spf:g} steps per frame (not a whole number)")
-    k0 = spec.cloth.springs.damping
-    damping = k0 if factor == 1.0 or k0 >= 1.0 else 1.0 - (1.0 - k0) ** factor
-    springs = dc.replace(spec.cloth.springs, damping=damping)
-    return dc.replace(spec, time=dc.replace(t, step_s=t.step_s * factor, steps_per_frame=int(round(spf))),
-                      cloth=dc.replace(spec.cloth, springs=springs))
 
 
 def with_strain(spec: SceneSpec, iterations: int, tolerance: Optional[float] = None) -> SceneSpec:
@@ -138,19 +143,30 @@ def with_collision_iterations(spec: SceneSpec, iterations: int) -> SceneSpec:
     return dc.replace(spec, self_collision=dc.replace(spec.self_collision, iterations=iterations))
 
 
-def step_label(factor: float) -> str:
-    if factor >= 1:
-        return "h0" if factor == 1 else f"{factor:g} h0"
-    return f"h0/{round(1 / factor):d}"
+def frames_for(spec: SceneSpec, duration_s: float) -> int:
+    """Whole frames that cover `duration_s` of simulated time (at least one)."""
+    if not (isinstance(duration_s, (int, float)) and math.isfinite(duration_s) and duration_s > 0):
+        raise InputError(f"--duration must be a positive number of simulated seconds, not {duration_s!r}")
+    frame_s = spec.time.step_s * spec.time.steps_per_frame
+    return max(1, math.ceil(duration_s / frame_s - 1e-9))
 
 
-# --- the plan -----------------------------------------------------------------------------------
-
-def plan_study(spec: SceneSpec, quick: bool = False) -> StudyPlan:
-    """The default sweep: steps h0 (2 h0 if stable) down to h0/8 (h0/4 with --quick)."""
-    frames = min(spec.time.frames - 1, QUICK_FRAMES if quick else FULL_FRAMES)
+def plan_study(spec: SceneSpec, quick: bool = False, duration_s: Optional[float] = None,
+               trajectories: Optional[bool] = None) -> StudyPlan:
+    """The default sweep: steps h0 (2 h0 if stable) down to h0/8 (h0/4 with --quick), over at most
+    FULL_FRAMES (QUICK_FRAMES) frames. A tearing scene: the tearing study over the scene's shot (at most
+    QUICK_FRAMES with --quick), and the trajectories only if `trajectories`. `duration_s` [simulated s]
+    sets the frames of both (rounded up to whole frames)."""
+    tears = spec.cloth.tearing.enabled
+    trajectories = (not tears) if trajectories is None else (trajectories or not tears)
+    shot = max(spec.time.frames - 1, 1)
+    if duration_s is not None:
+        frames = tear_frames = frames_for(spec, duration_s)
+    else:
+        frames = min(shot, QUICK_FRAMES if quick else FULL_FRAMES)
+        tear_frames = min(shot, QUICK_FRAMES) if quick else shot
     factors = [1.0, 0.5, 0.25] if quick else [1.0, 0.5, 0.25, 0.125]
-    if not quick and spec.time.steps_per_frame % 2 == 0:
+    if trajectories and not quick and spec.time.steps_per_frame % 2 == 0:
         model = build_model(spec)
         w = power_iteration_omega_max(model)
         if w == 0.0 or 2.0 * spec.time.step_s <= 0.9 * 2.0 / w:
@@ -164,7 +180,9 @@ def plan_study(spec: SceneSpec, quick: bool = False) -> StudyPlan:
     return StudyPlan(frames=max(frames, 1), step_factors=tuple(factors), reference_divisor=8,
                      strain_iterations=tuple(strain), collision_iterations=tuple(collision),
                      reference_strain_iterations=4 * max(strain + [1]),
-                     reference_collision_iterations=4 * max(collision + [1]))
+                     reference_collision_iterations=4 * max(collision + [1]),
+                     tearing_frames=tear_frames if tears else None,
+                     tearing_step_factors=TEAR_STEP_FACTORS if tears else (), trajectories=trajectories)
 
 
 # --- error measures and orders --------------------------------------------------------------------
@@ -247,26 +265,37 @@ def _say(stream: Optional[TextIO], text: str) -> None:
         print(text, file=stream, flush=True)
 
 
-def _tearing_stats(run: RunResult) -> dict:
-    t = run.tearing
-    return {
-        "status": run.status,
-        "first_break_s": t.get("first_break_s"),
-        "broken_springs": t["broken_springs"][-1] if t.get("broken_springs") else None,
-        "torn_length_m": t["torn_length_m"][-1] if t.get("torn_length_m") else None,
-    }
-
-
 def run_accuracy_study(spec: SceneSpec, quick: bool = False, plan: Optional[StudyPlan] = None,
-                       stream: Optional[TextIO] = sys.stderr) -> StudyResult:
-    """Run the sweep and the reference; compute errors and orders (nothing is written here)."""
-    plan = plan or plan_study(spec, quick)
-    base = with_frames(without_tearing(spec), plan.frames)
+                       stream: Optional[TextIO] = sys.stderr, duration_s: Optional[float] = None,
+                       trajectories: Optional[bool] = None) -> StudyResult:
+    """Run the study (nothing is written here): the trajectory sweep and its reference, with errors
+    and orders (plan.trajectories), and for a tearing scene the convergence of the tear.
+    `duration_s` and `trajectories` go to plan_study when no plan is given."""
+    plan = plan or plan_study(spec, quick, duration_s=duration_s, trajectories=trajectories)
+    tears = spec.cloth.tearing.enabled
     h0 = spec.time.step_s
-    model = build_model(base)
+    model = build_model(without_tearing(spec))
     w = power_iteration_omega_max(model)
     bound = math.inf if w == 0.0 else 2.0 / w
-    notes: list[str] = []
+    result = StudyResult(scene=spec.name, plan=plan, base_step_s=h0, stability_bound_s=bound, reference=None,
+                         runs=[], order={}, quick=quick, tears=tears)
+    if plan.trajectories or not tears:
+        _trajectory_study(spec, plan, result, stream)
+    if tears and plan.tearing_step_factors:
+        from fraytool.study.tear_convergence import run_tearing_study
+
+        frames = plan.tearing_frames if plan.tearing_frames is not None else plan.frames
+        result.tearing = run_tearing_study(spec, frames, plan.tearing_step_factors, plan.tearing_reference_factor,
+                                           stream=stream)
+        result.notes += result.tearing.notes
+    return result
+
+
+def _trajectory_study(spec: SceneSpec, plan: StudyPlan, out: StudyResult, stream: Optional[TextIO]) -> None:
+    """Tearing off: the sweep and its reference, errors and orders, into `out`."""
+    base = with_frames(without_tearing(spec), plan.frames)
+    h0 = spec.time.step_s
+    notes = out.notes
     warm_up(base)
 
     finest = min(plan.step_factors)
@@ -321,13 +350,7 @@ def run_accuracy_study(spec: SceneSpec, quick: bool = False, plan: Optional[Stud
             notes.append(f"{r.name}: step-to-step oscillation (jitter {r.result.max_jitter:.2g} of the spacing): "
                          "an instability held by strain limiting.")
 
-    tearing_rows: list[dict] = []
-    if spec.cloth.tearing.enabled:
-        tearing_rows = _tearing_study(spec, plan, stream, notes)
-
-    return StudyResult(scene=spec.name, plan=plan, base_step_s=h0, stability_bound_s=bound, reference=reference,
-                       runs=runs, order=order, tearing=tearing_rows, notes=notes, quick=quick,
-                       tears=spec.cloth.tearing.enabled)
+    out.reference, out.runs, out.order = reference, runs, order
 
 
 def _convergence_notes(order: dict, step_runs: list[StudyRun]) -> list[str]:
@@ -352,30 +375,3 @@ def _convergence_notes(order: dict, step_runs: list[StudyRun]) -> list[str]:
                  "buckling of the compression-only shear springs, strain limits switching on and off) the error "
                  "reaches a floor that a smaller step does not lower; the per-frame curves in convergence.png show when.")
     return notes
-
-
-def _tearing_study(spec: SceneSpec, plan: StudyPlan, stream: Optional[TextIO], notes: list[str]) -> list[dict]:
-    """Tearing on: statistics over the step sweep against a tearing reference."""
-    base = with_frames(spec, plan.frames)
-    finest = min(plan.step_factors)
-    rows = []
-    try:
-        warm_up(base)  # compiles the tearing passes outside the timing
-        cases = [(f"step {step_label(f)}", spec.time.step_s * f, with_step_factor(base, f)) for f in plan.step_factors]
-        ref = with_step_factor(base, finest / plan.reference_divisor)
-        cases.append(("reference", ref.time.step_s, with_strain(ref, plan.reference_strain_iterations,
-                                                                REFERENCE_STRAIN_TOLERANCE)))
-        for name, h, s in cases:
-            _say(stream, f"study {spec.name}: tearing statistics, {name} ...")
-            result = run_variant(s, plan.frames, record=False)
-            rows.append({"run": name, "step_s": h, "wall_s": result.wall_s, **_tearing_stats(result)})
-    except ImportError as exc:
-        notes.append(f"Tearing statistics skipped: the tearing model is not available ({exc}).")
-        return []
-    ref = rows[-1]
-    for row in rows:
-        for key in ("first_break_s", "broken_springs", "torn_length_m"):
-            a, b = row.get(key), ref.get(key)
-            row[f"{key}_rel_diff"] = (abs(a - b) / abs(b) if a is not None and b not in (None, 0) else None)
-    return rows
-

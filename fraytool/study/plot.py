@@ -5,6 +5,9 @@
 - convergence.png: error against the step with a slope-1 guide, the per-frame error of each step
   run over simulated time, and the observed order frame by frame (where the error stops falling
   with the step, these show when);
+- tearing_convergence.png (tearing scenes): each quantity of the tear against the step, as its
+  relative difference from the reference h0/8 (the reference itself against h0/16, hollow marker),
+  with the 15 % line; the centroid's distance in yarn spacings with the 2-spacing line;
 - stability.png: the stability sweep's cases, step-to-step jitter and largest strain against
   h / bound, marked by outcome.
 Every function returns the path written, or None when matplotlib is missing (`have_matplotlib`).
@@ -121,6 +124,49 @@ def plot_convergence(study: "StudyResult", path: Path) -> Optional[Path]:
             a3.set_title("order of the per-frame error in h")
             a3.grid(True, alpha=0.3)
             a3.legend(fontsize=8)
+    fig.tight_layout()
+    out = _save(fig, path)
+    plt.close(fig)
+    return out
+
+
+def plot_tearing(study: "StudyResult", path: Path) -> Optional[Path]:
+    """The convergence of the tear (study.tearing): differences against the step, with the criterion."""
+    tear = study.tearing
+    if tear is None or not have_matplotlib():
+        return None
+    from fraytool.study.tear_convergence import CENTROID_DISTANCE, CENTROID_TOLERANCE_SPACINGS, QUANTITIES, TOLERANCE
+
+    plt = _pyplot()
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(12, 4.5))
+    panels = ((a1, [(k, lab) for k, lab in QUANTITIES], 100.0, 100.0 * TOLERANCE,
+               f"relative difference [%] (vs {tear.reference}; {tear.reference} vs {tear.check or '-'} hollow)"),
+              (a2, [(CENTROID_DISTANCE, "centroid of the broken springs")], 1.0, CENTROID_TOLERANCE_SPACINGS,
+               "centroid distance [yarn spacings]"))
+    for ax, quantities, scale, limit, ylabel in panels:
+        finite = [scale * r.rel_diff[k] for r in tear.runs for k, _ in quantities
+                  if k in r.rel_diff and math.isfinite(r.rel_diff[k])]
+        top = 1.3 * max(finite + [limit])
+        for k, lab in quantities:
+            runs = [r for r in tear.runs if k in r.rel_diff]
+            others = [r for r in runs if r.name != tear.reference]
+            y = lambda r: min(scale * r.rel_diff[k], top)  # noqa: E731  (infinite: drawn at the top)
+            line, = ax.plot([r.step_s for r in others], [y(r) for r in others], marker="o", label=lab)
+            ref = [r for r in runs if r.name == tear.reference]
+            if ref:
+                ax.plot([ref[0].step_s], [y(ref[0])], marker="o", mfc="none", color=line.get_color(), ls="none")
+        ax.axhline(limit, color="k", ls="--", lw=0.8)
+        ax.text(0.01, limit, " criterion", transform=ax.get_yaxis_transform(), fontsize=8, va="bottom")
+        ax.set_xscale("log")
+        ax.set_xticks([r.step_s for r in tear.runs], [r.name for r in tear.runs])
+        ax.minorticks_off()
+        ax.set_ylim(0, top * 1.05)
+        ax.set_xlabel(f"step (h0 = {tear.base_step_s:.4g} s)")
+        ax.set_ylabel(ylabel, fontsize=9)
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.suptitle(f"{tear.scene}: convergence of the tear at t = {tear.duration_s:.3g} s "
+                 f"({sum(v.passed for v in tear.verdicts)} of {len(tear.verdicts)} quantities pass)")
     fig.tight_layout()
     out = _save(fig, path)
     plt.close(fig)

@@ -16,13 +16,22 @@ from fraytool.io.frame_record import atomic_write_bytes
 if TYPE_CHECKING:
     from fraytool.study.accuracy import StudyResult
     from fraytool.study.stability_sweep import SweepResult
+    from fraytool.study.tear_convergence import TearingStudy
 
-RUN_COLUMNS = ("run", "varied", "value", "step_s", "steps_per_frame", "strain_max_iterations",
-               "strain_tolerance", "collision_iterations", "damping", "frames", "steps", "wall_s", "status",
-               "rms_final_m", "rms_time_m", "max_m", "max_strain", "strain_cap_hits", "max_jitter",
-               "first_break_s", "broken_springs", "torn_length_m")
-"""runs.csv columns. Trajectory runs (tearing off) fill the errors; the tearing-statistics runs of a
-tearing scene (varied = "step, tearing on") fill first_break_s, broken_springs and torn_length_m."""
+RUN_COLUMNS = ("run", "varied", "value", "role", "step_s", "steps_per_frame", "strain_max_iterations",
+               "strain_tolerance", "collision_iterations", "damping", "frames", "simulated_s", "steps", "wall_s",
+               "status", "rms_final_m", "rms_time_m", "max_m", "max_strain", "strain_cap_hits", "max_jitter",
+               "compared_with", "broken_springs", "broken_springs_rel_diff", "first_break_s",
+               "first_break_s_rel_diff", "yarn_level_crossings", "yarn_level_crossings_rel_diff",
+               "fray_mean_free_end_m", "fray_mean_free_end_m_rel_diff", "centroid_x_m", "centroid_y_m",
+               "centroid_z_m", "centroid_distance_spacings", "broken_structural_springs", "torn_length_m", "pieces")
+"""runs.csv columns. Trajectory runs (tearing off; varied = "step", "strain_iterations",
+"collision_iterations" or "reference") fill the errors. The tearing study of a tearing scene has one row
+per step (varied = "step, tearing on"; role shipped / reference / check): the tear at the time compared
+(broken springs, first break [s], torn crossings = yarn_level_crossings, mean free-end length [m],
+centroid of the broken structural springs [m]) and each quantity's relative difference against the run
+named in compared_with (the reference h0/8; for the reference, h0/16); centroid_distance_spacings is
+the centroids' distance in yarn spacings."""
 
 
 def write_text(path: Path, text: str) -> None:
@@ -67,7 +76,7 @@ def md_table(header: list[str], rows: list[list]) -> str:
 
 def run_rows(study: "StudyResult") -> list[dict]:
     rows = []
-    for run in study.runs + [study.reference]:
+    for run in study.runs + ([study.reference] if study.reference is not None else []):
         s = run.spec
         r = run.result
         rows.append({
@@ -80,11 +89,8 @@ def run_rows(study: "StudyResult") -> list[dict]:
             "rms_time_m": run.errors.get("rms_time_m"), "max_m": run.errors.get("max_m"),
             "max_strain": r.max_strain, "strain_cap_hits": r.strain_cap_hits, "max_jitter": r.max_jitter,
         })
-    for t in study.tearing:
-        rows.append({"run": f"{t['run']}, tearing on", "varied": "step, tearing on", "value": t["step_s"],
-                     "step_s": t["step_s"], "wall_s": t["wall_s"], "status": t["status"],
-                     "first_break_s": t["first_break_s"], "broken_springs": t["broken_springs"],
-                     "torn_length_m": t["torn_length_m"]})
+    if study.tearing is not None:
+        rows += study.tearing.rows()
     return rows
 
 
@@ -93,7 +99,27 @@ def write_runs_csv(study: "StudyResult", path: Path) -> None:
 
 
 def accuracy_report(study: "StudyResult", plot_note: str) -> str:
-    """report.md of the accuracy study."""
+    """report.md of the accuracy study: the trajectory study (tearing off) and/or the tearing study."""
+    if study.trajectories:
+        out = _trajectory_report(study)
+    else:
+        tear = study.tearing
+        out = [f"# Convergence of the tear in the step: `{study.scene}`", ""]
+        out.append(f"{'Quick study' if study.quick else 'Study'} of the tear: {tear.frames} frames "
+                   f"({tear.duration_s:.4g} s simulated). Scene step h0 = {study.base_step_s:.6g} s; stability bound "
+                   f"2/ω_max = {study.stability_bound_s:.4g} s (power iteration), h0 = "
+                   f"{study.base_step_s / study.stability_bound_s:.2f} x the bound. The trajectories (tearing off) "
+                   "were not compared (`fraytool study --trajectories` adds them).")
+    if study.tearing is not None:
+        out += [""] + tearing_section(study.tearing)
+    if study.notes:
+        out += ["", "## Notes", ""] + [f"- {n}" for n in study.notes]
+    out += ["", "## Files", "", "- `runs.csv`: one row per run (settings, wall time, errors; tearing figures and "
+            "their relative differences for the tearing study).", f"- {plot_note}", ""]
+    return "\n".join(out)
+
+
+def _trajectory_report(study: "StudyResult") -> list[str]:
     p = study.plan
     o = study.order
     ref = study.reference
@@ -116,8 +142,8 @@ def accuracy_report(study: "StudyResult", plot_note: str) -> str:
                "the time per frame), the strain-limiting iteration cap"
                + (", the self-collision iteration cap" if p.collision_iterations else "") + ".")
     if study.tears:
-        tear_txt = ("This scene tears, so it is also run with tearing on over the step sweep and compared with a "
-                    "tearing reference by statistics (time of the first break, broken springs, torn length); see below.")
+        tear_txt = ("This scene tears: the tear itself is studied with tearing on (see \"Convergence of the tear\" "
+                    "below)." if study.tearing is not None else "This scene tears; its tear was not studied here.")
     else:
         tear_txt = "This scene does not tear."
     out.append("- **Tearing off** for every trajectory comparison (break limits at infinity): a tear makes "
@@ -156,25 +182,61 @@ def accuracy_report(study: "StudyResult", plot_note: str) -> str:
                      r.errors.get("max_m"), r.result.max_strain])
     out.append(md_table(["run", "step [s]", "steps/frame", "strain its", "wall [s]", "status", "RMS final [m]",
                          "RMS time [m]", "max [m]", "max strain"], rows))
-    if study.tearing:
-        out += ["", "## Tearing statistics (tearing on)", ""]
-        out.append("Each step run and a reference (step / 8 of the finest, tightened strain limiting) with tearing "
-                   "on; relative differences from the reference in brackets.")
-        out.append("")
+    return out
 
-        def rel(t, key):
-            d = t.get(f"{key}_rel_diff")
-            return f"{_g(t[key])} ({100 * d:.0f} %)" if d is not None and t["run"] != "reference" else _g(t[key])
 
-        out.append(md_table(["run", "step [s]", "status", "first break [s]", "broken springs", "torn length [m]",
-                             "wall [s]"],
-                            [[t["run"], t["step_s"], t["status"], rel(t, "first_break_s"), rel(t, "broken_springs"),
-                              rel(t, "torn_length_m"), t["wall_s"]] for t in study.tearing]))
-    if study.notes:
-        out += ["", "## Notes", ""] + [f"- {n}" for n in study.notes]
-    out += ["", "## Files", "", "- `runs.csv`: one row per run (settings, wall time, each error).",
-            f"- {plot_note}", ""]
-    return "\n".join(out)
+def _pct(d: Optional[float]) -> str:
+    if d is None or (isinstance(d, float) and math.isnan(d)):
+        return "-"
+    return "inf" if math.isinf(d) else f"{100 * d:.0f} %"
+
+
+def tearing_section(tear: "TearingStudy") -> list[str]:
+    """The "Convergence of the tear" section: one row per step, then PASS/FAIL per quantity."""
+    from fraytool.study.tear_convergence import CENTROID_DISTANCE, CENTROID_TOLERANCE_SPACINGS, QUANTITIES, TOLERANCE
+
+    out = ["## Convergence of the tear (tearing on)", ""]
+    out.append(f"Tearing on at steps {', '.join(r.name for r in tear.runs)}, everything else as in the scene "
+               f"(damping per second kept); the tear compared at t = {tear.duration_s:.4g} s ({tear.frames} frames). "
+               f"Reference {tear.reference}"
+               + (f", checked against {tear.check}" if tear.check else "")
+               + f". Criterion: {tear.shipped} (the scene's step) within {100 * TOLERANCE:.0f} % of the reference "
+                 f"and the reference within {100 * TOLERANCE:.0f} % of {tear.check or 'a finer step'} on each count; "
+                 f"centroid of the broken structural springs within {CENTROID_TOLERANCE_SPACINGS:g} yarn spacings "
+                 f"({tear.spacing_m:g} m). In brackets: the relative difference against the reference (for the "
+                 f"reference, against {tear.check or '-'}); the centroid's distance in spacings.")
+    out.append("")
+    out.append("Torn crossings: crossings split into mass couples (`yarn_level_crossings`); mean free end: mean "
+               "length of the yarn ends that stick out of the weave (`fray_mean_free_end_m`); centroid: mean rest "
+               "position of the midpoints of the broken structural springs.")
+    out.append("")
+    rows = []
+    for r in tear.runs:
+        fig = r.figures
+        cells = [r.name + (f" ({r.role})" if r.role else ""), r.step_s, r.result.steps, r.result.wall_s,
+                 r.result.status]
+        for key, _ in QUANTITIES:
+            cells.append(f"{_g(fig.get(key), 4)} ({_pct(r.rel_diff.get(key))})")
+        c = fig.get("centroid_m")
+        dist = r.rel_diff.get(CENTROID_DISTANCE)
+        cells.append(("(" + ", ".join(f"{v:.4f}" for v in c) + ")" if c is not None else "-")
+                     + f" ({_g(dist, 2)} sp.)")
+        cells.append(fig.get("torn_length_m"))
+        rows.append(cells)
+    out.append(md_table(["step", "step [s]", "steps", "wall [s]", "status", "broken springs", "first break [s]",
+                         "torn crossings", "mean free end [m]", "centroid [m] (distance)", "torn length [m]"], rows))
+    out += ["", f"Against the criterion ({tear.shipped} vs {tear.reference}; {tear.reference} vs "
+                f"{tear.check or '-'}):", ""]
+    for v in tear.verdicts:
+        if v.unit == "spacings":
+            diffs = f"{_g(v.shipped, 2)} and {_g(v.reference, 2)} spacings (limit {v.tolerance:g})"
+        else:
+            diffs = f"{_pct(v.shipped)} and {_pct(v.reference)} (limit {100 * v.tolerance:.0f} %)"
+        out.append(f"- **{'PASS' if v.passed else 'FAIL'}** {v.label}: {diffs}" + (f"; {v.reason}" if v.reason else ""))
+    n = sum(v.passed for v in tear.verdicts)
+    out += ["", f"Tear converged on {n} of {len(tear.verdicts)} quantities"
+                + (": **PASS**." if tear.passed else ": **FAIL**.")]
+    return out
 
 
 # --- stability sweep -------------------------------------------------------------------------------

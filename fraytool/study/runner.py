@@ -6,7 +6,8 @@
 - the base-mass positions at every frame (for trajectory errors), if asked;
 - the largest structural strain, speed and step-to-step jitter seen at the frame ends;
 - tearing statistics when the scene tears: time of the first break (to the step), broken springs
-  and torn length at every frame;
+  and torn length at every frame, and the tear at the last frame (`tear_figures`: the tear and fray
+  figures of the `fraytool simulate --json` summary and the centroid of the broken structural springs);
 - for a run the stability guard stopped: the guard's diagnostic, with the stage found by replaying
   the failed step from the state at the start of its frame (fraytool.sim.guard).
 
@@ -55,7 +56,8 @@ class RunResult:
     strain_cap_hits: int = 0
     """Steps where strain limiting stopped at its iteration cap."""
     tearing: dict = field(default_factory=dict)
-    """Tearing statistics: first_break_s, broken_springs, torn_length_m (and per-frame lists)."""
+    """Tearing statistics: first_break_s [s] (None without a break), broken_springs and torn_length_m
+    (lists, one value per frame from frame 0), final (`tear_figures` at the last frame simulated)."""
 
     @property
     def ok(self) -> bool:
@@ -86,6 +88,33 @@ def torn_length_m(sim: Simulation, structural: np.ndarray) -> float:
     segment once, so a tear crossing N yarns measures about N spacings (a frayed edge adds more)."""
     broken = sim.state.spring_broken & structural
     return float(sim.model.spring_rest_length_m[broken].sum())
+
+
+def tear_figures(sim: Simulation, structural: Optional[np.ndarray] = None) -> dict:
+    """The tear of the current state, as the studies compare it:
+    - broken_springs, yarn_level_crossings (torn crossings: crossings split into mass couples),
+      fray_mean_free_end_m, pieces: the figures of `Simulation.summary` (`fraytool simulate --json`);
+    - broken_structural_springs and torn_length_m (their rest length at build, `torn_length_m`);
+    - centroid_m: the mean rest position of the midpoints of the broken structural springs [m]
+      (None when none is broken): where the tear is in the cloth, independent of its motion."""
+    structural = structural_mask(sim) if structural is None else structural
+    summary = sim.summary()
+    m = sim.model
+    broken = sim.state.spring_broken & structural
+    centroid = None
+    if broken.any():
+        rest = m.crossing_rest_position_m
+        mid = 0.5 * (rest[m.spring_crossing_a[broken]] + rest[m.spring_crossing_b[broken]])
+        centroid = [float(c) for c in mid.mean(axis=0)]
+    return {
+        "broken_springs": int(summary["broken_springs"]),
+        "yarn_level_crossings": int(summary.get("yarn_level_crossings", 0)),
+        "fray_mean_free_end_m": float(summary.get("fray_mean_free_end_m", 0.0)),
+        "pieces": summary.get("pieces"),
+        "broken_structural_springs": int(broken.sum()),
+        "torn_length_m": torn_length_m(sim, structural),
+        "centroid_m": centroid,
+    }
 
 
 def run_variant(spec: SceneSpec, frames: Optional[int] = None, record: bool = False,
@@ -155,5 +184,7 @@ def run_variant(spec: SceneSpec, frames: Optional[int] = None, record: bool = Fa
         if record:
             out.positions = None
     out.wall_s = wall
+    if tears:
+        out.tearing["final"] = tear_figures(sim, structural)
     out.strain_cap_hits = sim.solver.strain_cap_hits
     return out
