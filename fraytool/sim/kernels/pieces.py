@@ -11,8 +11,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-STRUCT_KINDS_MAX = 1
-"""Structural spring kinds are 0 (weft) and 1 (warp) (fraytool.kinds)."""
+from fraytool.kinds import STRUCT_WARP, STRUCT_WEFT
 
 
 @nb.njit(cache=True, fastmath=False, inline="always")
@@ -36,7 +35,7 @@ def label_pieces(
     n = particle_active.shape[0]
     parent = np.arange(n)
     for s in range(spring_kind.shape[0]):
-        if not spring_alive[s] or spring_kind[s] > STRUCT_KINDS_MAX:
+        if not spring_alive[s] or (spring_kind[s] != STRUCT_WEFT and spring_kind[s] != STRUCT_WARP):
             continue
         ra = _find(parent, spring_particle_a[s])
         rb = _find(parent, spring_particle_b[s])
