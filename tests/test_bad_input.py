@@ -32,6 +32,10 @@ CASES = {
     "step above bound": (_with("step_s = 0.0004", "step_s = 0.01\nstability = \"refuse\""),
                          ["[time] step_s = 0.01", "stability bound", "use step_s <="]),
     "not toml": ("[cloth\nx=1", ["not valid TOML"]),
+    "nan keyframe": (GOOD + '\n[[bodies]]\nname = "b"\nshape = "sphere"\nradius_m = 0.01\nmotion = "kinematic"\n'
+                     'path = [[0.0, 0.0, 0.0, 0.0], [nan, 0.1, 0.0, 0.0]]\n', ["[bodies.0] path", "finite numbers"]),
+    "cut outside the cloth": (GOOD + "\n[[cuts]]\nstart = [3.5, 100.0]\nend = [3.5, 2.0]\n",
+                              ["[cuts.0] start = [3.5, 100.0]", "-1 <= j <="]),
 }
 
 

@@ -9,7 +9,8 @@ crossings (0, j), (1, j), ...; warp yarn i through (i, 0), (i, 1), ....
 - A dead structural spring (`weft_structural_spring[j, i]` between crossings i and i+1 of weft j,
   `warp_structural_spring[i, j]` between crossings j and j+1 of warp i) splits its yarn there. The
   two ends it leaves are *broken* ends (they fade out); the first and last point of a yarn are the
-  cloth border (they do not).
+  cloth border (they do not), and so are the ends at a spring cut before the shot (`spring_precut`,
+  a [[cuts]] snip: scissors leave a clean edge).
 Pieces of a single point (a crossing cut off on both sides) are dropped: there is no yarn to draw.
 Everything is vectorised over all yarns of the frame.
 """
@@ -93,19 +94,22 @@ def yarn_pieces(topology: Mapping[str, np.ndarray], particle_position_m: np.ndar
     W = int(_scalar(topology, "warp_yarns"))
     H = int(_scalar(topology, "weft_yarns"))
     alive = np.asarray(spring_alive, dtype=bool)
+    precut = np.asarray(topology["spring_precut"], dtype=bool) if "spring_precut" in topology \
+        else np.zeros(alive.shape, dtype=bool)  # frames written before cuts existed
     weft_pt, warp_pt, normal = yarn_points(topology, particle_position_m, crossing_yarn_level)
     crossing = np.arange(W * H).reshape(H, W)
 
     # Weft yarn j = row j; warp yarn i = column i.
+    weft_s = np.asarray(topology["weft_structural_spring"])
+    warp_s = np.asarray(topology["warp_structural_spring"])
     rows = [
-        (WEFT, weft_pt.reshape(H, W, 3), crossing,
-         alive[np.asarray(topology["weft_structural_spring"])].reshape(H, W - 1)),
-        (WARP, warp_pt.reshape(H, W, 3).transpose(1, 0, 2), crossing.T,
-         alive[np.asarray(topology["warp_structural_spring"])].reshape(W, H - 1)),
+        (WEFT, weft_pt.reshape(H, W, 3), crossing, alive[weft_s].reshape(H, W - 1), precut[weft_s].reshape(H, W - 1)),
+        (WARP, warp_pt.reshape(H, W, 3).transpose(1, 0, 2), crossing.T, alive[warp_s].reshape(W, H - 1),
+         precut[warp_s].reshape(W, H - 1)),
     ]
     pts, offs, kinds, yarns, firsts, bstart, bend, normals = [], [], [], [], [], [], [], []
     base = 0
-    for kind, p, cross, link in rows:
+    for kind, p, cross, link, snipped in rows:
         Y, n = p.shape[:2]
         starts, lengths = _runs(link)
         keep = lengths >= 2
@@ -118,8 +122,13 @@ def yarn_pieces(topology: Mapping[str, np.ndarray], particle_position_m: np.ndar
         yarns.append((starts // n).astype(np.int32))
         first = cross.reshape(-1)[starts]
         firsts.append(first.astype(np.int32))
-        bstart.append(starts % n != 0)
-        bend.append((starts + lengths - 1) % n != n - 1)
+        # Each point's link to the next, flattened as in _runs: True where a [[cuts]] snip ends the piece.
+        clean = np.zeros((Y, n), dtype=bool)
+        clean[:, :-1] = snipped
+        clean = clean.ravel()
+        ends = starts + lengths - 1
+        bstart.append((starts % n != 0) & ~clean[np.maximum(starts - 1, 0)])
+        bend.append((ends % n != n - 1) & ~clean[ends])
         normals.append(normal[first])
     offsets = np.concatenate(offs + [[base]]).astype(np.int64)
     return YarnPieces(

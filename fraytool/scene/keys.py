@@ -30,7 +30,7 @@ REQUIRED: Any = _Required()
 @dataclass(frozen=True)
 class Key:
     kind: str
-    """"float", "int", "bool", "str", "vec3", "color", "int2", "path", "table2d"."""
+    """"float", "int", "bool", "str", "vec3", "color", "int2", "float2", "path", "table2d"."""
     default: Any = REQUIRED
     """Value when the key is not given; REQUIRED if it must be; None for "not given" (optional)."""
     lo: Optional[float] = None
@@ -54,7 +54,8 @@ class Key:
             "vec3": "an array of 3 numbers",
             "color": "an array of 3 numbers in [0, 1]",
             "int2": "an array of 2 integers",
-            "path": "an array of [t, x, y, z] arrays, times >= 0 and increasing",
+            "float2": "an array of 2 numbers",
+            "path": "an array of [t, x, y, z] arrays of finite numbers, times >= 0 and increasing",
             "table2d": "an array of equal-length arrays of 0/1",
         }[self.kind]
         bounds = []
@@ -116,6 +117,13 @@ class Key:
             if not all(self.in_range(v) for v in value):
                 return False, None
             return True, (int(value[0]), int(value[1]))
+        if k == "float2":
+            if not _is_seq(value) or len(value) != 2 or not all(_is_number(v) for v in value):
+                return False, None
+            pair = (float(value[0]), float(value[1]))
+            if not all(self.in_range(v) for v in pair):
+                return False, None
+            return True, pair
         if k == "path":
             if not _is_seq(value):
                 return False, None
@@ -124,6 +132,8 @@ class Key:
                 if not _is_seq(row) or len(row) != 4 or not all(_is_number(v) for v in row):
                     return False, None
                 rows.append(tuple(float(v) for v in row))
+                if not all(math.isfinite(v) for v in rows[-1]):
+                    return False, None
             times = [r[0] for r in rows]
             if any(b <= a for a, b in zip(times, times[1:])) or any(t < 0 for t in times):
                 return False, None

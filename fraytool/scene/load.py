@@ -18,6 +18,7 @@ from fraytool.scene import rules, schema
 from fraytool.scene.keys import REQUIRED, Key, show
 from fraytool.scene.spec import (
     AttachmentSpec,
+    CutSpec,
     BodySpec,
     CameraSpec,
     CheckSpec,
@@ -118,16 +119,19 @@ def parse_scene(text: str, source: str = "<string>") -> SceneSpec:
                   for i, b in enumerate(doc.get("bodies", []))]
     att_raw = [(_read_table(a, f"attachments.{i}", schema.TOP["attachments"], problems), i)
                for i, a in enumerate(doc.get("attachments", []))]
+    cut_raw = [(_read_table(c, f"cuts.{i}", schema.TOP["cuts"], problems), i)
+               for i, c in enumerate(doc.get("cuts", []))]
     if problems.lines:
         raise SceneError(problems.lines)
 
-    spec = _assemble(values, bodies_raw, att_raw, source, problems)
+    spec = _assemble(values, bodies_raw, att_raw, cut_raw, source, problems)
     if problems.lines:
         raise SceneError(problems.lines)
     return spec
 
 
-def _assemble(values: dict, bodies_raw: list, att_raw: list, source: str, problems: _Problems) -> SceneSpec:
+def _assemble(values: dict, bodies_raw: list, att_raw: list, cut_raw: list, source: str,
+              problems: _Problems) -> SceneSpec:
     """Build the SceneSpec from checked tables, applying the rules that tie keys together."""
     s, t, c = values["scene"], values["time"], values["cloth"]
     name = s["name"] or Path(source).stem
@@ -154,6 +158,12 @@ def _assemble(values: dict, bodies_raw: list, att_raw: list, source: str, proble
         problems.extend(f"attachments.{i}", rules.attachment_problems(att, names, cloth.warp_yarns, cloth.weft_yarns))
         attachments.append(att)
 
+    cuts = []
+    for c_raw, i in cut_raw:
+        cut = CutSpec(**c_raw)
+        problems.extend(f"cuts.{i}", rules.cut_problems(cut, cloth.warp_yarns, cloth.weft_yarns))
+        cuts.append(cut)
+
     render, camera = RenderSpec(**values["render"]), CameraSpec(**values["camera"])
     problems.extend("render", rules.render_problems(render))
     problems.extend("camera", rules.camera_problems(camera))
@@ -167,6 +177,7 @@ def _assemble(values: dict, bodies_raw: list, att_raw: list, source: str, proble
         gravity_m_s2=values["world"]["gravity_m_s2"],
         bodies=tuple(bodies),
         attachments=tuple(attachments),
+        cuts=tuple(cuts),
         self_collision=SelfCollisionSpec(**values["self_collision"]),
         camera=camera,
         render=render,
@@ -194,6 +205,8 @@ def scene_hash(spec: SceneSpec) -> str:
     for k in ("source", "camera", "render", "output", "checks"):
         d.pop(k)
     d["scene"].pop("description")
+    if not d["cuts"]:
+        d.pop("cuts")  # scenes without cuts keep the digest they had before cuts existed
     d["time"].pop("frames")  # frame k does not depend on how many follow it
     d["time"].pop("fps")
     d["time"].pop("stability")

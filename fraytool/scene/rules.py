@@ -11,7 +11,7 @@ import math
 from typing import Any, Iterable, Optional
 
 from fraytool.scene import weave as weaves
-from fraytool.scene.spec import AttachmentSpec, BodySpec, CameraSpec, RenderSpec, TearingSpec
+from fraytool.scene.spec import AttachmentSpec, BodySpec, CameraSpec, CutSpec, RenderSpec, TearingSpec
 
 Problem = tuple[Optional[str], Any, str]
 """(key or None for the whole table, the value, what is allowed)."""
@@ -97,6 +97,18 @@ def attachment_problems(a: AttachmentSpec, body_names: Iterable[str], warp_yarns
         out.append((None, None, "warp_range and weft_range go together"))
     if a.region_center_m is not None and a.region_radius_m <= 0:
         out.append(("region_radius_m", a.region_radius_m, "must be > 0 with region_center_m"))
+    return out
+
+
+def cut_problems(c: CutSpec, warp_yarns: int, weft_yarns: int) -> list[Problem]:
+    """[[cuts]]: both ends within one spacing of the grid (-1 <= i <= warp_yarns, likewise j), and apart."""
+    out: list[Problem] = []
+    for name, (i, j) in (("start", c.start), ("end", c.end)):
+        if not (-1.0 <= i <= warp_yarns and -1.0 <= j <= weft_yarns):
+            out.append((name, [i, j], f"must be [i, j] with -1 <= i <= {warp_yarns} and -1 <= j <= {weft_yarns} "
+                                      "(yarn indices, within one spacing of the cloth)"))
+    if c.start == c.end:
+        out.append(("end", list(c.end), "must differ from start (a cut is a line)"))
     return out
 
 

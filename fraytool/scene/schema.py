@@ -27,6 +27,7 @@ TOP: dict[str, dict[str, Key]] = {
     "self_collision": keys_of(spec.SelfCollisionSpec),
     "bodies": keys_of(spec.BodySpec),
     "attachments": keys_of(spec.AttachmentSpec),
+    "cuts": keys_of(spec.CutSpec),
     "camera": keys_of(spec.CameraSpec),
     "render": keys_of(spec.RenderSpec),
     "output": keys_of(spec.OutputSpec),
@@ -34,5 +35,5 @@ TOP: dict[str, dict[str, Key]] = {
 }
 """Table name (dotted for sub-tables) -> key name -> Key."""
 REQUIRED_TABLES = ("time", "cloth", "cloth.springs")
-ARRAY_TABLES = ("bodies", "attachments")
+ARRAY_TABLES = ("bodies", "attachments", "cuts")
 """Tables written [[name]], any number of times."""

@@ -160,6 +160,17 @@ class AttachmentSpec:
 
 
 @dataclass(frozen=True, kw_only=True)
+class CutSpec:
+    """One [[cuts]] entry: a snip made in the cloth before the shot, like the nick a tailor cuts
+    before tearing fabric by hand. Every spring whose rest segment meets the straight line from
+    `start` to `end` is absent from the first frame on (not counted as broken)."""
+
+    start: tuple[float, float] = key("float2", lo=-1e6, hi=1e6,
+                                     doc="[i, j] in yarn indices (warp i, weft j); 39.5 lies between yarns 39 and 40")
+    end: tuple[float, float] = key("float2", lo=-1e6, hi=1e6, doc="[i, j] in yarn indices, the other end of the line")
+
+
+@dataclass(frozen=True, kw_only=True)
 class CameraSpec:
     """[camera]"""
 
@@ -223,6 +234,10 @@ class CheckSpec:
     max_broken_springs: Optional[int] = key("int", None, lo=0, doc="most springs cut by tearing")
     min_yarn_level_masses: Optional[int] = key("int", None, lo=0, doc="fewest masses in the yarn-level model")
     max_yarn_level_masses: Optional[int] = key("int", None, lo=0, doc="most masses in the yarn-level model")
+    min_second_piece_fraction: Optional[float] = key(
+        "float", None, lo=0, hi=0.5, doc="at the end, the second largest piece holds at least this mass fraction "
+                                         "(the cloth is torn apart, not a strip ripped off)")
+    max_small_pieces: Optional[int] = key("int", None, lo=0, doc="most pieces of fewer than 5 masses at the end")
     attachments_follow: bool = key("bool", True, doc="held masses stay exactly on their body")
 
 
@@ -238,6 +253,7 @@ class SceneSpec:
     gravity_m_s2: Vec3 = key("vec3", (0.0, -9.81, 0.0), doc="gravity [m/s^2]")
     bodies: tuple[BodySpec, ...] = ()
     attachments: tuple[AttachmentSpec, ...] = ()
+    cuts: tuple[CutSpec, ...] = ()
     self_collision: SelfCollisionSpec = field(default_factory=SelfCollisionSpec)
     camera: CameraSpec = field(default_factory=CameraSpec)
     render: RenderSpec = field(default_factory=RenderSpec)

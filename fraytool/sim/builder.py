@@ -38,6 +38,7 @@ from fraytool.scene.spec import (
     AttachmentSpec,
     BodySpec,
     ClothSpec,
+    CutSpec,
     SceneSpec,
     SelfCollisionSpec,
     SpringSpec,
@@ -52,7 +53,7 @@ _PLANE_AXES = {"xz": (0, 2), "xy": (0, 1), "yz": (2, 1)}
 
 _SCENE, _WORLD, _CLOTH, _SPRINGS = (schema.TOP[t] for t in ("scene", "world", "cloth", "cloth.springs"))
 _STRAIN, _TEARING, _SELF = (schema.TOP[t] for t in ("cloth.strain", "cloth.tearing", "self_collision"))
-_BODY, _ATTACH = schema.TOP["bodies"], schema.TOP["attachments"]
+_BODY, _ATTACH, _CUT = schema.TOP["bodies"], schema.TOP["attachments"], schema.TOP["cuts"]
 
 
 class ModelBuilderError(SceneError, ValueError):
@@ -96,6 +97,24 @@ def select_crossings(att: AttachmentSpec, nx: int, ny: int, rest: np.ndarray) ->
         d = np.linalg.norm(rest - np.asarray(att.region_center_m), axis=1)
         mask = d <= att.region_radius_m
     return np.nonzero(mask)[0].astype(np.int32)
+
+
+def springs_across(start: Sequence[float], end: Sequence[float], spring_crossing_a: np.ndarray,
+                   spring_crossing_b: np.ndarray, warp_yarns: int) -> np.ndarray:
+    """Springs whose rest segment meets the line from `start` to `end` ([i, j] in yarn indices, the
+    grid coordinates of crossing (i, j)), ends included: a bool mask over the springs. Exact for the
+    half-integer lines that run between yarns."""
+    p = np.asarray(start, float)
+    d = np.asarray(end, float) - p
+    a = np.stack([spring_crossing_a % warp_yarns, spring_crossing_a // warp_yarns], axis=1).astype(float)
+    e = np.stack([spring_crossing_b % warp_yarns, spring_crossing_b // warp_yarns], axis=1).astype(float) - a
+    den = d[0] * e[:, 1] - d[1] * e[:, 0]
+    w = a - p
+    ok = den != 0.0  # parallel segments do not cut each other (a line along a yarn cuts no spring)
+    safe = np.where(ok, den, 1.0)
+    t = (w[:, 0] * e[:, 1] - w[:, 1] * e[:, 0]) / safe  # along the cut
+    u = (w[:, 0] * d[1] - w[:, 1] * d[0]) / safe        # along the spring
+    return ok & (t >= 0.0) & (t <= 1.0) & (u >= 0.0) & (u <= 1.0)
 
 
 def _given(local_vars: dict[str, Any]) -> dict[str, Any]:
@@ -147,6 +166,7 @@ class ModelBuilder:
         self.self_collision = SelfCollisionSpec()
         self.bodies: list[BodySpec] = []
         self.attachments: list[AttachmentSpec] = []
+        self.cuts: list[CutSpec] = []
 
     # --- checking arguments ---------------------------------------------------------------------------
 
@@ -304,6 +324,18 @@ class ModelBuilder:
                                                                 self.cloth.warp_yarns, self.cloth.weft_yarns))
         self.attachments.append(att)
 
+    @_keys_doc("cuts")
+    def add_cut(self, *, start: Sequence[float], end: Sequence[float]) -> None:
+        """A snip made before the shot: every spring whose rest segment meets the line from `start`
+        to `end` (yarn indices [i, j]; half-integers fall between yarns) is absent from the first
+        frame on. It is not a break (`broken_springs` does not count it), and its yarn ends are
+        drawn clean, not frayed. Call after add_cloth."""
+        if self.cloth is None:
+            self._raise("add_cut", [(None, None, "call add_cloth first (cuts are on its grid)")])
+        cut = CutSpec(**self._check("add_cut", _CUT, _given(locals())))
+        self._raise("add_cut", rules.cut_problems(cut, self.cloth.warp_yarns, self.cloth.weft_yarns))
+        self.cuts.append(cut)
+
     # --- finalize -------------------------------------------------------------------------------------
 
     def _grid(self, c: ClothSpec):
@@ -413,6 +445,11 @@ class ModelBuilder:
         _, first = np.unique(att_p_arr, return_index=True)
         first = np.sort(first)
 
+        precut = np.zeros(len(kind), dtype=bool)
+        for cut in self.cuts:
+            precut |= springs_across(cut.start, cut.end, a, b, nx)
+        precut &= kind != SHEAR_TWIN  # a twin is born with its shear spring; a cut one has none
+
         t = self.tearing
         strain = self.strain
         return Model(
@@ -434,6 +471,7 @@ class ModelBuilder:
             spring_base_stiffness_n_per_m=stiff,
             spring_break_strain=self._break_strains(len(kind)),
             spring_twin=twin,
+            spring_precut=precut,
             weft_structural_spring=weft_struct,
             warp_structural_spring=warp_struct,
             attachment_particle=att_p_arr[first],
@@ -494,4 +532,6 @@ def build_model(spec: SceneSpec) -> Model:
         add(**{k: v for k, v in dataclasses.asdict(body).items() if k in takes})
     for att in spec.attachments:
         builder.add_attachment(**dataclasses.asdict(att))
+    for cut in spec.cuts:
+        builder.add_cut(**dataclasses.asdict(cut))
     return builder.finalize()

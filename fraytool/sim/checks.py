@@ -48,6 +48,13 @@ def run_scene_checks(spec: SceneSpec, frames: int | None = None) -> dict:
         if wanted is not None:
             value = summary[field]
             check(key, value >= wanted if op == ">=" else value <= wanted, value, f"{op} {wanted}")
+    if c.min_second_piece_fraction is not None:
+        second = summary["largest_piece_fractions"][1]
+        check("min_second_piece_fraction", second >= c.min_second_piece_fraction, second,
+              f">= {c.min_second_piece_fraction}")
+    if c.max_small_pieces is not None:
+        check("max_small_pieces", summary["small_pieces"] <= c.max_small_pieces, summary["small_pieces"],
+              f"<= {c.max_small_pieces}")
     if c.attachments_follow and sim.model.attachment_count:
         check("attachments_follow", attach_err <= 1e-9, attach_err, "<= 1e-9 m")
     return {"frames": count, "passed": all(r["passed"] for r in results.values()), "results": results,

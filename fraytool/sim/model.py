@@ -59,6 +59,9 @@ class Model:
     """Randomised strain at which the spring is cut, drawn once from the scene seed, shape (spring_count,)."""
     spring_twin: np.ndarray
     """For a shear spring, the slot of its duplicate (and back); -1 otherwise, shape (spring_count,), int32."""
+    spring_precut: np.ndarray
+    """Springs cut before the shot by a [[cuts]] line: dead from the first frame, never broken, shape
+    (spring_count,), bool."""
     weft_structural_spring: np.ndarray
     """Spring joining crossings (i, j) and (i+1, j): shape (weft_yarns, warp_yarns - 1), int32."""
     warp_structural_spring: np.ndarray
@@ -164,7 +167,8 @@ class Model:
         inv_mass = np.zeros(2 * n)
         inv_mass[:n] = 1.0 / self.crossing_mass_kg
         inv_mass[self.attachment_particle] = 0.0
-        alive = self.spring_kind != SHEAR_TWIN  # shear twins are born dead; a split brings them to life
+        # Shear twins are born dead (a split brings them to life); springs on a [[cuts]] line are not there.
+        alive = (self.spring_kind != SHEAR_TWIN) & ~self.spring_precut
         return State(
             time_s=0.0,
             step_index=0,
