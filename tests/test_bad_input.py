@@ -1,5 +1,7 @@
 """Each class of bad scene input gives one clear message (file, key, value, what is allowed) and
 exit code 2, never a traceback."""
+import json
+import re
 import subprocess
 import sys
 
@@ -76,3 +78,39 @@ def test_cli_subprocess_prints_no_traceback(tmp_path):
                        stdin=subprocess.DEVNULL)
     assert r.returncode == 2
     assert "Traceback" not in r.stderr and "spacing_m = -2" in r.stderr
+
+
+@pytest.mark.parametrize("name", ["/tmp/somewhere", "../../x", "..", ".", ".hidden", "a/b", "a\x00b", "x" * 101, ""])
+def test_scene_name_is_a_name_never_a_path(name, tmp_path, capsys):
+    text = re.sub(r'(?m)^name = ".*"$', lambda _: "name = " + json.dumps(name), GOOD, count=1)
+    assert text != GOOD
+    path = tmp_path / "scene.toml"
+    path.write_text(text)
+    code = main(["simulate", str(path), "-o", str(tmp_path / "out"), "--frames", "2"])
+    err = capsys.readouterr().err
+    if name == "":  # empty: the file name is the scene name
+        assert code == 0, err
+        return
+    assert code == 2, err
+    assert "[scene] name" in err and "never a path" in err
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_foreign_frames_folder_survives(tmp_path, capsys):
+    path = tmp_path / "scene.toml"
+    path.write_text(GOOD)
+    out = tmp_path / "out"
+    (out / "frames").mkdir(parents=True)
+    (out / "frames" / "precious.txt").write_text("not fraytool's")
+    code = main(["simulate", str(path), "-o", str(out), "--frames", "2"])
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert "did not write" in err and "precious" not in err
+    assert (out / "frames" / "precious.txt").read_text() == "not fraytool's"
+    (out / "frames" / "precious.txt").unlink()
+    (out / "frames").rmdir()
+    (out / "frames").write_text("a file in the way")
+    code = main(["simulate", str(path), "-o", str(out), "--frames", "2"])
+    err = capsys.readouterr().err
+    assert code == 2 and "in the way" in err, err
+    assert (out / "frames").read_text() == "a file in the way"

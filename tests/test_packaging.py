@@ -1,4 +1,5 @@
-"""Shaders and scenes are found from an installed wheel, not only from an editable checkout."""
+"""An installed wheel (not only an editable checkout) holds every module, finds its shaders and scenes,
+and simulates and renders from outside the source tree."""
 import subprocess
 import sys
 import zipfile
@@ -22,6 +23,9 @@ def test_wheel_ships_scenes_and_shaders_and_finds_them(tmp_path):
     assert r.returncode == 0, r.stderr
     wheel = next((tmp_path / "dist").glob("fraytool-*.whl"))
     names = zipfile.ZipFile(wheel).namelist()
+    # every module of the source tree, and nothing else (a stale build/ folder would add deleted ones)
+    modules = {p.relative_to(ROOT).as_posix() for p in (ROOT / "fraytool").rglob("*.py")}
+    assert {n for n in names if n.endswith(".py")} == modules
     for scene in (ROOT / "scenes").glob("*.toml"):
         assert f"fraytool/scenes/{scene.name}" in names
     shaders = [p.name for p in (ROOT / "shaders").iterdir() if p.suffix in (".vert", ".frag")]
@@ -39,3 +43,13 @@ def test_wheel_ships_scenes_and_shaders_and_finds_them(tmp_path):
     shader_dir, scenes_dir, name = r.stdout.split()
     assert shader_dir.startswith(str(target)) and scenes_dir.startswith(str(target))
     assert name == "drape"
+    env = {"PYTHONPATH": str(target), "PATH": "/usr/bin:/bin", "HOME": str(tmp_path)}
+    out = tmp_path / "out"
+    r = subprocess.run([sys.executable, "-m", "fraytool", "simulate", "drape", "--frames", "2", "-o", str(out)],
+                       cwd=elsewhere, capture_output=True, text=True, env=env)
+    assert r.returncode == 0, r.stderr
+    assert (out / "frames" / "manifest.json").is_file()
+    r = subprocess.run([sys.executable, "-m", "fraytool", "render", "drape", "--frames", "0:1", "--png", "--no-mp4",
+                        "--resolution", "64x48", "-o", str(out)], cwd=elsewhere, capture_output=True, text=True, env=env)
+    assert r.returncode == 0, r.stderr
+    assert len(list((out / "png").glob("*.png"))) == 1

@@ -19,6 +19,7 @@ from typing import Optional
 import numpy as np
 
 from fraytool import __version__
+from fraytool.errors import InputError
 from fraytool.io.failure import LAST_GOOD_STATE, UNSTABLE_JSON
 from fraytool.io.frame_record import FrameRecord, atomic_save_npz, atomic_write_bytes
 
@@ -55,8 +56,17 @@ class FrameStore:
         return int(m["frames_complete"]) if m else 0
 
     def start(self, topology: dict[str, np.ndarray], scene_hash: str, info: dict) -> None:
-        """Begin a fresh run: clear old frames, write the topology (Model.arrays()) and an empty manifest."""
+        """Begin a fresh run: clear old frames, write the topology (Model.arrays()) and an empty manifest.
+
+        Only a frames folder that fraytool made (its manifest says so) is cleared; a folder holding
+        anything else is left as it is and the run stops with an InputError."""
+        if self.dir.is_symlink() or (self.dir.exists() and not self.dir.is_dir()):
+            raise InputError(f"{self.dir}: is in the way of the frames folder (not a folder fraytool made); "
+                             "move it or choose another output folder with -o")
         if self.dir.exists():
+            if not (self.dir / MANIFEST).is_file() and any(self.dir.iterdir()):
+                raise InputError(f"{self.dir}: holds files fraytool did not write (no {MANIFEST}); "
+                                 "not deleting them: move them or choose another output folder with -o")
             shutil.rmtree(self.dir)
         self.dir.mkdir(parents=True)
         atomic_save_npz(self.dir / TOPOLOGY, topology)

@@ -135,6 +135,7 @@ def _assemble(values: dict, bodies_raw: list, att_raw: list, cut_raw: list, sour
     """Build the SceneSpec from checked tables, applying the rules that tie keys together."""
     s, t, c = values["scene"], values["time"], values["cloth"]
     name = s["name"] or Path(source).stem
+    problems.extend("scene", rules.scene_name_problems(name, from_file_name=not s["name"]))
     tear = TearingSpec(**values["cloth.tearing"])
     problems.extend("cloth.tearing", rules.tearing_problems(tear))
     table, weave_problems = rules.weave_table(c["weave"], c["twill"], c["satin_shafts"], c["table"])

@@ -8,6 +8,7 @@ So a scene built in code is held to exactly the rules of a scene file.
 from __future__ import annotations
 
 import math
+import re
 from typing import Any, Iterable, Optional
 
 from fraytool.scene import weave as weaves
@@ -98,6 +99,22 @@ def attachment_problems(a: AttachmentSpec, body_names: Iterable[str], warp_yarns
     if a.region_center_m is not None and a.region_radius_m <= 0:
         out.append(("region_radius_m", a.region_radius_m, "must be > 0 with region_center_m"))
     return out
+
+
+SCENE_NAME = re.compile(r"[A-Za-z0-9_-][A-Za-z0-9._-]{0,99}")
+
+
+def scene_name_problems(name: str, from_file_name: bool) -> list[Problem]:
+    """[scene] name names the output folder and files, so it is a name, never a path: letters, digits,
+    "-", "_" and "." (not first), at most 100 characters."""
+    if SCENE_NAME.fullmatch(name):
+        return []
+    shown = name if len(name) <= 60 else name[:57] + "..."
+    allowed = ('must be letters, digits, "-", "_" and "." (not first), 1 to 100 characters: it names the '
+               "output folder and files, never a path")
+    if from_file_name:
+        allowed += " (taken from the file name; set [scene] name)"
+    return [("name", shown, allowed)]
 
 
 def cut_problems(c: CutSpec, warp_yarns: int, weft_yarns: int) -> list[Problem]:
