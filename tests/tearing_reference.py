@@ -105,11 +105,13 @@ def project_couples_reference(model: Model, st: dict, couples) -> dict:
                 crossing = np.linalg.norm(nu) > 1e-2 * np.linalg.norm(x[ends[1]] - x[ends[0]]) * np.linalg.norm(
                     x[ends[3]] - x[ends[2]])
                 h = side * (r @ nu) / np.linalg.norm(nu) if crossing else d
-                if slide or h <= 0 or d < 1e-15:
+                if d < 1e-15 or (h <= 0 and d < T):
                     if not crossing:
                         continue
                     e = side * nu / np.linalg.norm(nu)
                     gap = h
+                elif slide and d >= T:
+                    continue  # a free end apart from the other yarn: left alone
                 else:
                     e = r / d
                     gap = d

@@ -36,6 +36,8 @@ CASES = {
     "not toml": ("[cloth\nx=1", ["not valid TOML"]),
     "nan keyframe": (GOOD + '\n[[bodies]]\nname = "b"\nshape = "sphere"\nradius_m = 0.01\nmotion = "kinematic"\n'
                      'path = [[0.0, 0.0, 0.0, 0.0], [nan, 0.1, 0.0, 0.0]]\n', ["[bodies.0] path", "finite numbers"]),
+    "damper without compliant limit": (_with("max_iterations = 30", "max_iterations = 30\ndamping_ratio = 1.0"),
+                                       ["[cloth.strain] damping_ratio = 1.0", "needs stiffness_n_per_m > 0"]),
     "cut outside the cloth": (GOOD + "\n[[cuts]]\nstart = [3.5, 100.0]\nend = [3.5, 2.0]\n",
                               ["[cuts.0] start = [3.5, 100.0]", "-1 <= j <="]),
 }

@@ -292,6 +292,8 @@ BAD = {
     "second cloth": (lambda b: (cloth()(b), cloth()(b)), ["add_cloth", "one cloth"]),
     "seed below 0": (lambda b: ModelBuilder(seed=-1), ["ModelBuilder: seed = -1", ">= 0"]),
     "zero strain limit": (lambda b: b.set_strain_limit(limit=0.0), ["set_strain_limit: limit = 0.0", "> 0"]),
+    "damper on a hard limit": (lambda b: b.set_strain_limit(damping_ratio=1.0),
+                               ["set_strain_limit: damping_ratio = 1.0", "needs stiffness_n_per_m > 0"]),
     "transition above break": (lambda b: b.set_tearing(transition_strain=0.3, break_strain=0.2),
                                ["set_tearing: transition_strain = 0.3", "must be below break_strain = 0.2"]),
     "no self-collision passes": (lambda b: b.set_self_collision(iterations=0), ["iterations = 0", ">= 1"]),

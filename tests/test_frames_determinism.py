@@ -77,14 +77,14 @@ def _checkpoint(out: Path) -> dict:
 
 
 def test_resume_with_self_collision_and_tearing(tmp_path):
-    """A strip torn at yarn level with self-collision on, stopped after 19 frames (its yarns have been
-    meeting for a few frames) and resumed to 26: every frame and the checkpoint are the same, array
+    """A strip torn at yarn level with self-collision on, stopped after 17 frames (its yarns have been
+    meeting for two frames, and meet again in the next) and resumed to 22: every frame and the checkpoint are the same, array
     by array and bit for bit, as an unbroken run's. The unbroken run keeps its broad-phase candidates
     across the whole run; the resumed one builds them afresh (fraytool.sim.stages.self_collision,
     "Results independent of the kept candidates")."""
     spec = parse_scene(pulled_strip_text("torn_strip_sc", yarn_level=True, extra="[self_collision]\nenabled = true\n"),
                        "torn_strip_sc.toml")
-    stop, total = 19, 26
+    stop, total = 17, 22
     simulate_to_disk(spec, tmp_path / "full", frames=total, progress=False)
     first = simulate_to_disk(spec, tmp_path / "cut", frames=stop, progress=False)
     assert FrameStore(tmp_path / "cut").frames_complete() == stop

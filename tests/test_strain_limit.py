@@ -1,5 +1,8 @@
 """After strain limiting every structural spring is within the limit, or the cap was reported."""
+import math
+
 import numpy as np
+import pytest
 
 from fraytool.sim import build_model
 from fraytool.sim.kernels.strain_limit import limit_strain
@@ -115,3 +118,70 @@ def test_compliant_limit_with_infinite_stiffness_is_the_hard_projection():
     soft = x.copy()
     limit_strain_compliant(springs, rest_lengths, 0.1, 1e-12, 5000, 0.0, w, a, b, alive, np.zeros(n), soft)
     np.testing.assert_allclose(soft, hard, atol=1e-12)
+
+
+def _stretch_history(c_n_s_per_m, k_limit=400.0, mass=5e-6, rest=0.004, limit=0.10, v0=0.5, dt=2e-7, t_end=6e-4):
+    """Two free masses joined by one spring, starting exactly at the limit and moving apart at v0:
+    each step x += v dt, then the dashpot past the limit, then the compliant limit (as the solver's
+    strain-limiting stage does), v = (x - x_prev) / dt. Returns times and stretch past the limit."""
+    from fraytool.sim.kernels.strain_limit import damp_overstretched, limit_strain_compliant
+
+    x = np.array([[0.0, 0.0, 0.0], [(1 + limit) * rest, 0.0, 0.0]])
+    v = np.array([[-v0 / 2, 0.0, 0.0], [v0 / 2, 0.0, 0.0]])
+    w = np.full(2, 1.0 / mass)
+    a, b = np.array([0], np.int32), np.array([1], np.int32)
+    springs, rest_lengths, alive = np.array([0], np.int32), np.array([rest]), np.array([True])
+    times, stretch = [], []
+    for step in range(int(round(t_end / dt))):
+        prev = x.copy()
+        x += v * dt
+        damp_overstretched(springs, rest_lengths, limit, c_n_s_per_m, dt, w, a, b, alive, prev, x)
+        limit_strain_compliant(springs, rest_lengths, limit, 1e-14, 1000, 1.0 / (k_limit * dt * dt), w, a, b, alive,
+                               np.zeros(1), x)
+        v = (x - prev) / dt
+        times.append((step + 1) * dt)
+        stretch.append(x[1, 0] - x[0, 0] - (1 + limit) * rest)
+    return np.array(times), np.array(stretch)
+
+
+@pytest.mark.parametrize("zeta", [0.0, 0.5, 1.0])
+def test_dashpot_past_the_limit_follows_the_damped_oscillator(zeta):
+    """While a spring is past its limit and lengthening, the compliant limit (k_limit) and the
+    dashpot (c) make it a damped oscillator in the stretch u: mu u'' = -k u - c u', mu = m/2 the
+    reduced mass, u(0) = 0, u'(0) = v0. The largest stretch and when it comes, against the
+    analytic solution (the dashpot acts only while lengthening, which is exactly up to that peak)."""
+    k, mass, v0 = 400.0, 5e-6, 0.5
+    mu = mass / 2
+    omega = math.sqrt(k / mu)
+    c = 2 * zeta * math.sqrt(k * mu)
+    t, u = _stretch_history(c, k_limit=k, mass=mass, v0=v0)
+    if zeta < 1.0:
+        wd = omega * math.sqrt(1 - zeta ** 2)
+        t_peak = math.atan2(wd, zeta * omega) / wd
+        u_peak = v0 / wd * math.exp(-zeta * omega * t_peak) * math.sin(wd * t_peak)
+    else:
+        t_peak = 1 / omega
+        u_peak = v0 * t_peak * math.exp(-1)
+    i = int(np.argmax(u))
+    assert abs(u[i] - u_peak) <= 0.01 * u_peak
+    assert abs(t[i] - t_peak) <= 0.01 * t_peak
+
+
+def test_dashpot_keeps_momentum_and_leaves_slack_springs_alone():
+    from fraytool.sim.kernels.strain_limit import damp_overstretched
+
+    rng = np.random.default_rng(4)
+    n, rest, limit = 8, 0.004, 0.1
+    x, w, a, b = _chain(n, rest, 1.0)
+    w[:] = rng.uniform(1e5, 3e5, n + 1)
+    prev = x + rng.normal(0.0, 1e-4, x.shape)
+    x[4:, 0] += 0.2 * rest  # spring 3 stretched 20 %: past the limit; the others at rest length
+    prev[4:, 0] += 0.19 * rest - 1e-4  # ... and lengthening in this step
+    springs, rest_lengths, alive = np.arange(n, dtype=np.int32), np.full(n, rest), np.ones(n, bool)
+    before = x.copy()
+    damp_overstretched(springs, rest_lengths, limit, 0.1, 2e-4, w, a, b, alive, prev, x)
+    moved = np.flatnonzero(np.abs(x - before).max(axis=1) > 0)
+    assert set(moved) == {3, 4}  # only the ends of the stretched spring
+    m = 1.0 / w
+    np.testing.assert_allclose((m[:, None] * (x - before)).sum(axis=0), 0.0, atol=1e-18)
+    assert x[4, 0] - x[3, 0] < before[4, 0] - before[3, 0]  # its stretching is slowed

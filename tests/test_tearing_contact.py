@@ -193,12 +193,58 @@ def test_a_pair_that_passed_through_is_pushed_back_to_its_side(cloth):
     n = model.crossing_count
     c = 2 * model.warp_yarns + 2
     tear.split(state, [c])
+    _squeeze(model, state, c, -0.5)  # the warp mass half a thickness on the weft's side
     x = state.particle_position_m
-    weft, warp = x[c].copy(), x[n + c].copy()
-    x[c], x[n + c] = warp, weft  # swapped: the weft now lies on the warp's side
     assert (x[c] - x[n + c]) @ weft_side(model, c) < 0
     tear.contact(state, x.copy(), 2e-4)
     assert (x[c] - x[n + c]) @ weft_side(model, c) > 0.9 * model.thickness_m
+
+
+@pytest.mark.parametrize("slide", [False, True])
+def test_a_pair_on_the_wrong_side_but_apart_is_not_thrown_through(slide):
+    # Further apart than T on the wrong side: not a pass-through within the step (a yarn moves far
+    # less than T per step) but a turned frame. The old push of T + |h| along the crossing normal
+    # was a jump of 3 T here, i.e. a speed of 3 T / dt. Inside the weave the pair is pulled to T
+    # apart where it is (the paper's n_s); at a free end it is left alone.
+    T = 0.0006
+    pa, qa = np.array([-0.002, 0.0, 0.0]), np.array([0.002, 0.0, 0.0])  # weft, meant to be on top
+    pb, qb = np.array([0.0, -0.002, 2 * T]), np.array([0.0, 0.002, 2 * T])  # warp 2 T above it
+    d, ta, tb, kpa, kqa, kpb, kqb, nx, ny, nz = crossing_pair_correction(pa, qa, pb, qb, 1.0, 1.0, 1.0, 1.0,
+                                                                         1.0, T, slide)
+    assert np.isclose(d, 2 * T)
+    n = np.array([nx, ny, nz])
+    new = [p + k * n for p, k in ((pa, kpa), (qa, kqa), (pb, kpb), (qb, kqb))]
+    if slide:
+        assert kpa == kqa == kpb == kqb == 0.0
+        return
+    ta2, tb2, d2 = closest_points_reference(*new)
+    assert abs(d2 - T) <= EXACT_RTOL * T
+    a = new[0] + ta2 * (new[1] - new[0])
+    b = new[2] + tb2 * (new[3] - new[2])
+    assert (a - b)[2] < 0  # still on the side it was: pulled together, not thrown through
+    assert max(abs(k) for k in (kpa, kqa, kpb, kqb)) <= 0.51 * T  # the old push moved each end 1.5 T
+
+
+def test_a_free_end_apart_from_the_other_yarn_is_left_alone(cloth):
+    # At a free yarn end the contact only pushes apart: a weft end lifted 2 T off its warp (within
+    # the disconnect distance) is not pulled back down; pressed to 0.5 T it is pushed back to T.
+    model, state, tear = cloth
+    n, T, W = model.crossing_count, model.thickness_m, model.warp_yarns
+    end = 2 * W + 4
+    tear.split(state, [end])
+    tear.cut(state, int(model.weft_structural_spring[2, 4]))  # weft 2 cut right of crossing (4, 2)
+    pairs = couple_pairs(model, state, end)
+    _squeeze(model, state, end, 2.0)
+    before = state.particle_position_m.copy()
+    tear.contact(state, before.copy(), 2e-4)
+    assert state.couple_connected[end]
+    x = state.particle_position_m
+    moved = np.abs(x[[end, n + end]] - before[[end, n + end]]).max()
+    assert moved == 0.0
+    _squeeze(model, state, end, 0.5)
+    assert min(pair_distance(x, *p) for p in pairs) < 0.6 * T
+    tear.contact(state, x.copy(), 2e-4)
+    assert min(pair_distance(x, *p) for p in pairs) > 0.95 * T
 
 
 def test_free_end_slides_in_plane_but_woven_crossing_holds(cloth):

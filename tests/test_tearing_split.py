@@ -388,3 +388,64 @@ def test_a_split_leaves_every_springs_strain_as_it_was(weave):
         moved = max(moved, np.abs(np.linalg.norm(x[state.spring_particle_b] - x[state.spring_particle_a], axis=1)
                                   - length_before)[kept].max())
     assert moved > 0.1 * model.thickness_m  # the masses did move: the lengths changed, the strains did not
+
+
+def test_settle_places_new_couples_outside_bodies_and_keeps_every_velocity():
+    # A ball touching the cloth from below at crossing (3, 2): the split puts the lower mass T/2
+    # below the cloth, inside the ball. settle() moves it out and brings the couple's pairs to about
+    # T apart, and moves the previous positions with the masses, so no velocity changes (pushed out
+    # by the next collision pass instead, the offset would become a velocity offset / dt).
+    # The ball wins over the contact where they disagree: the couple ends slightly open.
+    R, T = 0.01, 0.0006
+    c_pos = np.array([3 * 0.004, 0.0, 2 * 0.004])
+    ball = (f'\n[[bodies]]\nname = "ball"\nshape = "sphere"\nradius_m = {R}\n'
+            f'position_m = [{c_pos[0]}, {-R - 0.1 * T}, {c_pos[2]}]\n')
+    model, state, tear = make(attach=ball)
+    dt = 2e-4
+    crumple(model, state, seed=1, speed=0.3, dt=dt)  # velocities of order 0.3 m/s everywhere
+    c = cid(model, 3, 2)
+    state.particle_position_m[[c, model.crossing_count + c]] = c_pos  # flat at the crossing
+    prev = state.particle_position_m - dt * state.particle_velocity_m_s
+    tear.split(state, [c], prev)
+    n = model.crossing_count
+    x = state.particle_position_m
+    centre = np.array([c_pos[0], -R - 0.1 * T, c_pos[2]])
+    inside = [p for p in (c, n + c) if np.linalg.norm(x[p] - centre) < R + 0.5 * T]
+    assert inside  # the split put a mass inside the ball (margin T/2 included)
+    velocity = (x - prev) / dt
+    pairs = _pairs_of(model, state, c)
+    tear.settle(state, np.array([c]), prev)
+    for p in (c, n + c):
+        assert np.linalg.norm(x[p] - centre) >= R + 0.5 * T - 1e-12
+    np.testing.assert_allclose((x - prev) / dt, velocity, rtol=0, atol=1e-12)
+    off = max(abs(np.linalg.norm(np.subtract(*_closest(x, *pair))) - T) for pair in pairs)
+    assert off < 0.2 * T  # still woven: neither through each other nor apart
+
+
+def test_settle_brings_a_crumpled_couple_to_its_thickness_without_changing_velocities():
+    model, state, tear = make()
+    dt, T = 2e-4, model.thickness_m
+    prev = crumple(model, state, seed=2, speed=0.5, dt=dt)
+    c = cid(model, 3, 2)
+    tear.split(state, [c], prev)
+    x = state.particle_position_m
+    velocity = (x - prev) / dt
+    pairs = _pairs_of(model, state, c)
+    off_before = max(abs(np.linalg.norm(np.subtract(*_closest(x, *pair))) - T) for pair in pairs)
+    tear.settle(state, np.array([c]), prev)
+    off_after = max(abs(np.linalg.norm(np.subtract(*_closest(x, *pair))) - T) for pair in pairs)
+    assert off_before > 0.05 * T and off_after < 0.5 * off_before
+    np.testing.assert_allclose((x - prev) / dt, velocity, rtol=0, atol=1e-12)
+
+
+def _pairs_of(model, state, c):
+    A, B = state.spring_particle_a, state.spring_particle_b
+    weft = [s for s in model.crossing_weft_springs[c] if s >= 0 and state.spring_alive[s]]
+    warp = [s for s in model.crossing_warp_springs[c] if s >= 0 and state.spring_alive[s]]
+    return [(A[s], B[s], A[u], B[u]) for s in weft for u in warp]
+
+
+def _closest(x, a, b, p, q):
+    from tearing_reference import closest_points_reference
+    ta, tb, _ = closest_points_reference(x[a], x[b], x[p], x[q])
+    return x[a] + ta * (x[b] - x[a]), x[p] + tb * (x[q] - x[p])

@@ -140,9 +140,10 @@ def _assemble(values: dict, bodies_raw: list, att_raw: list, cut_raw: list, sour
     problems.extend("cloth.tearing", rules.tearing_problems(tear))
     table, weave_problems = rules.weave_table(c["weave"], c["twill"], c["satin_shafts"], c["table"])
     problems.extend("cloth", weave_problems)
+    strain = StrainSpec(**values["cloth.strain"])
+    problems.extend("cloth.strain", rules.strain_problems(strain))
     cloth = ClothSpec(**{k: v for k, v in c.items() if k != "table"}, weave_table=table,
-                      springs=SpringSpec(**values["cloth.springs"]), strain=StrainSpec(**values["cloth.strain"]),
-                      tearing=tear)
+                      springs=SpringSpec(**values["cloth.springs"]), strain=strain, tearing=tear)
     problems.extend("cloth", rules.cloth_problems(cloth.spacing_m, cloth.thickness_m))
 
     bodies = []

@@ -12,7 +12,8 @@ import re
 from typing import Any, Iterable, Optional
 
 from fraytool.scene import weave as weaves
-from fraytool.scene.spec import AttachmentSpec, BodySpec, CameraSpec, CutSpec, RenderSpec, TearingSpec
+from fraytool.scene.spec import (AttachmentSpec, BodySpec, CameraSpec, CutSpec, RenderSpec, StrainSpec,
+                                 TearingSpec)
 
 Problem = tuple[Optional[str], Any, str]
 """(key or None for the whole table, the value, what is allowed)."""
@@ -40,6 +41,14 @@ def cloth_problems(spacing_m: float, thickness_m: float) -> list[Problem]:
     """[cloth]: the two masses of a couple must fit between neighbouring yarns."""
     if thickness_m >= spacing_m:
         return [("thickness_m", thickness_m, f"must be below spacing_m = {spacing_m:g} (yarns would overlap)")]
+    return []
+
+
+def strain_problems(s: StrainSpec) -> list[Problem]:
+    """[cloth.strain]: the dashpot past the limit belongs to the compliant limit."""
+    if s.damping_ratio > 0.0 and s.stiffness_n_per_m == 0.0:
+        return [("damping_ratio", s.damping_ratio,
+                 "needs stiffness_n_per_m > 0 (a hard limit leaves no stretch past it to damp)")]
     return []
 
 

@@ -68,6 +68,11 @@ class StrainSpec:
                                    doc="stiffness of a yarn spring past the limit [N/m]: 0 holds the limit hard "
                                        "(the paper's projection); > 0 makes it a compliant constraint (XPBD) "
                                        "that converges where the limit cannot be met (docs/tearing.md)")
+    damping_ratio: float = key("float", 0.0, lo=0, hi=100,
+                               doc="damping ratio of a yarn spring past the limit: a dashpot 2 x ratio x "
+                                   "sqrt(stiffness_n_per_m x mass_per_crossing_kg) [N s/m] resists its "
+                                   "stretching while it is past the limit; 0: none; needs stiffness_n_per_m > 0 "
+                                   "(docs/tearing.md)")
 
 
 @dataclass(frozen=True, kw_only=True)

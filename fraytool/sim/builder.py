@@ -225,9 +225,12 @@ class ModelBuilder:
     def set_strain_limit(self, *, limit: float = _STRAIN["limit"].default,
                          max_iterations: int = _STRAIN["max_iterations"].default,
                          tolerance: float = _STRAIN["tolerance"].default,
-                         stiffness_n_per_m: float = _STRAIN["stiffness_n_per_m"].default) -> None:
+                         stiffness_n_per_m: float = _STRAIN["stiffness_n_per_m"].default,
+                         damping_ratio: float = _STRAIN["damping_ratio"].default) -> None:
         """Strain limiting of structural springs (docs/method.md §4.1), as [cloth.strain]."""
-        self.strain = StrainSpec(**self._check("set_strain_limit", _STRAIN, _given(locals())))
+        strain = StrainSpec(**self._check("set_strain_limit", _STRAIN, _given(locals())))
+        self._raise("set_strain_limit", rules.strain_problems(strain))
+        self.strain = strain
 
     @_keys_doc("cloth.tearing")
     def set_tearing(self, *, enabled: bool = True, yarn_level: bool = _TEARING["yarn_level"].default,
@@ -496,6 +499,8 @@ class ModelBuilder:
             strain_max_iterations=strain.max_iterations,
             strain_tolerance=strain.tolerance,
             strain_stiffness_n_per_m=strain.stiffness_n_per_m,
+            strain_damping_n_s_per_m=2.0 * strain.damping_ratio * math.sqrt(strain.stiffness_n_per_m
+                                                                            * c.mass_per_crossing_kg),
             damping=c.springs.damping,
             tearing=t.enabled,
             yarn_level=t.enabled and t.yarn_level,

@@ -110,6 +110,8 @@ class Model:
     strain_tolerance: float
     strain_stiffness_n_per_m: float
     """Stiffness of a structural spring past the strain limit [N/m]; 0: the limit is hard."""
+    strain_damping_n_s_per_m: float
+    """Dashpot of a structural spring stretching past the strain limit [N s/m]; 0: none."""
     damping: float
     """PBD damping coefficient k_damping per step, in [0, 1]."""
     tearing: bool

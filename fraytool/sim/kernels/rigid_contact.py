@@ -117,3 +117,33 @@ def collide_rigid(
                 body_impulse_out[k, 1] += m * (x[1] - x1)
                 body_impulse_out[k, 2] += m * (x[2] - x2)
     return contacts
+
+
+@nb.njit(cache=True, fastmath=False)
+def place_outside_bodies(
+    # model
+    body_shape, body_rotation, body_radius_m, body_half_extents_m, body_normal, body_collide, margin_m,
+    # state in
+    body_position_m, particles, particle_inv_mass,
+    # state in/out
+    particle_position_m,
+):
+    """Move each free particle of `particles` that lies inside a colliding body out along the surface
+    normal, without friction and without a reaction on the body: a placement, not a collision (the
+    caller keeps velocities by moving the previous positions with it). Used for masses a split puts
+    inside a body (docs/tearing.md, "Transition")."""
+    for i in range(particles.shape[0]):
+        p = particles[i]
+        if particle_inv_mass[p] == 0.0:
+            continue
+        for k in range(body_shape.shape[0]):
+            if not body_collide[k]:
+                continue
+            x = particle_position_m[p]
+            d, nx, ny, nz = surface_contact(body_shape[k], body_position_m[k], body_rotation[k], body_radius_m[k],
+                                            body_half_extents_m[k], body_normal[k], x, margin_m)
+            if d >= 0.0:
+                continue
+            x[0] -= d * nx
+            x[1] -= d * ny
+            x[2] -= d * nz

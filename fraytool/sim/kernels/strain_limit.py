@@ -140,3 +140,62 @@ def limit_strain_compliant(
         if worst <= tolerance:
             return it + 1, True
     return max_iterations, max_iterations == 0
+
+
+@nb.njit(cache=True, fastmath=False)
+def damp_overstretched(
+    # model
+    limited_springs, spring_rest_length_m, strain_limit, damping_n_s_per_m, dt_s,
+    # state in
+    particle_inv_mass, spring_particle_a, spring_particle_b, spring_alive, prev_position_m,
+    # state in/out
+    particle_position_m,
+):
+    """A dashpot of `damping_n_s_per_m` along every live spring in `limited_springs` that is past
+    (1 + strain_limit) x rest length and lengthening in this step, integrated implicitly (backward
+    Euler, so stable at any step): the rate of stretch v = u . ((x_b - x_a) - (x'_b - x'_a)) / dt,
+    x' the previous positions, u the unit direction, falls to v / (1 + g) with g = c dt (w_a + w_b),
+    the two ends moving in proportion to their inverse masses (momentum kept). One pass in the
+    given order.
+
+    Why (docs/tearing.md "Strain limiting"): past the limit the compliant constraint is a stiff
+    spring (10x structural in the figure scenes) whose period the figure scenes' step does not
+    resolve, so at their step it acts as a hard, inelastic stop and at a sixteenth of it as a
+    spring that rings; damped near critically it behaves the same at both. Physically: yarn
+    stretched past its elastic range dissipates (fibres slip inside the yarn). Returns nothing."""
+    stretch = 1.0 + strain_limit
+    for k in range(limited_springs.shape[0]):
+        s = limited_springs[k]
+        if not spring_alive[s]:
+            continue
+        a = spring_particle_a[s]
+        b = spring_particle_b[s]
+        dx = particle_position_m[b, 0] - particle_position_m[a, 0]
+        dy = particle_position_m[b, 1] - particle_position_m[a, 1]
+        dz = particle_position_m[b, 2] - particle_position_m[a, 2]
+        d2 = dx * dx + dy * dy + dz * dz
+        max_length = stretch * spring_rest_length_m[s]
+        if d2 <= max_length * max_length:
+            continue
+        w_a = particle_inv_mass[a]
+        w_b = particle_inv_mass[b]
+        w = w_a + w_b
+        if w == 0.0:
+            continue
+        length = math.sqrt(d2)
+        ux = dx / length
+        uy = dy / length
+        uz = dz / length
+        stretched = ((dx - (prev_position_m[b, 0] - prev_position_m[a, 0])) * ux
+                     + (dy - (prev_position_m[b, 1] - prev_position_m[a, 1])) * uy
+                     + (dz - (prev_position_m[b, 2] - prev_position_m[a, 2])) * uz)  # v dt
+        if stretched <= 0.0:
+            continue
+        g = damping_n_s_per_m * dt_s * w
+        f = stretched * g / (1.0 + g) / w  # the impulse along u, times dt / m-weights
+        particle_position_m[a, 0] += w_a * f * ux
+        particle_position_m[a, 1] += w_a * f * uy
+        particle_position_m[a, 2] += w_a * f * uz
+        particle_position_m[b, 0] -= w_b * f * ux
+        particle_position_m[b, 1] -= w_b * f * uy
+        particle_position_m[b, 2] -= w_b * f * uz

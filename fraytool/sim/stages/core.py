@@ -18,7 +18,7 @@ from fraytool.sim.kernels.integrate import (
 )
 from fraytool.sim.kernels.pieces import label_pieces
 from fraytool.sim.kernels.rigid_contact import collide_rigid
-from fraytool.sim.kernels.strain_limit import limit_strain, limit_strain_compliant
+from fraytool.sim.kernels.strain_limit import damp_overstretched, limit_strain, limit_strain_compliant
 from fraytool.sim.model import Model
 from fraytool.sim.rigid import advance_bodies, apply_cloth_impulse
 from fraytool.sim.stages.base import StepBuffers
@@ -146,7 +146,9 @@ class StrainLimiting(_NoSummary):
     a mass, so a sweep is order-independent inside each group and has no spatial sweep direction.
     With [cloth.strain] stiffness_n_per_m > 0 the limit is a compliant constraint (XPBD,
     `limit_strain_compliant`): where it cannot be met the yarn stretches by a definite amount, so the
-    sweeps converge instead of stopping at the cap with a residual that depends on the step."""
+    sweeps converge instead of stopping at the cap with a residual that depends on the step. With
+    [cloth.strain] damping_ratio > 0 a dashpot first resists the stretching of springs past the limit
+    (`damp_overstretched`)."""
 
     name = "strain_limiting"
     kernel = "limit_strain"
@@ -162,6 +164,11 @@ class StrainLimiting(_NoSummary):
 
     def run(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
         m = self.model
+        if m.strain_damping_n_s_per_m > 0.0:
+            damp_overstretched(self.limited_springs, state.spring_rest_length_m, m.strain_limit,
+                               m.strain_damping_n_s_per_m, dt_s, state.particle_inv_mass, state.spring_particle_a,
+                               state.spring_particle_b, state.spring_alive, buffers.prev_position_m,
+                               state.particle_position_m)
         if m.strain_stiffness_n_per_m > 0.0:
             it, converged = limit_strain_compliant(
                 self.limited_springs, state.spring_rest_length_m, m.strain_limit, m.strain_tolerance,

@@ -19,21 +19,27 @@ after which r.e = T exactly at (t_a, t_b) (w = inverse masses; a held mass does 
 paper's plain form dp_a = (1 - t_a)(d - T) n_s ... moves the closest points by (d - T) times the sum
 of the squared weights, which is 2 at the couple's own masses (t = 0 or 1): it overshoots there.
 
-Direction e, two cases (docs/tearing.md "Contact"):
-- Inside the weave, e = r / d, the paper's n_s: |a - b| -> T for all 4 pairs. A pair whose closest
-  points are not over each other (a yarn that slid along the other) is pulled back in the plane
-  too, so a woven crossing holds its yarns together like the interlacing (and its friction) of
-  real cloth does.
-- At a free yarn end, e = s nu with nu = (q_a - p_a) x (q_b - p_b) / |...| (along the cloth normal
-  n_c: weft direction x warp direction) and s = +1 where the weft is on top: only the separation
-  across the cloth is kept at T, sliding in the cloth plane is free. A couple is at a free end when
-  its weft or warp mass has fewer than 2 live structural springs (a cut or the cloth border) or a
-  neighbouring crossing along its weft or warp is a disconnected couple. This is what lets a cut
-  yarn slip out of the weave crossing by crossing, i.e. fray; with n_s there too the end would stay
-  hooked on its last crossing for good (the pull-back is exact every step).
-- A pair that has passed through (s (r . nu) <= 0) or touches (d = 0) is always corrected along
-  s nu, back to its own side. Nearly parallel springs (|sin| < 1e-2) have no nu; such a pair is
-  corrected along n_s inside the weave and skipped at a free end.
+Cases (docs/tearing.md "Contact"), with nu = (q_a - p_a) x (q_b - p_b) / |...| the pair's crossing
+normal (along the cloth normal n_c: weft direction x warp direction), s = +1 where the weft is on top
+and h = s (r . nu) the signed separation across the cloth:
+- Inside the weave, e = r / d, the paper's n_s: |a - b| -> T for all 4 pairs, closer or further. A
+  pair whose closest points are not over each other (a yarn that slid along the other) is pulled
+  back in the plane too, so a woven crossing holds its yarns together like the interlacing (and
+  its friction) of real cloth does.
+- At a free yarn end the contact is one-sided: a pair closer than T is pushed apart along n_s, a
+  pair further apart is left alone, free to slide in the plane and to lift off. A couple is at a
+  free end when its weft or warp mass has fewer than 2 live structural springs (a cut or the cloth
+  border) or a neighbouring crossing along its weft or warp is a disconnected couple. This is what
+  lets a cut yarn slip out of the weave crossing by crossing, i.e. fray. (Kept at T both ways, as
+  before, the end stayed hooked on its last crossing, and its pull along a normal that turns with
+  the free end jerked the yarn back every step: see the next case.)
+- A pair that touches (d = 0), or has passed through (h <= 0) while still closer than T, is
+  corrected along s nu, back to its own side. A pair on the wrong side but further apart than T
+  has not passed through in this step (a step moves a yarn far less than T): its springs' frame
+  has turned (a sheared or folded crossing). A push of T + |h| there is a jump, which the velocity
+  update turns into a speed (T + |h|) / dt: energy from nothing, growing as the step shrinks (it
+  made the yarn-level region boil at a quarter of the figure scenes' step). Nearly parallel
+  springs (|sin| < 1e-2) have no nu and count as on their side.
 
 Disconnection. The weft-warp distance of a couple is the smallest d over its pairs, taken before
 this step's projection. When it exceeds model.disconnect_distance_m (disconnect_factor x T), or
@@ -92,15 +98,19 @@ def crossing_pair_correction(pa, qa, pb, qb, w_pa, w_qa, w_pb, w_qb, side, thick
         h = side * (rx * nx + ry * ny + rz * nz)  # signed separation, weft side positive
     else:
         h = d  # (nearly) parallel springs: no crossing normal, no side to keep
-    if slide or h <= 0.0 or d < 1e-15:
-        # Along the crossing normal: free in-plane sliding; also the way back for a pair that has
-        # passed through (h < 0) or touches (d = 0).
+    if d < 1e-15 or (h <= 0.0 and d < thickness_m):
+        # Touching (d = 0), or passed through while still within T: back to its own side along the
+        # crossing normal.
         if not crossing:
             return d, ta, tb, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0  # nothing defines a direction
         lam = (h - thickness_m) / denom
         sx, sy, sz = side * nx, side * ny, side * nz  # from the warp towards the weft
+    elif slide and d >= thickness_m:
+        # A free yarn end apart from the other yarn: free to slide off and to lift off.
+        return d, ta, tb, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     else:
-        # Along the closest-point direction (the paper's n_s, from b to a here): |a - b| -> T.
+        # Along the closest-point direction (the paper's n_s, from b to a here): |a - b| -> T; at a
+        # free end only when closer than T.
         lam = (d - thickness_m) / denom
         sx, sy, sz = rx / d, ry / d, rz / d
     return d, ta, tb, -lam * w_pa * ga, -lam * w_qa * ta, lam * w_pb * gb, lam * w_qb * tb, sx, sy, sz
