@@ -105,7 +105,10 @@ def project_couples_reference(model: Model, st: dict, couples) -> dict:
                 crossing = np.linalg.norm(nu) > 1e-2 * np.linalg.norm(x[ends[1]] - x[ends[0]]) * np.linalg.norm(
                     x[ends[3]] - x[ends[2]])
                 h = side * (r @ nu) / np.linalg.norm(nu) if crossing else d
-                if d < 1e-15 or (h <= 0 and d < T):
+                p0 = [st["prev_position_m"][e] for e in ends]
+                r0 = (1 - ta) * p0[0] + ta * p0[1] - ((1 - tb) * p0[2] + tb * p0[3])
+                passed = crossing and h <= 0 and d < T and side * (r0 @ nu) > 0
+                if d < 1e-15 or passed:
                     if not crossing:
                         continue
                     e = side * nu / np.linalg.norm(nu)

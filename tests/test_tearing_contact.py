@@ -67,8 +67,8 @@ def test_pair_closer_than_T_ends_exactly_T_apart(slide):
     # weft spring along x above a warp spring along y, crossing at their middles, 0.3 T apart
     pa, qa = np.array([-0.002, 0.0, 0.0003]), np.array([0.002, 0.0, 0.0003])
     pb, qb = np.array([0.0, -0.002, 0.0003 - 0.3 * T]), np.array([0.0, 0.002, 0.0003 - 0.3 * T])
-    d, ta, tb, kpa, kqa, kpb, kqb, nx, ny, nz = crossing_pair_correction(pa, qa, pb, qb, 1.0, 1.0, 1.0, 1.0,
-                                                                         1.0, T, slide)
+    d, ta, tb, kpa, kqa, kpb, kqb, nx, ny, nz = crossing_pair_correction(pa, qa, pb, qb, pa, qa, pb, qb,
+                                                                         1.0, 1.0, 1.0, 1.0, 1.0, T, slide)
     assert np.isclose(d, 0.3 * T) and ta == tb == 0.5
     n = np.array([nx, ny, nz])
     new = [p + k * n for p, k in ((pa, kpa), (qa, kqa), (pb, kpb), (qb, kqb))]
@@ -85,7 +85,7 @@ def test_pair_projection_is_exact_and_mass_weighted_at_any_parameters():
         w = rng.uniform(0.0, 2.0, 4)
         w[rng.integers(4)] = 0.0  # a held end never moves
         for slide in (False, True):
-            d, ta, tb, *k, nx, ny, nz = crossing_pair_correction(pa, qa, pb, qb, *w, -1.0, T, slide)
+            d, ta, tb, *k, nx, ny, nz = crossing_pair_correction(pa, qa, pb, qb, pa, qa, pb, qb, *w, -1.0, T, slide)
             rta, rtb, rd = closest_points_reference(pa, qa, pb, qb)
             assert np.isclose(d, rd, rtol=1e-12) and np.allclose([ta, tb], [rta, rtb], atol=1e-9)
             n = np.array([nx, ny, nz])
@@ -193,11 +193,27 @@ def test_a_pair_that_passed_through_is_pushed_back_to_its_side(cloth):
     n = model.crossing_count
     c = 2 * model.warp_yarns + 2
     tear.split(state, [c])
-    _squeeze(model, state, c, -0.5)  # the warp mass half a thickness on the weft's side
+    prev = state.particle_position_m.copy()  # on its side at the start of the step
+    _squeeze(model, state, c, -0.5)  # ... and now the warp mass half a thickness on the weft's side
     x = state.particle_position_m
     assert (x[c] - x[n + c]) @ weft_side(model, c) < 0
-    tear.contact(state, x.copy(), 2e-4)
+    tear.contact(state, prev, 2e-4)
     assert (x[c] - x[n + c]) @ weft_side(model, c) > 0.9 * model.thickness_m
+
+
+def test_a_pair_already_on_the_wrong_side_is_not_thrown_through(cloth):
+    # Through the kernel: on the wrong side at the start of the step as well (a frame that turned,
+    # or an old pass-through): pushed apart to T where it is, never thrown through by T + |h|.
+    model, state, tear = cloth
+    n, T = model.crossing_count, model.thickness_m
+    c = 2 * model.warp_yarns + 2
+    tear.split(state, [c])
+    _squeeze(model, state, c, -0.5)
+    x = state.particle_position_m
+    before = x.copy()
+    tear.contact(state, x.copy(), 2e-4)
+    assert (x[c] - x[n + c]) @ weft_side(model, c) < 0
+    assert np.abs(x - before).max() < 0.5 * T
 
 
 @pytest.mark.parametrize("slide", [False, True])
@@ -209,8 +225,8 @@ def test_a_pair_on_the_wrong_side_but_apart_is_not_thrown_through(slide):
     T = 0.0006
     pa, qa = np.array([-0.002, 0.0, 0.0]), np.array([0.002, 0.0, 0.0])  # weft, meant to be on top
     pb, qb = np.array([0.0, -0.002, 2 * T]), np.array([0.0, 0.002, 2 * T])  # warp 2 T above it
-    d, ta, tb, kpa, kqa, kpb, kqb, nx, ny, nz = crossing_pair_correction(pa, qa, pb, qb, 1.0, 1.0, 1.0, 1.0,
-                                                                         1.0, T, slide)
+    d, ta, tb, kpa, kqa, kpb, kqb, nx, ny, nz = crossing_pair_correction(pa, qa, pb, qb, pa, qa, pb, qb,
+                                                                         1.0, 1.0, 1.0, 1.0, 1.0, T, slide)
     assert np.isclose(d, 2 * T)
     n = np.array([nx, ny, nz])
     new = [p + k * n for p, k in ((pa, kpa), (qa, kqa), (pb, kpb), (qb, kqb))]
@@ -280,8 +296,9 @@ def test_projection_matches_numpy_reference(cloth, seed):
         state.particle_position_m[n + c] += 2.0 * model.spacing_m * rng.normal(size=3)
     tear._rebuild(state)
     couples = tear.connected_couples
-    ref = project_couples_reference(model, state_dict(state), couples)
-    tear.contact(state, state.particle_position_m.copy(), 2e-4)
+    prev = state.particle_position_m + rng.normal(0.0, 0.3 * model.thickness_m, state.particle_position_m.shape)
+    ref = project_couples_reference(model, state_dict(state, prev), couples)
+    tear.contact(state, prev, 2e-4)
     got = state_dict(state)
     assert_named_close(ref, got, ["couple_connected", "spring_alive"])
     assert_named_close(ref, got, ["particle_position_m"], atol=REF_ATOL)

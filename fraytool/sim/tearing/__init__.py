@@ -95,7 +95,7 @@ class YarnTearing:
             return
         particles, crossings, springs = state_groups(state)
         self._couple_count = project_couples(self.model_in, particles, crossings, springs, self._couples,
-                                             self._couple_count)
+                                             self._couple_count, prev_position_m)
 
     # -- stage 7 -----------------------------------------------------------------------------
     def __call__(self, state: State, prev_position_m: np.ndarray, dt_s: float) -> None:
@@ -154,7 +154,8 @@ class YarnTearing:
         start = x.copy()
         bodies = bool(m.body_collide.any())
         for _ in range(SETTLE_PASSES):
-            project_couples(self.model_in, particles, crossing_flags, springs, crossings.copy(), crossings.size)
+            project_couples(self.model_in, particles, crossing_flags, springs, crossings.copy(), crossings.size,
+                            prev_position_m)
             if bodies:
                 place_outside_bodies(m.body_shape, m.body_rotation, m.body_radius_m, m.body_half_extents_m,
                                      m.body_normal, m.body_collide, 0.5 * m.thickness_m, state.body_position_m,

@@ -33,13 +33,15 @@ and h = s (r . nu) the signed separation across the cloth:
   lets a cut yarn slip out of the weave crossing by crossing, i.e. fray. (Kept at T both ways, as
   before, the end stayed hooked on its last crossing, and its pull along a normal that turns with
   the free end jerked the yarn back every step: see the next case.)
-- A pair that touches (d = 0), or has passed through (h <= 0) while still closer than T, is
-  corrected along s nu, back to its own side. A pair on the wrong side but further apart than T
-  has not passed through in this step (a step moves a yarn far less than T): its springs' frame
-  has turned (a sheared or folded crossing). A push of T + |h| there is a jump, which the velocity
-  update turns into a speed (T + |h|) / dt: energy from nothing, growing as the step shrinks (it
-  made the yarn-level region boil at a quarter of the figure scenes' step). Nearly parallel
-  springs (|sin| < 1e-2) have no nu and count as on their side.
+- A pair that touches (d = 0), or has passed through in this step (h <= 0 now, h > 0 at the start
+  of the step, both along today's nu at today's closest-point parameters) and is still closer
+  than T, is corrected along s nu, back to its own side. A pair that was on the wrong side
+  already, or is further apart than T, counts as on the side it is (the cases above): its springs'
+  frame has turned (a sheared or folded crossing; nu flips as two springs turn through parallel),
+  or it passed through long ago. A push of T + |h| there is a jump, which the velocity update turns
+  into a speed (T + |h|) / dt: energy from nothing, growing as the step shrinks (measured: it made
+  the yarn-level region boil at a quarter of the figure scenes' step, and fig5 at a sixteenth).
+  Nearly parallel springs (|sin| < 1e-2) have no nu and count as on their side.
 
 Disconnection. The weft-warp distance of a couple is the smallest d over its pairs, taken before
 this step's projection. When it exceeds model.disconnect_distance_m (disconnect_factor x T), or
@@ -64,10 +66,13 @@ SIN_PARALLEL = 1e-2
 
 
 @nb.njit(cache=True, fastmath=False)
-def crossing_pair_correction(pa, qa, pb, qb, w_pa, w_qa, w_pb, w_qb, side, thickness_m, slide):
+def crossing_pair_correction(pa, qa, pb, qb, pa0, qa0, pb0, qb0, w_pa, w_qa, w_pb, w_qb, side, thickness_m,
+                             slide):
     """The contact correction of one weft/warp spring pair (module docstring), as a pure function.
 
-    pa, qa: weft spring ends; pb, qb: warp spring ends (3-vectors); w_*: inverse masses;
+    pa, qa: weft spring ends; pb, qb: warp spring ends (3-vectors); pa0 ... qb0: the same ends at the
+    start of the step (to tell a pass-through in this step from a pair that was already on the
+    wrong side); w_*: inverse masses;
     side = +1.0 where the weft is on top, -1.0 otherwise; slide: correct along the crossing normal
     only (a couple at a free yarn end) instead of along the closest-point direction.
     Returns (d, t_a, t_b, k_pa, k_qa, k_pb, k_qb, n_x, n_y, n_z): closest distance, closest-point
@@ -98,9 +103,16 @@ def crossing_pair_correction(pa, qa, pb, qb, w_pa, w_qa, w_pb, w_qb, side, thick
         h = side * (rx * nx + ry * ny + rz * nz)  # signed separation, weft side positive
     else:
         h = d  # (nearly) parallel springs: no crossing normal, no side to keep
-    if d < 1e-15 or (h <= 0.0 and d < thickness_m):
-        # Touching (d = 0), or passed through while still within T: back to its own side along the
-        # crossing normal.
+    passed = False
+    if crossing and h <= 0.0 and d < thickness_m:
+        # on its side at the start of the step, along today's normal, at the same parameters?
+        h0 = side * (((ga * pa0[0] + ta * qa0[0]) - (gb * pb0[0] + tb * qb0[0])) * nx
+                     + ((ga * pa0[1] + ta * qa0[1]) - (gb * pb0[1] + tb * qb0[1])) * ny
+                     + ((ga * pa0[2] + ta * qa0[2]) - (gb * pb0[2] + tb * qb0[2])) * nz)
+        passed = h0 > 0.0
+    if d < 1e-15 or passed:
+        # Touching (d = 0), or passed through in this step and still within T: back to its own side
+        # along the crossing normal.
         if not crossing:
             return d, ta, tb, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0  # nothing defines a direction
         lam = (h - thickness_m) / denom
@@ -146,11 +158,13 @@ def disconnect_couple(c, model_in, crossings_inout, springs_inout):
 
 
 @nb.njit(cache=True, fastmath=False)
-def project_couples(model_in, particles_inout, crossings_inout, springs_inout, couple_list_inout, couple_count):
+def project_couples(model_in, particles_inout, crossings_inout, springs_inout, couple_list_inout, couple_count,
+                    prev_position_m):
     """Project the contact of every couple in couple_list_inout[:couple_count] (module docstring).
     Couples that disconnect are flagged in couple_connected (their shear copies cut) and dropped
     from the list, which is compacted in place (order kept). Returns the new couple_count.
-    Writes particle_position_m, couple_connected and spring_alive (reads the other State arrays)."""
+    Writes particle_position_m, couple_connected and spring_alive (reads the other State arrays and
+    prev_position_m, the positions at the start of the step)."""
     thickness_m, disconnect_distance_m = model_in.thickness_m, model_in.disconnect_distance_m
     crossing_weft_on_top = model_in.crossing_weft_on_top
     crossing_weft_springs, crossing_warp_springs = model_in.crossing_weft_springs, model_in.crossing_warp_springs
@@ -211,7 +225,8 @@ def project_couples(model_in, particles_inout, crossings_inout, springs_inout, c
                 pa, qa = spring_particle_a[sa], spring_particle_b[sa]
                 pb, qb = spring_particle_a[sb], spring_particle_b[sb]
                 d, ta, tb, kpa, kqa, kpb, kqb, nx, ny, nz = crossing_pair_correction(
-                    x[pa], x[qa], x[pb], x[qb], particle_inv_mass[pa], particle_inv_mass[qa],
+                    x[pa], x[qa], x[pb], x[qb], prev_position_m[pa], prev_position_m[qa], prev_position_m[pb],
+                    prev_position_m[qb], particle_inv_mass[pa], particle_inv_mass[qa],
                     particle_inv_mass[pb], particle_inv_mass[qb], side, thickness_m, slide)
                 x[pa, 0] += kpa * nx
                 x[pa, 1] += kpa * ny
