@@ -304,3 +304,19 @@ def test_projection_matches_numpy_reference(cloth, seed):
     assert_named_close(ref, got, ["particle_position_m"], atol=REF_ATOL)
     assert 0 < state.couple_connected.sum() < n  # both branches were exercised
     assert topology_problems(model, state) == []
+
+
+def test_settle_guard_finds_a_segment_carried_through_another():
+    from fraytool.sim.tearing.contact import settle_crosses_yarns
+
+    # segment 0: particles 0-1 along x at z = 0; segment 1: particles 2-3 along y, 0.2 mm above
+    x0 = np.array([[-0.002, 0.0, 0.0], [0.002, 0.0, 0.0], [0.0, -0.002, 0.0002], [0.0, 0.002, 0.0002]])
+    a, b = np.array([0, 2]), np.array([1, 3])
+    segments = np.array([0, 1])
+    through = x0.copy()
+    through[2:, 2] -= 0.0004  # carried 0.2 mm below: through segment 0
+    beside = x0.copy()
+    beside[2:, 2] += 0.0004  # lifted: never meets it
+    assert settle_crosses_yarns(x0, through, a, b, segments)
+    assert not settle_crosses_yarns(x0, beside, a, b, segments)
+    assert not settle_crosses_yarns(x0, x0.copy(), a, b, segments)

@@ -23,7 +23,7 @@ from fraytool.sim.kernels.rigid_contact import place_outside_bodies
 from fraytool.sim.model import Model
 from fraytool.kinds import STRUCT_WARP, STRUCT_WEFT
 from fraytool.sim.state import State
-from fraytool.sim.tearing.contact import disconnect_couple, project_couples
+from fraytool.sim.tearing.contact import disconnect_couple, project_couples, settle_crosses_yarns
 from fraytool.sim.tearing.cut import cut_overstrained, cut_structural
 from fraytool.sim.tearing.yarn_runs import free_yarn_runs, yarn_fragments
 from fraytool.sim.tearing.fray import fray_lengths, fray_summary
@@ -68,6 +68,9 @@ class YarnTearing:
         """Crossings split in the last step."""
         self.cuts_last = 0
         """Springs (of any kind) cut in the last step."""
+        self._yarn_segments = np.flatnonzero((model.spring_kind == STRUCT_WEFT) | (model.spring_kind == STRUCT_WARP))
+        self.settle_reverts = 0
+        """Settles undone because they would have carried a yarn segment through another."""
 
     # -- couple list -------------------------------------------------------------------------
     def _rebuild(self, state: State) -> None:
@@ -143,7 +146,11 @@ class YarnTearing:
         (crimp) and a mass next to a ball may lie inside it. Corrected by the next step's contact or
         collision pass instead, that offset (up to T/2) would become a velocity offset / dt: energy
         from nothing, growing as the step shrinks (it doubled the torn region at a sixteenth of the
-        figure scenes' step)."""
+        figure scenes' step).
+
+        This runs after the step's self-collision pass, so a settle that would carry a yarn segment
+        through another (exact edge-edge CCD over the moved segments, `settle_crosses_yarns`) is
+        undone as a whole and left to the next step's contact (counted in settle_reverts)."""
         if len(crossings) == 0:
             return
         crossings = np.asarray(crossings, np.int32)
@@ -160,6 +167,11 @@ class YarnTearing:
                 place_outside_bodies(m.body_shape, m.body_rotation, m.body_radius_m, m.body_half_extents_m,
                                      m.body_normal, m.body_collide, 0.5 * m.thickness_m, state.body_position_m,
                                      slots, state.particle_inv_mass, x)
+        if settle_crosses_yarns(start, x, state.spring_particle_a, state.spring_particle_b,
+                                self._yarn_segments[state.spring_alive[self._yarn_segments]]):
+            x[:] = start  # rare: left to the next step's contact rather than through another yarn
+            self.settle_reverts += 1
+            return
         prev_position_m += x - start
 
     def transition(self, state: State, spring: int, prev_position_m: Optional[np.ndarray] = None) -> int:

@@ -243,3 +243,34 @@ def project_couples(model_in, particles_inout, crossings_inout, springs_inout, c
         couple_list_inout[kept] = c
         kept += 1
     return kept
+
+
+def settle_crosses_yarns(x_start: np.ndarray, x_end: np.ndarray, spring_particle_a: np.ndarray,
+                         spring_particle_b: np.ndarray, segments: np.ndarray) -> bool:
+    """Would moving the particles from x_start to x_end (linearly) carry one of `segments` (yarn
+    springs) through another? Only segments with a moved end are tested, against every segment
+    whose box meets their swept box, with the exact edge-edge CCD (fraytool.collision.ccd, centre
+    lines, thickness 0); pairs sharing an end are skipped. For YarnTearing.settle, which moves
+    masses after this step's self-collision pass and so must not undo what that pass ensured."""
+    from fraytool.collision.ccd import edge_edge_ccd_many
+
+    a, b = spring_particle_a[segments], spring_particle_b[segments]
+    moved_particle = np.any(x_start != x_end, axis=1)
+    moving = moved_particle[a] | moved_particle[b]
+    if not moving.any():
+        return False
+    lo = np.minimum(np.minimum(x_start[a], x_start[b]), np.minimum(x_end[a], x_end[b]))
+    hi = np.maximum(np.maximum(x_start[a], x_start[b]), np.maximum(x_end[a], x_end[b]))
+    k = np.flatnonzero(moving)
+    meet = np.all((lo[k, None, :] <= hi[None, :, :]) & (lo[None, :, :] <= hi[k, None, :]), axis=2)
+    i, j = np.nonzero(meet)
+    i = k[i]
+    share = (a[i] == a[j]) | (a[i] == b[j]) | (b[i] == a[j]) | (b[i] == b[j])
+    keep = ~share & ((i < j) | ~moving[j])  # each moving pair once
+    i, j = i[keep], j[keep]
+    if not len(i):
+        return False
+    start = np.stack([x_start[a[i]], x_start[b[i]], x_start[a[j]], x_start[b[j]]], axis=1)
+    end = np.stack([x_end[a[i]], x_end[b[i]], x_end[a[j]], x_end[b[j]]], axis=1)
+    hit, _ = edge_edge_ccd_many(start, end, 0.0)
+    return bool(np.any(hit))
