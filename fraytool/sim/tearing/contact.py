@@ -259,12 +259,19 @@ def settle_crosses_yarns(x_start: np.ndarray, x_end: np.ndarray, spring_particle
     moving = moved_particle[a] | moved_particle[b]
     if not moving.any():
         return False
-    lo = np.minimum(np.minimum(x_start[a], x_start[b]), np.minimum(x_end[a], x_end[b]))
-    hi = np.maximum(np.maximum(x_start[a], x_start[b]), np.maximum(x_end[a], x_end[b]))
     k = np.flatnonzero(moving)
-    meet = np.all((lo[k, None, :] <= hi[None, :, :]) & (lo[None, :, :] <= hi[k, None, :]), axis=2)
+    lo_k = np.minimum(np.minimum(x_start[a[k]], x_start[b[k]]), np.minimum(x_end[a[k]], x_end[b[k]]))
+    hi_k = np.maximum(np.maximum(x_start[a[k]], x_start[b[k]]), np.maximum(x_end[a[k]], x_end[b[k]]))
+    # segments whose end-of-move box meets the moved segments' joint box (unmoved ones do not move)
+    lo_all, hi_all = lo_k.min(axis=0), hi_k.max(axis=0)
+    pa, pb = x_end[a], x_end[b]
+    near = np.flatnonzero(np.all((np.minimum(pa, pb) <= hi_all) & (np.maximum(pa, pb) >= lo_all), axis=1)
+                          | moving)
+    lo = np.minimum(np.minimum(x_start[a[near]], x_start[b[near]]), np.minimum(pa[near], pb[near]))
+    hi = np.maximum(np.maximum(x_start[a[near]], x_start[b[near]]), np.maximum(pa[near], pb[near]))
+    meet = np.all((lo_k[:, None, :] <= hi[None, :, :]) & (lo[None, :, :] <= hi_k[:, None, :]), axis=2)
     i, j = np.nonzero(meet)
-    i = k[i]
+    i, j = k[i], near[j]
     share = (a[i] == a[j]) | (a[i] == b[j]) | (b[i] == a[j]) | (b[i] == b[j])
     keep = ~share & ((i < j) | ~moving[j])  # each moving pair once
     i, j = i[keep], j[keep]
