@@ -38,6 +38,9 @@ CASES = {
                      'path = [[0.0, 0.0, 0.0, 0.0], [nan, 0.1, 0.0, 0.0]]\n', ["[bodies.0] path", "finite numbers"]),
     "damper without compliant limit": (_with("max_iterations = 30", "max_iterations = 30\ndamping_ratio = 1.0"),
                                        ["[cloth.strain] damping_ratio = 1.0", "needs stiffness_n_per_m > 0"]),
+    "tiny step": (_with("step_s = 0.0004", "step_s = 5e-324"), ["[time] step_s = 5e-324", ">= 1e-09"]),
+    "tiny fps": (_with("fps = 24\n", "fps = 1e-300\n"), ["[time] fps = 1e-300", ">= 1"]),
+    "huge seed": (_with("seed = 1\n", "seed = 18446744073709551616\n"), ["[scene] seed = 18446744073709551616", "<= 9.22337e+18"]),
     "cut outside the cloth": (GOOD + "\n[[cuts]]\nstart = [3.5, 100.0]\nend = [3.5, 2.0]\n",
                               ["[cuts.0] start = [3.5, 100.0]", "-1 <= j <="]),
 }
@@ -71,6 +74,10 @@ def test_missing_file_and_bad_flag_exit_2(tmp_path, capsys):
     with pytest.raises(SystemExit) as exc:
         main(["simulate", "drape", "--frames", "-3"])
     assert exc.value.code == 2
+    with pytest.raises(SystemExit) as exc:
+        main(["simulate", "drape", "--frames", "99999999999999999999"])
+    assert exc.value.code == 2
+    assert "at most 1000000" in capsys.readouterr().err
 
 
 def test_cli_subprocess_prints_no_traceback(tmp_path):

@@ -24,6 +24,10 @@ class _Parser(argparse.ArgumentParser):
         raise SystemExit(2)
 
 
+MAX_FRAMES = 1_000_000
+"""Largest --frames, the same as the largest [time] frames of a scene file."""
+
+
 def _positive_int(text: str) -> int:
     try:
         v = int(text)
@@ -31,6 +35,8 @@ def _positive_int(text: str) -> int:
         raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
     if v < 1:
         raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
+    if v > MAX_FRAMES:
+        raise argparse.ArgumentTypeError(f"expected at most {MAX_FRAMES} (as [time] frames), got {text!r}")
     return v
 
 

@@ -26,17 +26,18 @@ class SceneInfo:
 
     name: str = key("str", "", doc="scene name; outputs go to outputs/<name>/ (default: file name without .toml)")
     description: str = key("str", "", doc="free text")
-    seed: int = key("int", 0, lo=0, doc="seed of every random draw (break strains); same seed, same frames")
+    seed: int = key("int", 0, lo=0, hi=2 ** 63 - 1,
+                    doc="seed of every random draw (break strains); same seed, same frames")
 
 
 @dataclass(frozen=True, kw_only=True)
 class TimeSpec:
     """[time]"""
 
-    step_s: float = key("float", lo=0, lo_open=True, hi=0.1, doc="explicit Euler step h [s]")
+    step_s: float = key("float", lo=1e-9, hi=0.1, doc="explicit Euler step h [s]")
     steps_per_frame: int = key("int", lo=1, hi=100000, doc="steps between two frames")
     frames: int = key("int", lo=1, hi=1000000, doc="frames to simulate and render; frame 0 is the initial state")
-    fps: float = key("float", 24.0, lo=0, lo_open=True, hi=1000, doc="playback frame rate of the video [1/s]")
+    fps: float = key("float", 24.0, lo=1, hi=1000, doc="playback frame rate of the video [1/s]")
     stability: str = key("str", "warn", choices=("warn", "refuse"),
                          doc="what to do when step_s exceeds the explicit stability bound")
 
