@@ -123,3 +123,25 @@ def test_a_foreign_frames_folder_survives(tmp_path, capsys):
     err = capsys.readouterr().err
     assert code == 2 and "in the way" in err, err
     assert (out / "frames").read_text() == "a file in the way"
+
+
+def test_scene_text_the_parser_chokes_on_exits_2(tmp_path, capsys):
+    latin1 = tmp_path / "latin1.toml"
+    latin1.write_bytes(GOOD.encode() + "\n# caf\xe9\n".encode("latin-1"))
+    assert main(["check", str(latin1)]) == 2
+    err = capsys.readouterr().err
+    assert "not UTF-8" in err and "0xe9" in err and "Traceback" not in err
+    nested = tmp_path / "nested.toml"
+    nested.write_text("x = " + "[" * 5000 + "]" * 5000 + "\n")
+    assert main(["check", str(nested)]) == 2
+    err = capsys.readouterr().err
+    assert "nested too deeply" in err and "Traceback" not in err
+
+
+def test_a_huge_value_is_not_echoed_whole(tmp_path, capsys):
+    path = tmp_path / "huge.toml"
+    path.write_text(GOOD.replace("origin_m = [-0.03, 0.1, -0.03]", "origin_m = [" + ", ".join(["1.0"] * 100000) + "]"))
+    assert main(["check", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert "[cloth] origin_m = [1.0, 1.0" in err and "(100000 items)" in err
+    assert max(len(line) for line in err.splitlines()) < 600

@@ -167,17 +167,32 @@ def keys_of(cls: type) -> dict[str, Key]:
     return {f.name: f.metadata["key"] for f in dataclasses.fields(cls) if "key" in f.metadata}
 
 
+SHOW_MAX_CHARS = 120
+"""Longest value echoed in a message; longer ones are cut, with their size (a 1,000,000-item array
+once made a 3 MB error line)."""
+
+
 def show(value: Any) -> str:
-    """A value as written in a scene file, for messages."""
+    """A value as written in a scene file, for messages (at most about SHOW_MAX_CHARS characters)."""
     if hasattr(value, "tolist"):
         value = value.tolist()
     if isinstance(value, str):
-        return json.dumps(value)
-    if isinstance(value, bool):
+        text = json.dumps(value)
+    elif isinstance(value, bool):
         return "true" if value else "false"
-    if isinstance(value, dict):
+    elif isinstance(value, dict):
         return "{...}"
-    return repr(value) if not isinstance(value, (list, tuple)) else json.dumps(value, default=str)
+    elif isinstance(value, (list, tuple)):
+        try:
+            text = json.dumps(value, default=str)
+        except (RecursionError, ValueError):
+            return f"[... nested arrays, {len(value)} items]"
+    else:
+        text = repr(value)
+    if len(text) <= SHOW_MAX_CHARS:
+        return text
+    size = f"{len(value)} items" if isinstance(value, (list, tuple)) else f"{len(text)} characters"
+    return f"{text[:SHOW_MAX_CHARS]}... ({size})"
 
 
 def _is_number(v: Any) -> bool:

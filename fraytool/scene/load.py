@@ -85,6 +85,9 @@ def parse_scene(text: str, source: str = "<string>") -> SceneSpec:
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise SceneError([f"{source}: not valid TOML: {exc}"]) from None
+    except RecursionError:
+        raise SceneError([f"{source}: not a scene: arrays or tables nested too deeply for the TOML "
+                          "parser (a scene nests at most 3 levels)"]) from None
 
     for name, value in doc.items():
         if name not in schema.TOP:
@@ -198,6 +201,10 @@ def load_scene(path: str | Path) -> SceneSpec:
         text = p.read_text(encoding="utf-8")
     except OSError as exc:
         raise SceneError([f"{path}: cannot read scene file: {exc.strerror}"]) from None
+    except UnicodeDecodeError as exc:
+        line = p.read_bytes()[: exc.start].count(b"\n") + 1
+        raise SceneError([f"{path}: not UTF-8 text (byte 0x{exc.object[exc.start]:02x} at line {line}); "
+                          "TOML scene files are UTF-8"]) from None
     return parse_scene(text, str(path))
 
 
