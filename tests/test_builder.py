@@ -393,3 +393,15 @@ def test_body_methods_cover_every_body_key():
                 assert p.default == schema.TOP["bodies"][name].default, (method, name)
         taken |= set(params) - {"self"}
     assert taken == set(schema.TOP["bodies"]) - {"shape"}
+
+
+@pytest.mark.parametrize("normal, unit", [((1e200, 1e200, 0.0), (2 ** -0.5, 2 ** -0.5, 0.0)),
+                                          ((0.0, 1e-200, 0.0), (0.0, 1.0, 0.0))])
+def test_plane_normal_keeps_its_direction_at_any_scale(normal, unit):
+    # |n|^2 overflows to inf for the first (n / |n| was 0: a plane facing nowhere) and underflows to
+    # 0 for the second (it was refused as a zero vector).
+    b = ModelBuilder()
+    b.add_plane("floor", normal=normal)
+    b.add_cloth(warp_yarns=3, weft_yarns=3, spacing_m=0.01, thickness_m=0.001, mass_per_crossing_kg=1e-5,
+                structural_n_per_m=10.0)
+    np.testing.assert_allclose(b.finalize().body_normal[0], unit, rtol=1e-12)

@@ -78,7 +78,7 @@ def body_problems(b: BodySpec) -> list[Problem]:
     if b.shape == "plane":
         if b.motion == "dynamic":
             out.append(("motion", b.motion, 'a plane is "static" or "kinematic"'))
-        if math.sqrt(sum(v * v for v in b.normal)) < 1e-12:
+        if max(abs(v) for v in b.normal) == 0.0:
             out.append(("normal", b.normal, "must be a non-zero vector"))
     if b.path and b.motion != "kinematic":
         out.append(("path", "[...]", 'a path needs motion = "kinematic"'))

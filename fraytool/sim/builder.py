@@ -61,6 +61,14 @@ class ModelBuilderError(SceneError, ValueError):
     what is allowed". A SceneError (exit code 2 from the CLI) and a ValueError (for Python callers)."""
 
 
+def _unit(v) -> np.ndarray:
+    """v / |v|, scaled by its largest component first so that neither a huge vector (|v|^2 overflows
+    to inf, v / |v| to 0) nor a tiny one (|v|^2 underflows to 0) loses its direction."""
+    v = np.asarray(v, float)
+    v = v / np.abs(v).max()
+    return v / np.linalg.norm(v)
+
+
 def crossing_index(i: int | np.ndarray, j: int | np.ndarray, warp_yarns: int):
     """Crossing of warp yarn i and weft yarn j."""
     return j * warp_yarns + i
@@ -430,7 +438,7 @@ class ModelBuilder:
         bodies = self.bodies
         names = tuple(bd.name for bd in bodies)
         rot = np.array([euler_rotation(bd.rotation_deg) for bd in bodies]).reshape(-1, 3, 3)
-        normals = np.array([np.asarray(bd.normal) / np.linalg.norm(bd.normal) for bd in bodies]).reshape(-1, 3)
+        normals = np.array([_unit(bd.normal) for bd in bodies]).reshape(-1, 3)
         body_pos0 = np.array([bd.position_m for bd in bodies], float).reshape(-1, 3)
         for k, bd in enumerate(bodies):
             if bd.motion == "kinematic" and bd.path:
