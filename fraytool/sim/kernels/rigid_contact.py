@@ -64,6 +64,20 @@ def surface_contact(shape, center, rotation, radius, half_extents, normal, x, ma
 
 
 @nb.njit(cache=True, fastmath=False)
+def project_out_of_body(k, body_shape, body_rotation, body_radius_m, body_half_extents_m, body_normal,
+                        body_position_m, margin_m, x):
+    """Move point x (in place) out of body k along the surface normal when it is inside (margin
+    included). Returns (signed distance before, normal): d >= 0 means x was outside and is unchanged."""
+    d, nx, ny, nz = surface_contact(body_shape[k], body_position_m[k], body_rotation[k], body_radius_m[k],
+                                    body_half_extents_m[k], body_normal[k], x, margin_m)
+    if d < 0.0:
+        x[0] -= d * nx
+        x[1] -= d * ny
+        x[2] -= d * nz
+    return d, nx, ny, nz
+
+
+@nb.njit(cache=True, fastmath=False)
 def collide_rigid(
     # model
     body_shape, body_rotation, body_radius_m, body_half_extents_m, body_normal, body_friction, body_collide,
@@ -85,17 +99,14 @@ def collide_rigid(
             if not body_collide[k]:
                 continue
             x = particle_position_m[p]
-            d, nx, ny, nz = surface_contact(body_shape[k], body_position_m[k], body_rotation[k], body_radius_m[k],
-                                            body_half_extents_m[k], body_normal[k], x, margin_m)
-            if d >= 0.0:
-                continue
-            contacts += 1
             x0 = x[0]
             x1 = x[1]
             x2 = x[2]
-            x[0] -= d * nx
-            x[1] -= d * ny
-            x[2] -= d * nz
+            d, nx, ny, nz = project_out_of_body(k, body_shape, body_rotation, body_radius_m, body_half_extents_m,
+                                                body_normal, body_position_m, margin_m, x)
+            if d >= 0.0:
+                continue
+            contacts += 1
             # friction on the displacement relative to the body over the step
             rx = x[0] - prev_position_m[p, 0] - dt_s * body_velocity_m_s[k, 0]
             ry = x[1] - prev_position_m[p, 1] - dt_s * body_velocity_m_s[k, 1]
@@ -139,11 +150,5 @@ def place_outside_bodies(
         for k in range(body_shape.shape[0]):
             if not body_collide[k]:
                 continue
-            x = particle_position_m[p]
-            d, nx, ny, nz = surface_contact(body_shape[k], body_position_m[k], body_rotation[k], body_radius_m[k],
-                                            body_half_extents_m[k], body_normal[k], x, margin_m)
-            if d >= 0.0:
-                continue
-            x[0] -= d * nx
-            x[1] -= d * ny
-            x[2] -= d * nz
+            project_out_of_body(k, body_shape, body_rotation, body_radius_m, body_half_extents_m, body_normal,
+                                body_position_m, margin_m, particle_position_m[p])

@@ -69,6 +69,8 @@ class YarnTearing:
         self.cuts_last = 0
         """Springs (of any kind) cut in the last step."""
         self._yarn_segments = np.flatnonzero((model.spring_kind == STRUCT_WEFT) | (model.spring_kind == STRUCT_WARP))
+        self._yarn_level_before = np.zeros(model.crossing_count, np.bool_)
+        """Scratch: crossing_yarn_level before this step's transitions (which crossings just split)."""
         self.settle_reverts = 0
         """Settles undone because they would have carried a yarn segment through another."""
 
@@ -107,10 +109,11 @@ class YarnTearing:
         particles, crossings, springs = state_groups(state)
         splits = 0
         if self.yarn_level:
-            before = state.crossing_yarn_level.copy()
+            np.copyto(self._yarn_level_before, state.crossing_yarn_level)  # no allocation per step
             splits = transition_overstrained(self.model_in, particles, crossings, springs, prev_position_m)
             if splits:
-                self.settle(state, np.flatnonzero(state.crossing_yarn_level & ~before), prev_position_m)
+                self.settle(state, np.flatnonzero(state.crossing_yarn_level & ~self._yarn_level_before),
+                            prev_position_m)
                 self._rebuild(state)
         # the scans depend on spring_alive and crossing_yarn_level only; a cut lowers the live count and
         # a split raises the yarn-level count (each strictly), so equal counts mean equal inputs

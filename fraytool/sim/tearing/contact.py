@@ -58,6 +58,7 @@ import math
 import numba as nb
 import numpy as np
 
+from fraytool.collision.ccd import edge_edge_ccd_many
 from fraytool.collision.segment import segment_closest_params
 from fraytool.kinds import SHEAR
 
@@ -252,8 +253,6 @@ def settle_crosses_yarns(x_start: np.ndarray, x_end: np.ndarray, spring_particle
     whose box meets their swept box, with the exact edge-edge CCD (fraytool.collision.ccd, centre
     lines, thickness 0); pairs sharing an end are skipped. For YarnTearing.settle, which moves
     masses after this step's self-collision pass and so must not undo what that pass ensured."""
-    from fraytool.collision.ccd import edge_edge_ccd_many
-
     a, b = spring_particle_a[segments], spring_particle_b[segments]
     moved_particle = np.any(x_start != x_end, axis=1)
     moving = moved_particle[a] | moved_particle[b]
