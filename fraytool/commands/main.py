@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Optional, Sequence
 
 from fraytool import __version__
-from fraytool.errors import FraytoolError, InputError
+from fraytool.errors import FraytoolError, InputError, os_error_message
 
 
 class _Parser(argparse.ArgumentParser):
@@ -53,8 +53,10 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--resume", action="store_true", help="continue from the last complete frame")
     s.add_argument("--json", action="store_true", help="print a JSON summary on stdout at the end")
 
-    c = sub.add_parser("check", help="validate a scene and print derived figures")
-    c.add_argument("scene")
+    c = sub.add_parser("check", help="validate a scene and print derived figures; or check an output folder")
+    c.add_argument("scene", nargs="?", help="scene file or shipped scene name (optional with --outputs)")
+    c.add_argument("--outputs", type=Path, metavar="DIR", help="check the frames (checksums, scene) and PNGs in an "
+                   "output folder instead; exit 1 if any file is damaged")
     c.add_argument("--run", action="store_true", help="also run the scene's own [checks]")
     c.add_argument("--json", action="store_true")
 
@@ -112,6 +114,12 @@ def cmd_simulate(args) -> int:
 
 
 def cmd_check(args) -> int:
+    if args.outputs is not None:
+        from fraytool.commands.check_outputs import check_outputs
+
+        return check_outputs(args.outputs, _load(args.scene) if args.scene else None, as_json=args.json)
+    if args.scene is None:
+        raise InputError("check: give a scene (or --outputs DIR to check an output folder)")
     from fraytool.sim.run import check_step
     from fraytool.sim.builder import build_model
     from fraytool.kinds import SPRING_KIND_NAMES
@@ -190,6 +198,9 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         print("fraytool: interrupted", file=sys.stderr)
         return 130
     except BrokenPipeError:
+        return 1
+    except OSError as exc:  # a write or read of an output failed: one line, path, cause, what to do
+        print(f"fraytool: run failed: {os_error_message(exc)}", file=sys.stderr)
         return 1
 
 

@@ -12,6 +12,7 @@ from typing import Optional, TextIO
 
 from fraytool.errors import InputError
 from fraytool.io.frame_store import FrameStore
+from fraytool.io.lock import OutputLock
 from fraytool.render.job import RenderJob, with_overrides
 from fraytool.render.options import (
     FrameRange,
@@ -60,17 +61,21 @@ def build_job(spec: SceneSpec, args) -> RenderJob:
 
 def ensure_frames(spec: SceneSpec, out_dir: Path, needed: int, stream: TextIO = sys.stderr) -> FrameStore:
     """Frame records 0..needed-1 in out_dir/frames: reuse them if the manifest's scene hash matches
-    and enough are complete, continue a shorter matching run (resume), else simulate afresh."""
+    and frames 0..needed-1 verify (checksums), continue or repair a matching run (resume: the
+    damaged files are named on `stream`), else simulate afresh."""
     from fraytool.sim.run import simulate_to_disk
 
     store = FrameStore(out_dir)
     digest = scene_hash(spec)
-    if store.matches(digest):
+    if store.matches(digest) or (store.manifest() is None and store.dir.is_dir()):
         done = store.frames_complete()
-        if done >= needed:
+        survey = store.survey(digest, frames=min(done, needed) if store.manifest() else None)
+        if survey.clean and done >= needed:
             return store
-        if done > 0 and (store.dir / "checkpoint.npz").is_file():
-            print(f"fraytool: continuing the simulation in {store.dir} from frame {done} to {needed}", file=stream)
+        if survey.good_frames > 0:
+            if survey.clean:
+                print(f"fraytool: continuing the simulation in {store.dir} from frame {done} to {needed}",
+                      file=stream)
             simulate_to_disk(spec, out_dir, frames=needed, resume=True, stream=stream)
             return store
     print(f"fraytool: simulating {needed} frames into {store.dir}", file=stream)
@@ -112,10 +117,11 @@ def _render(args, stream: Optional[TextIO]) -> int:
         if getattr(args, "verbose", False):
             print(describe(ctx), file=stream)
             print(f"MSAA samples: {clamp_samples(ctx, job.samples)} (asked {job.samples})", file=stream)
-        store = ensure_frames(job.spec, job.out_dir, job.frames.end, stream)
         from fraytool.render.sequence import render_job
 
-        result = render_job(job, ctx, store, stream=stream)
+        with OutputLock(job.out_dir, "render", wait_stream=stream):
+            store = ensure_frames(job.spec, job.out_dir, job.frames.end, stream)
+            result = render_job(job, ctx, store, stream=stream)
     finally:
         ctx.release()
     wrote = []

@@ -7,7 +7,9 @@ See docs/architecture.md for the on-disk layout.
 from __future__ import annotations
 
 import os
+import socket
 import tempfile
+import time
 from dataclasses import dataclass, fields
 from pathlib import Path
 
@@ -35,13 +37,12 @@ class FrameRecord:
     body_rotation: np.ndarray
     """Shape (body_count, 3, 3), float32."""
 
-    def save(self, path: Path) -> None:
-        atomic_save_npz(path, {f.name: np.asarray(getattr(self, f.name)) for f in fields(self)})
+    def arrays(self) -> dict[str, np.ndarray]:
+        return {f.name: np.asarray(getattr(self, f.name)) for f in fields(self)}
 
     @staticmethod
-    def load(path: Path) -> "FrameRecord":
-        with np.load(path) as data:
-            kw = {f.name: data[f.name] for f in fields(FrameRecord)}
+    def from_arrays(arrays: dict[str, np.ndarray]) -> "FrameRecord":
+        kw = {f.name: arrays[f.name] for f in fields(FrameRecord)}
         kw["frame"] = int(kw["frame"])
         kw["time_s"] = float(kw["time_s"])
         return FrameRecord(**kw)
@@ -59,7 +60,7 @@ def atomic_write_bytes(path: Path, writer) -> None:
     `path`. A killed process leaves either the old file or the new one, never a truncated one."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.{_writer_tag()}.", suffix=".tmp", dir=path.parent)
     try:
         with os.fdopen(fd, "wb") as f:
             writer(f)
@@ -73,6 +74,46 @@ def atomic_write_bytes(path: Path, writer) -> None:
         except FileNotFoundError:
             pass
         raise
+
+
+def _writer_tag() -> str:
+    """HOST-PID of this process, as temp file names carry it (so a sweep knows whose they are)."""
+    host = "".join(c if c.isalnum() else "_" for c in socket.gethostname()) or "host"
+    return f"{host}-{os.getpid()}"
+
+
+def is_temp_name(name: str) -> bool:
+    """Name of a temp file of atomic_write_bytes (".NAME.HOST-PID.XXXXXXXX.tmp")."""
+    return name.startswith(".") and name.endswith(".tmp") and len(name) > 5
+
+
+STALE_TEMP_S = 3600.0
+"""A temp file of another host's writer (whose pid cannot be checked) is stale after this long."""
+
+
+def _dead_writer(p: Path) -> bool:
+    from fraytool.io.lock import pid_alive
+
+    host, _, pid = p.name[:-4].rsplit(".", 2)[-2].rpartition("-")
+    if pid.isdigit() and host == _writer_tag().rpartition("-")[0]:
+        return not pid_alive(int(pid))
+    try:
+        return time.time() - p.stat().st_mtime > STALE_TEMP_S
+    except FileNotFoundError:
+        return False
+
+
+def sweep_temp_files(folder: Path) -> list[Path]:
+    """Delete the temp files of atomic writes in `folder` whose writer is dead (same host: its pid is
+    gone; another host: untouched for STALE_TEMP_S); returns what was deleted."""
+    folder = Path(folder)
+    swept = []
+    if folder.is_dir():
+        for p in folder.iterdir():
+            if is_temp_name(p.name) and p.is_file() and _dead_writer(p):
+                p.unlink(missing_ok=True)
+                swept.append(p)
+    return swept
 
 
 def atomic_save_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:

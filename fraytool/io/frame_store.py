@@ -1,6 +1,6 @@
 """FrameStore: the folder of a simulation's frames, its manifest and its resume checkpoint.
 
-    <out>/frames/manifest.json     scene hash, seed, version, counts, frames complete
+    <out>/frames/manifest.json     scene hash, seed, version, counts, frames complete, checksum
     <out>/frames/topology.npz      static Model arrays (written once)
     <out>/frames/frame_000000.npz  one FrameRecord per frame (frame 0 = initial state)
     <out>/frames/checkpoint.npz    full-precision State after the last complete frame
@@ -8,40 +8,145 @@
 Every file is written atomically. The write order per frame is record, checkpoint, manifest, so
 after a kill the manifest never counts a frame whose record is missing, and resuming from the
 checkpoint recomputes at most the frame in flight, bit for bit.
+
+Every .npz carries `scene_hash` and `checksum` (SHA-256 over the scene hash and every array's name,
+dtype, shape and bytes); the manifest carries a checksum of its own text. `survey()` finds missing,
+truncated, corrupted and foreign files; fraytool.sim.run recovers from them by re-simulating (the
+simulation is deterministic, so frames that verify are never rewritten with other bits).
 """
 from __future__ import annotations
 
+import hashlib
 import json
-import shutil
+import re
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional
 
 import numpy as np
 
 from fraytool import __version__
-from fraytool.errors import InputError
+from fraytool.errors import OutputError
 from fraytool.io.failure import LAST_GOOD_STATE, UNSTABLE_JSON
-from fraytool.io.frame_record import FrameRecord, atomic_save_npz, atomic_write_bytes
+from fraytool.io.frame_record import FrameRecord, atomic_save_npz, atomic_write_bytes, is_temp_name, sweep_temp_files
 
 MANIFEST = "manifest.json"
 TOPOLOGY = "topology.npz"
 CHECKPOINT = "checkpoint.npz"
+STORE_FORMAT = 2
+"""2: every file carries a checksum."""
+
+_FRAME_RE = re.compile(r"frame_\d{6}\.npz")
+_OURS = {MANIFEST, TOPOLOGY, CHECKPOINT, UNSTABLE_JSON, LAST_GOOD_STATE}
 
 
 def frame_filename(frame: int) -> str:
     return f"frame_{frame:06d}.npz"
 
 
+def arrays_checksum(arrays: dict[str, np.ndarray], scene_hash: str) -> str:
+    h = hashlib.sha256(scene_hash.encode())
+    for name in sorted(arrays):
+        a = np.ascontiguousarray(arrays[name])
+        h.update(f"{name}|{a.dtype.str}|{a.shape}|".encode())
+        h.update(a.tobytes())
+    return h.hexdigest()
+
+
+def _manifest_checksum(data: dict) -> str:
+    body = {k: v for k, v in data.items() if k != "checksum"}
+    return hashlib.sha256(json.dumps(body, sort_keys=True).encode()).hexdigest()
+
+
+class DamagedFile(OutputError):
+    """A file of the store is missing, truncated, corrupted or from another scene."""
+
+    def __init__(self, path: Path, reason: str):
+        self.path, self.reason = Path(path), reason
+        super().__init__(f"{path}: {reason}")
+
+
+def load_verified(path: Path, scene_hash: Optional[str]) -> dict[str, np.ndarray]:
+    """The arrays of a checksummed .npz (without `scene_hash` and `checksum`); DamagedFile if it is
+    missing, unreadable, fails its checksum, or (scene_hash given) belongs to another scene."""
+    path = Path(path)
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            arrays = {k: data[k] for k in data.files}
+    except FileNotFoundError:
+        raise DamagedFile(path, "missing") from None
+    except Exception as exc:  # zipfile, pickle and format errors of a truncated or foreign file
+        raise DamagedFile(path, f"truncated or unreadable ({type(exc).__name__})") from None
+    stored_hash = arrays.pop("scene_hash", None)
+    checksum = arrays.pop("checksum", None)
+    if stored_hash is None or checksum is None:
+        raise DamagedFile(path, "has no checksum (not written by this fraytool)")
+    stored_hash = str(stored_hash)
+    if arrays_checksum(arrays, stored_hash) != str(checksum):
+        raise DamagedFile(path, "checksum mismatch (corrupted)")
+    if scene_hash is not None and stored_hash != scene_hash:
+        raise DamagedFile(path, f"from another scene (scene hash {stored_hash}, expected {scene_hash})")
+    return arrays
+
+
+def save_verified(path: Path, arrays: dict[str, np.ndarray], scene_hash: str) -> None:
+    arrays = {k: np.asarray(v) for k, v in arrays.items()}
+    atomic_save_npz(path, {**arrays, "scene_hash": np.asarray(scene_hash),
+                           "checksum": np.asarray(arrays_checksum(arrays, scene_hash))})
+
+
+@dataclass
+class Survey:
+    """What a frame store holds, checked file by file (FrameStore.survey)."""
+    manifest: Optional[dict]
+    """The manifest if it is intact, else None."""
+    good_frames: int
+    """Frames 0..good_frames-1 exist and verify."""
+    checkpoint_frame: Optional[int]
+    """Frame of an intact checkpoint, else None."""
+    topology_ok: bool
+    problems: list[str] = field(default_factory=list)
+    """One line per damaged file: path and what is wrong."""
+
+    @property
+    def clean(self) -> bool:
+        return not self.problems
+
+    def resumable_from_checkpoint(self) -> bool:
+        return self.checkpoint_frame is not None and self.checkpoint_frame == self.good_frames - 1
+
+
 class FrameStore:
     def __init__(self, out_dir: Path):
         self.out_dir = Path(out_dir)
         self.dir = self.out_dir / "frames"
+        self._scene_hash: Optional[str] = None
+        self._manifest: Optional[dict] = None
 
+    # -- reading -------------------------------------------------------------------------------
     def manifest(self) -> Optional[dict]:
+        """The manifest if it parses and its checksum holds, else None."""
         try:
-            return json.loads((self.dir / MANIFEST).read_text())
+            data = json.loads((self.dir / MANIFEST).read_text())
         except (OSError, ValueError):
             return None
+        if not isinstance(data, dict) or data.get("checksum") != _manifest_checksum(data):
+            return None
+        return data
+
+    def manifest_problem(self) -> Optional[str]:
+        path = self.dir / MANIFEST
+        if not path.exists():
+            return f"{path}: missing"
+        try:
+            data = json.loads(path.read_text())
+        except (OSError, ValueError) as exc:
+            return f"{path}: unreadable ({type(exc).__name__})"
+        if not isinstance(data, dict) or "checksum" not in data:
+            return f"{path}: has no checksum (not written by this fraytool)"
+        if data["checksum"] != _manifest_checksum(data):
+            return f"{path}: checksum mismatch (corrupted)"
+        return None
 
     def frame_path(self, frame: int) -> Path:
         return self.dir / frame_filename(frame)
@@ -51,37 +156,140 @@ class FrameStore:
         return m is not None and m.get("scene_hash") == scene_hash
 
     def frames_complete(self) -> int:
-        """Number of complete frames on disk (0 if none or no manifest)."""
+        """Number of complete frames on disk (0 if none or no intact manifest)."""
         m = self.manifest()
         return int(m["frames_complete"]) if m else 0
+
+    def scene_hash(self) -> Optional[str]:
+        m = self.manifest()
+        return m.get("scene_hash") if m else self._scene_hash
+
+    def load_checkpoint(self) -> tuple[int, dict[str, np.ndarray]]:
+        """(frame, state arrays) of the last checkpoint (State.from_arrays makes the State)."""
+        arrays = load_verified(self.dir / CHECKPOINT, self.scene_hash())
+        return int(arrays.pop("frame")), arrays
+
+    def load_frame(self, frame: int) -> FrameRecord:
+        arrays = load_verified(self.frame_path(frame), self.scene_hash())
+        if int(arrays["frame"]) != frame:
+            raise DamagedFile(self.frame_path(frame), f"holds frame {int(arrays['frame'])}")
+        return FrameRecord.from_arrays(arrays)
+
+    def load_topology(self) -> dict[str, np.ndarray]:
+        return load_verified(self.dir / TOPOLOGY, self.scene_hash())
+
+    def survey(self, scene_hash: Optional[str] = None, frames: Optional[int] = None) -> Survey:
+        """Check the manifest, the topology, frames 0..frames-1 (default: the frames the manifest
+        counts, or every frame file there is without one) and the checkpoint, against `scene_hash`
+        (default: the manifest's)."""
+        problems = []
+        manifest = self.manifest()
+        if manifest is None and (self.dir.exists() or frames):
+            problems.append(self.manifest_problem())
+        digest = scene_hash or (manifest or {}).get("scene_hash")
+        if manifest is not None and scene_hash is not None and manifest.get("scene_hash") != scene_hash:
+            problems.append(f"{self.dir / MANIFEST}: from another scene (scene hash "
+                            f"{manifest.get('scene_hash')}, expected {scene_hash})")
+            manifest = None
+        topology_ok = True
+        try:
+            load_verified(self.dir / TOPOLOGY, digest)
+        except DamagedFile as exc:
+            topology_ok = False
+            problems.append(str(exc))
+        if frames is None:
+            frames = int(manifest["frames_complete"]) if manifest else _count_frame_files(self.dir)
+        good = 0
+        while good < frames:
+            try:
+                self._check_frame(good, digest)
+            except DamagedFile as exc:
+                problems.append(str(exc))
+                break
+            good += 1
+        for k in range(good + 1, frames):  # name the other damaged frames too
+            try:
+                self._check_frame(k, digest)
+            except DamagedFile as exc:
+                problems.append(str(exc))
+        checkpoint_frame = None
+        if self.dir.exists():
+            try:
+                checkpoint_frame = int(load_verified(self.dir / CHECKPOINT, digest)["frame"])
+            except DamagedFile as exc:
+                if good or (self.dir / CHECKPOINT).exists():
+                    problems.append(str(exc))
+        if manifest is not None and checkpoint_frame is not None and checkpoint_frame != good - 1 \
+                and good == int(manifest["frames_complete"]):
+            problems.append(f"{self.dir / CHECKPOINT}: is after frame {checkpoint_frame}, "
+                            f"the manifest counts {good} frames")
+        return Survey(manifest, good, checkpoint_frame, topology_ok, problems)
+
+    def _check_frame(self, frame: int, digest: Optional[str]) -> None:
+        arrays = load_verified(self.frame_path(frame), digest)
+        if int(arrays["frame"]) != frame:
+            raise DamagedFile(self.frame_path(frame), f"holds frame {int(arrays['frame'])}")
+
+    # -- writing (the caller holds the folder's OutputLock) ------------------------------------
+    def sweep_temp_files(self) -> list[Path]:
+        """Delete temp files of dead writers (the caller holds the folder's lock)."""
+        return sweep_temp_files(self.dir)
 
     def start(self, topology: dict[str, np.ndarray], scene_hash: str, info: dict) -> None:
         """Begin a fresh run: clear old frames, write the topology (Model.arrays()) and an empty manifest.
 
-        Only a frames folder that fraytool made (its manifest says so) is cleared; a folder holding
-        anything else is left as it is and the run stops with an InputError."""
+        Only files fraytool writes are deleted, and only from a frames folder that fraytool made (it
+        has a manifest); a folder holding anything else without a manifest is left as it is and the
+        run stops with an OutputError (exit 1)."""
         if self.dir.is_symlink() or (self.dir.exists() and not self.dir.is_dir()):
-            raise InputError(f"{self.dir}: is in the way of the frames folder (not a folder fraytool made); "
+            raise OutputError(f"{self.dir}: is in the way of the frames folder (not a folder fraytool made); "
                              "move it or choose another output folder with -o")
         if self.dir.exists():
             if not (self.dir / MANIFEST).is_file() and any(self.dir.iterdir()):
-                raise InputError(f"{self.dir}: holds files fraytool did not write (no {MANIFEST}); "
+                raise OutputError(f"{self.dir}: holds files fraytool did not write (no {MANIFEST}); "
                                  "not deleting them: move them or choose another output folder with -o")
-            shutil.rmtree(self.dir)
-        self.dir.mkdir(parents=True)
-        atomic_save_npz(self.dir / TOPOLOGY, topology)
+            for p in self.dir.iterdir():
+                if p.is_file() and (p.name in _OURS or _FRAME_RE.fullmatch(p.name) or is_temp_name(p.name)):
+                    p.unlink()
+        self.dir.mkdir(parents=True, exist_ok=True)
+        self._scene_hash = scene_hash
+        self.write_topology(topology)
         self._write_manifest({**info, "scene_hash": scene_hash, "fraytool_version": __version__,
-                              "frames_complete": 0})
+                              "store_format": STORE_FORMAT, "frames_complete": 0})
+
+    def reopen(self, scene_hash: str, info: dict, frames_complete: int, topology: dict[str, np.ndarray],
+               rewrite_topology: bool) -> None:
+        """Continue writing a store after survey(): a fresh manifest counting the frames that verify
+        (kept fields of an intact manifest win over `info`), the topology rewritten if damaged."""
+        self._scene_hash = scene_hash
+        self.dir.mkdir(parents=True, exist_ok=True)
+        if rewrite_topology:
+            self.write_topology(topology)
+        kept = self.manifest() or {}
+        kept.pop("unstable", None)
+        self._write_manifest({**info, **kept, "scene_hash": scene_hash, "fraytool_version": __version__,
+                              "store_format": STORE_FORMAT, "frames_complete": frames_complete})
+
+    def write_topology(self, topology: dict[str, np.ndarray]) -> None:
+        save_verified(self.dir / TOPOLOGY, topology, self._scene_hash)
 
     def _write_manifest(self, data: dict) -> None:
+        data = {k: v for k, v in data.items() if k != "checksum"}
+        data["checksum"] = _manifest_checksum(data)
         text = json.dumps(data, indent=2, sort_keys=True).encode()
         atomic_write_bytes(self.dir / MANIFEST, lambda f: f.write(text))
+        self._manifest = data
 
-    def write_frame(self, record: FrameRecord, checkpoint: dict[str, np.ndarray]) -> None:
-        """Write a frame's record, then the checkpoint (State.arrays() after it), then the manifest."""
-        record.save(self.frame_path(record.frame))
-        atomic_save_npz(self.dir / CHECKPOINT, {**checkpoint, "frame": np.asarray(record.frame)})
-        m = self.manifest() or {}
+    def write_frame(self, record: FrameRecord, checkpoint: Optional[dict[str, np.ndarray]],
+                    write_record: bool = True) -> None:
+        """Write a frame's record, then the checkpoint (State.arrays() after it), then the manifest.
+        `write_record=False` (recovery) keeps a record on disk that already verifies."""
+        digest = self._scene_hash or self.scene_hash()
+        if write_record:
+            save_verified(self.frame_path(record.frame), record.arrays(), digest)
+        if checkpoint is not None:
+            save_verified(self.dir / CHECKPOINT, {**checkpoint, "frame": np.asarray(record.frame)}, digest)
+        m = dict(self._manifest or self.manifest() or {})
         m["frames_complete"] = record.frame + 1
         self._write_manifest(m)
 
@@ -99,14 +307,10 @@ class FrameStore:
             m.pop("unstable")
             self._write_manifest(m)
 
-    def load_checkpoint(self) -> tuple[int, dict[str, np.ndarray]]:
-        """(frame, state arrays) of the last checkpoint (State.from_arrays makes the State)."""
-        with np.load(self.dir / CHECKPOINT) as data:
-            return int(data["frame"]), {k: data[k] for k in data.files if k != "frame"}
 
-    def load_frame(self, frame: int) -> FrameRecord:
-        return FrameRecord.load(self.frame_path(frame))
-
-    def load_topology(self) -> dict[str, np.ndarray]:
-        with np.load(self.dir / TOPOLOGY) as data:
-            return {k: data[k] for k in data.files}
+def _count_frame_files(folder: Path) -> int:
+    """Without a manifest: 1 + the highest frame number on disk (0 if none)."""
+    if not folder.is_dir():
+        return 0
+    numbers = [int(p.name[6:12]) for p in folder.iterdir() if _FRAME_RE.fullmatch(p.name)]
+    return max(numbers) + 1 if numbers else 0

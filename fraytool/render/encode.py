@@ -27,6 +27,7 @@ from PIL import Image, PngImagePlugin
 
 from fraytool.errors import InputError, RunError
 from fraytool.io.frame_record import atomic_write_bytes
+from fraytool.io.lock import pid_alive
 
 PNG_SETTINGS_KEY = "fraytool:render-settings"
 """tEXt key holding the digest of the settings a PNG was rendered with."""
@@ -58,8 +59,10 @@ def png_settings(path: Path) -> Optional[tuple[str, tuple[int, int]]]:
     """(settings digest, (width, height)) of a PNG written by write_png, or None if unreadable."""
     try:
         with Image.open(path) as img:
+            img.verify()  # chunk CRCs: a damaged PNG is drawn again, never reused
+        with Image.open(path) as img:
             return img.text.get(PNG_SETTINGS_KEY, ""), img.size
-    except (OSError, ValueError, SyntaxError):
+    except (OSError, ValueError, SyntaxError, RuntimeError):
         return None
 
 
@@ -85,23 +88,11 @@ def remove_stale_partials(path: Path) -> None:
     path = Path(path)
     for p in path.parent.glob(f".{path.stem}.partial-{_host()}-*.mp4"):
         pid = p.name.rsplit("-", 1)[-1].split(".")[0]
-        if pid.isdigit() and not _alive(int(pid)):
+        if pid.isdigit() and not pid_alive(int(pid)):
             try:
                 p.unlink()
             except FileNotFoundError:
                 pass
-
-
-def _alive(pid: int) -> bool:
-    if pid == os.getpid():
-        return True
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
 
 
 class Mp4Writer:

@@ -17,6 +17,7 @@ from typing import Optional, TextIO
 
 import moderngl
 
+from fraytool.io.frame_record import sweep_temp_files
 from fraytool.io.frame_store import FrameStore
 from fraytool.progress import Progress
 from fraytool.render.encode import Mp4Writer, png_settings, read_png, write_png
@@ -53,6 +54,8 @@ def render_job(job: RenderJob, ctx: moderngl.Context, store: FrameStore, stream:
                progress: Optional[bool] = None) -> RenderResult:
     """Render job.frames from the frame records in `store`; returns counts and stage times."""
     topology = store.load_topology()
+    if job.png:
+        sweep_temp_files(job.png_dir)  # PNGs of a killed render (the caller holds the folder's lock)
     W, H = job.size
     renderer = Renderer(ctx, job.size, job.samples, job.spec.render, job.spec.camera, topology, job.wireframe)
     digest = job.digest(renderer.samples)

@@ -11,8 +11,9 @@ import time
 from pathlib import Path
 from typing import Optional
 
-from fraytool.errors import InputError, SceneError
+from fraytool.errors import InputError, OutputError, SceneError
 from fraytool.io.frame_store import FrameStore
+from fraytool.io.lock import OutputLock
 from fraytool.progress import Progress
 from fraytool.scene.load import scene_hash
 from fraytool.scene.spec import SceneSpec
@@ -47,28 +48,72 @@ def check_step(spec: SceneSpec, model: Model, stream=None) -> float:
 
 def simulate_to_disk(spec: SceneSpec, out_dir: Path, frames: Optional[int] = None, resume: bool = False,
                      progress: Optional[bool] = None, stream=None) -> dict:
-    """Simulate `frames` frames (default: the scene's) into out_dir/frames; returns the summary."""
+    """Simulate `frames` frames (default: the scene's) into out_dir/frames; returns the summary.
+
+    The output folder is held (OutputLock) for the whole run, and temp files of dead writers in it
+    are swept. With `resume`, the store is surveyed first: missing, truncated, corrupted or foreign
+    files are reported on `stream`, and the run continues from the checkpoint when it follows the
+    last good frame, else from frame 0 (deterministic: frames that verify are not rewritten)."""
     stream = stream or sys.stderr
-    total = spec.time.frames if frames is None else frames
-    model = build_model(spec)
-    check_step(spec, model, stream)
-    store = FrameStore(out_dir)
-    digest = scene_hash(spec)
-    if resume and store.manifest() is not None:
-        if not store.matches(digest):
-            raise InputError(f"{store.dir}: frames were made from a different scene or version "
-                             f"(scene hash {store.manifest().get('scene_hash')} != {digest}); run without --resume")
+    with OutputLock(out_dir, "simulate"):
+        store = FrameStore(out_dir)
+        for p in store.sweep_temp_files():
+            print(f"fraytool: removed {p} (a temp file of a write that was killed)", file=stream)
+        return _simulate_locked(spec, store, frames, resume, progress, stream)
+
+
+def _store_info(spec: SceneSpec, model: Model, total: int) -> dict:
+    return {"scene": spec.name, "seed": spec.scene.seed, "frames_planned": total,
+            "step_s": spec.time.step_s, "steps_per_frame": spec.time.steps_per_frame, "fps": spec.time.fps,
+            "particle_count": model.particle_count, "spring_count": model.spring_count}
+
+
+def _resume_point(spec: SceneSpec, model: Model, store: FrameStore, digest: str, total: int,
+                  stream) -> Optional[tuple[Simulation, int]]:
+    """(simulation to continue, first frame whose record must be written) after surveying the store,
+    or None when nothing there can be reused (a fresh start)."""
+    m = store.manifest()
+    if m is not None and m.get("scene_hash") != digest:
+        raise InputError(f"{store.dir}: frames were made from a different scene or version "
+                         f"(scene hash {m.get('scene_hash')} != {digest}); run without --resume")
+    survey = store.survey(digest)
+    if survey.manifest is None and survey.good_frames == 0:
+        if store.dir.exists() and any(store.dir.iterdir()):
+            for line in survey.problems:
+                print(f"fraytool: {line}", file=stream)
+            print(f"fraytool: nothing in {store.dir} can be reused; simulating afresh", file=stream)
+        return None
+    for line in survey.problems:
+        print(f"fraytool: {line}", file=stream)
+    good = survey.good_frames
+    store.reopen(digest, _store_info(spec, model, total), good, model.arrays(), not survey.topology_ok)
+    if good > 0 and survey.resumable_from_checkpoint():
         frame, arrays = store.load_checkpoint()
         sim = Simulation(spec, model=model, state=State.from_arrays(arrays), frame=frame)
         sim.restore_shot(arrays)
+        return sim, frame + 1
+    if survey.problems:
+        print(f"fraytool: no checkpoint at frame {good - 1}: re-simulating from frame 0 "
+              f"(frames 0-{good - 1} verify and are kept)" if good else
+              "fraytool: re-simulating from frame 0", file=stream)
+    return Simulation(spec, model=model), good
+
+
+def _simulate_locked(spec: SceneSpec, store: FrameStore, frames: Optional[int], resume: bool,
+                     progress: Optional[bool], stream) -> dict:
+    total = spec.time.frames if frames is None else frames
+    model = build_model(spec)
+    check_step(spec, model, stream)
+    digest = scene_hash(spec)
+    point = _resume_point(spec, model, store, digest, total, stream) if resume else None
+    if point is not None:
+        sim, first_write = point
         store.clear_failure()  # a failure recorded by an earlier attempt no longer describes this run
+        if sim.frame == 0 and first_write == 0:
+            store.write_frame(sim.record(), sim.checkpoint_arrays())
     else:
-        store.start(model.arrays(), digest, {
-            "scene": spec.name, "seed": spec.scene.seed, "frames_planned": total,
-            "step_s": spec.time.step_s, "steps_per_frame": spec.time.steps_per_frame, "fps": spec.time.fps,
-            "particle_count": model.particle_count, "spring_count": model.spring_count,
-        })
-        sim = Simulation(spec, model=model)
+        store.start(model.arrays(), digest, _store_info(spec, model, total))
+        sim, first_write = Simulation(spec, model=model), 1
         store.write_frame(sim.record(), sim.checkpoint_arrays())
     bar = Progress(total, spec.name, stream=stream, enabled=progress)
     t_last = time.perf_counter()
@@ -80,7 +125,10 @@ def simulate_to_disk(spec: SceneSpec, out_dir: Path, frames: Optional[int] = Non
                                          {"step": sim.state.step_index, "time_s": sim.state.time_s,
                                           "stage": "frame record", "stage_located": True,
                                           "kernel": "frame_record"})
-            store.write_frame(record, sim.checkpoint_arrays())
+            if sim.frame >= first_write:
+                store.write_frame(record, sim.checkpoint_arrays())
+            elif sim.frame == first_write - 1:  # the last kept frame: its checkpoint, for a later resume
+                store.write_frame(record, sim.checkpoint_arrays(), write_record=False)
             now = time.perf_counter()
             bar.update(sim.frame + 1, f"{1e3 * (now - t_last):6.1f} ms/frame")
             t_last = now
@@ -102,7 +150,7 @@ def _unstable_run(sim: Simulation, store: FrameStore, exc: SimulationUnstable) -
     stay those of the complete, finite frames before the failure."""
     try:
         start = State.from_arrays(store.load_checkpoint()[1])
-    except (OSError, KeyError, ValueError):
+    except (OSError, KeyError, ValueError, OutputError):
         start = None
     diag, last_good = explain_failure(sim.solver, start, sim.dt_s, exc.diagnostic)
     diag["last_good_frame"] = store.frames_complete() - 1

@@ -1,0 +1,323 @@
+"""Outputs that survive faults: damaged frame stores are found (`check --outputs`) and repaired by
+re-simulating (`--resume`, `render`); I/O failures exit 1 with one line naming the path, the cause and
+what to do; one writer per output folder (a lock by pid and host); temp files of dead writers are
+swept. Full disk and read-only folders use a small tmpfs where the test may mount one, and a fault
+injected at the writer everywhere."""
+import contextlib
+import errno
+import json
+import os
+import socket
+import subprocess
+import sys
+import threading
+import time
+import uuid
+
+import numpy as np
+import pytest
+
+from fraytool.commands.main import main
+from fraytool.io import frame_record
+from fraytool.io.frame_record import STALE_TEMP_S, _writer_tag
+from fraytool.io.frame_store import FrameStore
+from fraytool.io.lock import LOCK_NAME, STALE_AFTER_S
+from helpers import assert_arrays_equal, small_scene_text
+
+FRAMES = 6
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    """A scene file and an intact, uninterrupted run of it."""
+    root = tmp_path_factory.mktemp("reference")
+    scene = root / "scene.toml"
+    scene.write_text(small_scene_text(frames=FRAMES))
+    assert main(["simulate", str(scene), "-o", str(root / "out")]) == 0
+    return scene, root / "out"
+
+
+def _copy(src, dst):
+    import shutil
+
+    shutil.copytree(src, dst)
+    return dst
+
+
+def _arrays(path):
+    with np.load(path) as d:
+        return {k: d[k] for k in d.files}
+
+
+def _assert_same_store(a, b):
+    for k in range(FRAMES):
+        assert_arrays_equal(_arrays(FrameStore(a).frame_path(k)), _arrays(FrameStore(b).frame_path(k)))
+    assert FrameStore(b).frames_complete() == FRAMES
+
+
+def _truncate(path):
+    path.write_bytes(path.read_bytes()[: path.stat().st_size // 2])
+
+
+def _flip_byte(path):
+    data = bytearray(path.read_bytes())
+    data[len(data) // 2] ^= 0xFF
+    path.write_bytes(bytes(data))
+
+
+def _foreign(path, tmp_path):
+    other = tmp_path / "other.toml"
+    other.write_text(small_scene_text(frames=FRAMES, seed=2, bend=0.7))
+    assert main(["simulate", str(other), "-o", str(tmp_path / "other")]) == 0
+    path.write_bytes((tmp_path / "other" / "frames" / path.name).read_bytes())
+
+
+DAMAGE = {
+    "truncated frame": (lambda out, tmp: _truncate(out / "frames" / "frame_000003.npz"), "frame_000003.npz: truncated"),
+    "missing frame": (lambda out, tmp: (out / "frames" / "frame_000003.npz").unlink(), "frame_000003.npz: missing"),
+    "corrupted frame": (lambda out, tmp: _flip_byte(out / "frames" / "frame_000002.npz"), "frame_000002.npz"),
+    "foreign frame": (lambda out, tmp: _foreign(out / "frames" / "frame_000004.npz", tmp),
+                      "frame_000004.npz: from another scene"),
+    "garbage manifest": (lambda out, tmp: (out / "frames" / "manifest.json").write_text("{garbage"),
+                         "manifest.json: unreadable"),
+    "edited manifest": (lambda out, tmp: (out / "frames" / "manifest.json").write_text(
+        (out / "frames" / "manifest.json").read_text().replace('"frames_complete": 6', '"frames_complete": 60')),
+                        "manifest.json: checksum mismatch"),
+    "corrupted checkpoint": (lambda out, tmp: _flip_byte(out / "frames" / "checkpoint.npz"), "checkpoint.npz"),
+    "truncated topology": (lambda out, tmp: _truncate(out / "frames" / "topology.npz"), "topology.npz: truncated"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(DAMAGE))
+def test_damage_is_named_then_repaired_by_resume(case, reference, tmp_path, capsys):
+    scene, good = reference
+    out = _copy(good, tmp_path / "out")
+    damage, named = DAMAGE[case]
+    damage(out, tmp_path)
+    capsys.readouterr()
+    assert main(["check", "--outputs", str(out), str(scene)]) == 1
+    err = capsys.readouterr().err
+    assert named in err, err
+    assert main(["simulate", str(scene), "-o", str(out), "--resume"]) == 0
+    err = capsys.readouterr().err
+    assert named in err, err  # the repair says what it found
+    assert "Traceback" not in err
+    _assert_same_store(good, out)
+    assert main(["check", "--outputs", str(out), str(scene)]) == 0
+
+
+def test_intact_outputs_check_clean_and_json(reference, capsys):
+    scene, good = reference
+    capsys.readouterr()
+    assert main(["check", "--outputs", str(good), "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["intact"] and report["frames_verified"] == FRAMES and report["checkpoint_frame"] == FRAMES - 1
+
+
+def test_resume_with_a_garbage_manifest_keeps_every_frame(reference, tmp_path, capsys):
+    """The old behaviour deleted every frame; now the frames that verify are kept, untouched."""
+    scene, good = reference
+    out = _copy(good, tmp_path / "out")
+    (out / "frames" / "manifest.json").write_text("not json at all")
+    stamps = {k: os.stat(FrameStore(out).frame_path(k)).st_mtime_ns for k in range(FRAMES)}
+    assert main(["simulate", str(scene), "-o", str(out), "--resume"]) == 0
+    assert {k: os.stat(FrameStore(out).frame_path(k)).st_mtime_ns for k in range(FRAMES)} == stamps
+    _assert_same_store(good, out)
+
+
+def test_render_over_a_damaged_store_repairs_it(reference, tmp_path):
+    scene, good = reference
+    out = _copy(good, tmp_path / "out")
+    _truncate(out / "frames" / "frame_000004.npz")
+    r = subprocess.run([sys.executable, "-m", "fraytool", "render", str(scene), "-o", str(out), "--png", "--no-mp4",
+                        "--resolution", "64x48", "--frames", "3:6"], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert "frame_000004.npz: truncated" in r.stderr and "Traceback" not in r.stderr
+    _assert_same_store(good, out)
+    assert len(list((out / "png").glob("*.png"))) == 3
+
+
+def test_stale_temp_files_are_swept(reference, tmp_path, capsys):
+    """Temp files of dead writers go (this host: the pid is gone; another host: an hour old); a live
+    writer's, and another host's fresh one, stay."""
+    scene, good = reference
+    out = _copy(good, tmp_path / "out")
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    host = _writer_tag().rpartition("-")[0]
+    stale = out / "frames" / f".frame_000003.npz.{host}-{dead.pid}.k2j3h4.tmp"
+    live = out / "frames" / f".frame_000004.npz.{host}-{os.getppid()}.a8d7f6.tmp"
+    remote_fresh = out / "frames" / ".frame_000005.npz.othernode-12.b8c7e6.tmp"
+    remote_old = out / "frames" / ".checkpoint.npz.othernode-13.c8c7e6.tmp"
+    for p in (stale, live, remote_fresh, remote_old):
+        p.write_bytes(b"half a frame")
+    old = time.time() - STALE_TEMP_S - 5
+    os.utime(remote_old, (old, old))
+    capsys.readouterr()
+    assert main(["check", "--outputs", str(out)]) == 1
+    assert "temp file of a killed write" in capsys.readouterr().err
+    assert main(["simulate", str(scene), "-o", str(out), "--resume"]) == 0
+    assert not stale.exists() and not remote_old.exists()
+    assert live.exists() and remote_fresh.exists()
+
+
+# -- one writer per folder -------------------------------------------------------------------------
+
+def _write_lock(out, **holder):
+    out.mkdir(parents=True, exist_ok=True)
+    (out / LOCK_NAME).write_text(json.dumps({"command": "simulate", "started": "then", **holder}))
+
+
+def test_a_second_writer_is_refused_while_the_first_lives(reference, tmp_path, capsys):
+    scene, _ = reference
+    out = tmp_path / "out"
+    sleeper = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    try:
+        _write_lock(out, pid=sleeper.pid, host=socket.gethostname())
+        assert main(["simulate", str(scene), "-o", str(out)]) == 1
+        err = capsys.readouterr().err
+        assert "in use by another fraytool run" in err and f"pid {sleeper.pid}" in err and str(out) in err
+        assert not (out / "frames").exists()
+    finally:
+        sleeper.kill()
+        sleeper.wait()
+    # the holder is dead now: its lock is stale and taken over
+    assert main(["simulate", str(scene), "-o", str(out)]) == 0
+    assert FrameStore(out).frames_complete() == FRAMES and not (out / LOCK_NAME).exists()
+
+
+def test_a_second_render_waits_for_the_first(reference, tmp_path):
+    """Farm shards on one folder: the second render waits while the first simulates, then reuses
+    its frames."""
+    scene, good = reference
+    out = tmp_path / "out"
+    sleeper = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(2)"])
+    reaper = threading.Thread(target=sleeper.wait)  # a zombie would count as alive
+    reaper.start()
+    _write_lock(out, pid=sleeper.pid, host=socket.gethostname())
+    r = subprocess.run([sys.executable, "-m", "fraytool", "render", str(scene), "-o", str(out), "--png", "--no-mp4",
+                        "--resolution", "64x48", "--frames", "0:2"], capture_output=True, text=True, timeout=120)
+    reaper.join()
+    assert r.returncode == 0, r.stderr
+    assert f"waiting for {out}" in r.stderr and f"pid {sleeper.pid}" in r.stderr
+    assert len(list((out / "png").glob("*.png"))) == 2
+
+
+def test_a_lock_from_another_host_counts_while_it_is_fresh(reference, tmp_path, capsys):
+    scene, _ = reference
+    out = tmp_path / "out"
+    _write_lock(out, pid=1, host="farm-node-that-is-not-here")
+    assert main(["simulate", str(scene), "-o", str(out)]) == 1
+    assert "farm-node-that-is-not-here" in capsys.readouterr().err
+    old = time.time() - STALE_AFTER_S - 5
+    os.utime(out / LOCK_NAME, (old, old))
+    assert main(["simulate", str(scene), "-o", str(out)]) == 0
+
+
+def test_two_runs_started_together_never_mix_frames(reference, tmp_path):
+    """Two processes into one fresh folder: one simulates, the other exits 1 naming the holder (or
+    runs after it), and the folder ends intact."""
+    scene, good = reference
+    out = tmp_path / "out"
+    cmd = [sys.executable, "-m", "fraytool", "simulate", str(scene), "-o", str(out)]
+    procs = [subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True) for _ in range(2)]
+    results = [(p.wait(), p.stderr.read()) for p in procs]
+    codes = sorted(c for c, _ in results)
+    assert codes in ([0, 0], [0, 1]), results
+    for code, err in results:
+        assert "Traceback" not in err
+        if code == 1:
+            assert "in use by another fraytool run" in err
+    _assert_same_store(good, out)
+
+
+# -- I/O failures ----------------------------------------------------------------------------------
+
+def _fail_writes_after(monkeypatch, n_ok: int, err: int):
+    real = frame_record.atomic_write_bytes
+    count = {"n": 0}
+
+    def failing(path, writer):
+        count["n"] += 1
+        if count["n"] > n_ok:
+            raise OSError(err, os.strerror(err), str(path))
+        real(path, writer)
+
+    monkeypatch.setattr(frame_record, "atomic_write_bytes", failing)
+
+
+def _one_failure_line(err: str) -> str:
+    lines = [ln for ln in err.splitlines() if ln.startswith("fraytool:")]
+    assert len(lines) == 1 and "Traceback" not in err, err
+    return lines[0]
+
+
+@pytest.mark.parametrize("code,cause,advice", [(errno.ENOSPC, "No space left on device", "--resume"),
+                                               (errno.EROFS, "Read-only file system", "another output folder"),
+                                               (errno.EACCES, "Permission denied", "writable")])
+def test_injected_write_failure_exits_1_and_keeps_what_was_written(code, cause, advice, reference, tmp_path,
+                                                                   monkeypatch, capsys):
+    scene, good = reference
+    out = tmp_path / "out"
+    _fail_writes_after(monkeypatch, 5, code)  # .npz writes: topology, then record + checkpoint of frames 0, 1
+    assert main(["simulate", str(scene), "-o", str(out)]) == 1
+    line = _one_failure_line(capsys.readouterr().err)
+    assert line.startswith("fraytool: run failed: ") and str(out / "frames") in line and cause in line and advice in line
+    monkeypatch.undo()
+    survey = FrameStore(out).survey()
+    assert survey.clean and survey.good_frames == 2  # the frames counted are intact
+    assert main(["simulate", str(scene), "-o", str(out), "--resume"]) == 0
+    _assert_same_store(good, out)
+
+
+def test_output_folder_that_is_a_file(reference, tmp_path, capsys):
+    scene, _ = reference
+    target = tmp_path / "a_file"
+    target.write_text("keep me")
+    assert main(["simulate", str(scene), "-o", str(target)]) == 1
+    line = _one_failure_line(capsys.readouterr().err)
+    assert str(target) in line and "in the way" in line
+    assert target.read_text() == "keep me"
+
+
+@contextlib.contextmanager
+def _tmpfs(path, size: str, read_only: bool = False):
+    """Mount a small tmpfs at `path`; yields False where mounting is not allowed (not root, no
+    CAP_SYS_ADMIN), and the tests then rely on the injected faults above."""
+    path.mkdir(parents=True, exist_ok=True)
+    opts = f"size={size}" + (",ro" if read_only else "")
+    r = subprocess.run(["mount", "-t", "tmpfs", "-o", opts, f"fraytool-test-{uuid.uuid4().hex[:8]}", str(path)],
+                       capture_output=True)
+    if r.returncode != 0:
+        yield False
+        return
+    try:
+        yield True
+    finally:
+        subprocess.run(["umount", "-l", str(path)], capture_output=True)
+
+
+def test_full_disk_on_a_real_small_tmpfs(reference, tmp_path, capsys):
+    scene, good = reference
+    mnt = tmp_path / "small"
+    with _tmpfs(mnt, "160k") as mounted:
+        if not mounted:
+            pytest.skip("cannot mount a tmpfs here; test_injected_write_failure_exits_1... covers ENOSPC")
+        out = mnt / "out"
+        assert main(["simulate", str(scene), "-o", str(out)]) == 1
+        line = _one_failure_line(capsys.readouterr().err)
+        assert "No space left on device" in line and "--resume" in line
+        survey = FrameStore(out).survey()
+        assert survey.clean, survey.problems  # what the manifest counts is intact
+        assert not [p for p in (out / "frames").iterdir() if p.name.endswith(".tmp")]
+
+
+def test_read_only_folder_on_a_real_read_only_mount(reference, tmp_path, capsys):
+    scene, _ = reference
+    mnt = tmp_path / "ro"
+    with _tmpfs(mnt, "1m", read_only=True) as mounted:
+        if not mounted:
+            pytest.skip("cannot mount a tmpfs here; test_injected_write_failure_exits_1... covers EROFS")
+        assert main(["simulate", str(scene), "-o", str(mnt / "out")]) == 1
+        line = _one_failure_line(capsys.readouterr().err)
+        assert str(mnt / "out") in line and "Read-only file system" in line
