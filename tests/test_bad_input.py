@@ -145,3 +145,34 @@ def test_a_huge_value_is_not_echoed_whole(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "[cloth] origin_m = [1.0, 1.0" in err and "(100000 items)" in err
     assert max(len(line) for line in err.splitlines()) < 600
+
+
+def test_a_scene_too_big_for_the_memory_is_refused_with_the_estimate(tmp_path, capsys, monkeypatch):
+    from fraytool.sim.memory import estimate_bytes
+    from fraytool.scene import load_scene
+
+    path = tmp_path / "scene.toml"
+    path.write_text(GOOD)
+    need = estimate_bytes(load_scene(str(path)))
+    monkeypatch.setenv("FRAYTOOL_AVAILABLE_MEMORY_BYTES", str(need - 1))
+    for argv in (["check", str(path)], ["simulate", str(path), "-o", str(tmp_path / "out")],
+                 ["render", str(path), "-o", str(tmp_path / "out")]):
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert "[cloth] warp_yarns x weft_yarns = 12 x 12" in err and "needs about" in err and "--force" in err
+    assert not (tmp_path / "out").exists()
+    assert main(["check", str(path), "--force"]) == 0
+    monkeypatch.setenv("FRAYTOOL_AVAILABLE_MEMORY_BYTES", str(need))
+    assert main(["check", str(path)]) == 0
+
+
+def test_memory_estimate_grows_with_the_grid_and_with_tearing():
+    from fraytool.scene import parse_scene
+    from fraytool.sim.memory import BASE_BYTES, estimate_bytes
+    from helpers import small_scene_text
+
+    small = estimate_bytes(parse_scene(small_scene_text(nx=10, ny=10), "a.toml"))
+    big = estimate_bytes(parse_scene(small_scene_text(nx=100, ny=100), "b.toml"))
+    torn = estimate_bytes(parse_scene(small_scene_text(nx=100, ny=100) + "[cloth.tearing]\nenabled = true\n", "c.toml"))
+    assert BASE_BYTES < small < big < torn
+    assert (big - BASE_BYTES) == 100 * (small - BASE_BYTES)  # linear in the crossings

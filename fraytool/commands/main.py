@@ -52,6 +52,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--frames", type=_positive_int, help="number of frames (default: the scene's)")
     s.add_argument("--resume", action="store_true", help="continue from the last complete frame")
     s.add_argument("--json", action="store_true", help="print a JSON summary on stdout at the end")
+    s.add_argument("--force", action="store_true", help="run even if the memory estimate exceeds what is available")
 
     c = sub.add_parser("check", help="validate a scene and print derived figures; or check an output folder")
     c.add_argument("scene", nargs="?", help="scene file or shipped scene name (optional with --outputs)")
@@ -59,6 +60,8 @@ def build_parser() -> argparse.ArgumentParser:
                    "output folder instead; exit 1 if any file is damaged")
     c.add_argument("--run", action="store_true", help="also run the scene's own [checks]")
     c.add_argument("--json", action="store_true")
+    c.add_argument("--force", action="store_true", help="build the model even if the memory estimate exceeds "
+                   "what is available")
 
     b = sub.add_parser("bench", help="time the simulation (and rendering) per stage")
     b.add_argument("scene")
@@ -81,6 +84,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--camera-target", metavar="X,Y,Z", help="override [camera] target_m")
     r.add_argument("--fov", type=float, help="override [camera] fov_deg")
     r.add_argument("-v", "--verbose", action="store_true", help="print the GL renderer and version")
+    r.add_argument("--force", action="store_true", help="run even if the memory estimate exceeds what is available")
 
     st = sub.add_parser("study", help="error against run time, or stability sweeps")
     st.add_argument("scene")
@@ -94,16 +98,26 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def _load(path: str):
+def _load(path: str, force: Optional[bool] = None):
+    """The scene; unless `force` is True (None: no memory check), refuse (exit 2) a scene whose memory
+    estimate exceeds what the machine has available."""
     from fraytool.scene import load_scene
+    from fraytool.errors import SceneError
 
-    return load_scene(path)
+    spec = load_scene(path)
+    if force is False:
+        from fraytool.sim.memory import memory_problem
+
+        problem = memory_problem(spec)
+        if problem:
+            raise SceneError([problem])
+    return spec
 
 
 def cmd_simulate(args) -> int:
     from fraytool.sim.run import default_out_dir, simulate_to_disk
 
-    spec = _load(args.scene)
+    spec = _load(args.scene, force=args.force)
     out = args.out or default_out_dir(spec)
     summary = simulate_to_disk(spec, out, frames=args.frames, resume=args.resume)
     if args.json:
@@ -123,9 +137,10 @@ def cmd_check(args) -> int:
     from fraytool.sim.run import check_step
     from fraytool.sim.builder import build_model
     from fraytool.kinds import SPRING_KIND_NAMES
+    from fraytool.sim.memory import available_bytes, estimate_bytes
     from fraytool.sim.stability import stability_report
 
-    spec = _load(args.scene)
+    spec = _load(args.scene, force=args.force)
     model = build_model(spec)
     bound = check_step(spec, model)
     kinds = {name: int((model.spring_kind == k).sum()) for k, name in enumerate(SPRING_KIND_NAMES)}
@@ -142,6 +157,8 @@ def cmd_check(args) -> int:
         "bodies": len(spec.bodies),
         "attached_masses": model.attachment_count,
         "simulated_s_per_frame": spec.time.step_s * spec.time.steps_per_frame,
+        "memory_estimate_bytes": estimate_bytes(spec),
+        "memory_available_bytes": available_bytes(),
     }
     if args.run:
         from fraytool.sim.checks import run_scene_checks
@@ -152,7 +169,12 @@ def cmd_check(args) -> int:
     else:
         checks = info.pop("checks", None)
         for k, v in info.items():
-            print(f"{k:24s} {v}")
+            print(f"{k:28s} {_rounded(v)}")
+        if not info["power_converged"]:
+            print(f"note: power iteration stopped after {info['power_iterations']} sweeps (cap "
+                  f"{info['power_sweep_cap']}, about a second of work) before converging: omega_max_power_rad_s "
+                  "is a lower bound, so stability_bound_power_s may be too large; the step is judged by "
+                  "Gershgorin's bound, which is safe")
         if checks is not None:
             print(f"checks after {checks['frames']} frames: {'passed' if checks['passed'] else 'FAILED'}")
             for name, r in checks["results"].items():
@@ -161,6 +183,15 @@ def cmd_check(args) -> int:
     if args.run and not info["checks"]["passed"]:
         return 1
     return 0
+
+
+def _rounded(v):
+    """Figures for people: floats to 6 significant digits, byte counts in MiB or GiB."""
+    if isinstance(v, float):
+        return f"{v:.6g}"
+    if isinstance(v, dict):
+        return ", ".join(f"{k} {_rounded(x)}" for k, x in v.items())
+    return v
 
 
 def cmd_bench(args) -> int:

@@ -10,7 +10,7 @@ import sys
 from pathlib import Path
 from typing import Optional, TextIO
 
-from fraytool.errors import InputError
+from fraytool.errors import InputError, SceneError
 from fraytool.io.frame_store import FrameStore
 from fraytool.io.lock import OutputLock
 from fraytool.render.job import RenderJob, with_overrides
@@ -108,6 +108,12 @@ def render_command(args, stream: Optional[TextIO] = None) -> int:
 def _render(args, stream: Optional[TextIO]) -> int:
     stream = stream or sys.stderr
     spec = load_scene(args.scene)
+    if not getattr(args, "force", False):
+        from fraytool.sim.memory import memory_problem
+
+        problem = memory_problem(spec)
+        if problem:
+            raise SceneError([problem])
     job = build_job(spec, args)
     from fraytool.render.context import create_context, describe
     from fraytool.render.renderer import clamp_samples

@@ -363,30 +363,30 @@ class ModelBuilder:
 
     @staticmethod
     def _springs(k: SpringSpec, nx: int, ny: int, rest: np.ndarray):
-        kinds, a_list, b_list, stiff = [], [], [], []
+        parts: list[tuple[int, np.ndarray, np.ndarray, float]] = []
+        count = 0
         weft_struct = np.full((ny, max(nx - 1, 0)), -1, np.int32)
         warp_struct = np.full((nx, max(ny - 1, 0)), -1, np.int32)
 
         def add(kind, a, b, ks):
-            start = len(kinds)
-            kinds.extend([kind] * len(a))
-            a_list.extend(a)
-            b_list.extend(b)
-            stiff.extend([ks] * len(a))
-            return np.arange(start, len(kinds), dtype=np.int32)
+            nonlocal count
+            a, b = np.asarray(a, np.int32).ravel(), np.asarray(b, np.int32).ravel()
+            parts.append((kind, a, b, ks))
+            count += a.size
+            return np.arange(count - a.size, count, dtype=np.int32)
 
         idx = crossing_index
         jj, ii = np.meshgrid(np.arange(ny), np.arange(nx - 1), indexing="ij")
-        weft_struct[:, :] = add(STRUCT_WEFT, idx(ii, jj, nx).ravel(), idx(ii + 1, jj, nx).ravel(),
+        weft_struct[:, :] = add(STRUCT_WEFT, idx(ii, jj, nx), idx(ii + 1, jj, nx),
                                 k.structural_n_per_m).reshape(ny, nx - 1)
         ii, jj = np.meshgrid(np.arange(nx), np.arange(ny - 1), indexing="ij")
-        warp_struct[:, :] = add(STRUCT_WARP, idx(ii, jj, nx).ravel(), idx(ii, jj + 1, nx).ravel(),
+        warp_struct[:, :] = add(STRUCT_WARP, idx(ii, jj, nx), idx(ii, jj + 1, nx),
                                 k.structural_n_per_m).reshape(nx, ny - 1)
         if k.bend_n_per_m > 0:
             jj, ii = np.meshgrid(np.arange(ny), np.arange(nx - 2), indexing="ij")
-            add(BEND_WEFT, idx(ii, jj, nx).ravel(), idx(ii + 2, jj, nx).ravel(), k.bend_n_per_m)
+            add(BEND_WEFT, idx(ii, jj, nx), idx(ii + 2, jj, nx), k.bend_n_per_m)
             ii, jj = np.meshgrid(np.arange(nx), np.arange(ny - 2), indexing="ij")
-            add(BEND_WARP, idx(ii, jj, nx).ravel(), idx(ii, jj + 2, nx).ravel(), k.bend_n_per_m)
+            add(BEND_WARP, idx(ii, jj, nx), idx(ii, jj + 2, nx), k.bend_n_per_m)
         shear_twin_pairs = None
         if k.shear_n_per_m > 0:
             jj, ii = np.meshgrid(np.arange(ny - 1), np.arange(nx - 1), indexing="ij")
@@ -394,17 +394,19 @@ class ModelBuilder:
             s1 = add(SHEAR, idx(ii, jj, nx), idx(ii + 1, jj + 1, nx), k.shear_n_per_m)
             s2 = add(SHEAR, idx(ii + 1, jj, nx), idx(ii, jj + 1, nx), k.shear_n_per_m)
             shear = np.concatenate([s1, s2])
-            twins = add(SHEAR_TWIN, [a_list[s] for s in shear], [b_list[s] for s in shear], 0.5 * k.shear_n_per_m)
+            twins = add(SHEAR_TWIN, np.concatenate([parts[-2][1], parts[-1][1]]),
+                        np.concatenate([parts[-2][2], parts[-1][2]]), 0.5 * k.shear_n_per_m)
             shear_twin_pairs = (shear, twins)
-        kind = np.asarray(kinds, np.int8)
-        a = np.asarray(a_list, np.int32)
-        b = np.asarray(b_list, np.int32)
-        twin = np.full(len(kinds), -1, np.int32)
+        kind = np.concatenate([np.full(p[1].size, p[0], np.int8) for p in parts]) if parts else np.zeros(0, np.int8)
+        a = np.concatenate([p[1] for p in parts]) if parts else np.zeros(0, np.int32)
+        b = np.concatenate([p[2] for p in parts]) if parts else np.zeros(0, np.int32)
+        stiff = np.concatenate([np.full(p[1].size, p[3], float) for p in parts]) if parts else np.zeros(0)
+        twin = np.full(count, -1, np.int32)
         if shear_twin_pairs is not None:
             twin[shear_twin_pairs[0]] = shear_twin_pairs[1]
             twin[shear_twin_pairs[1]] = shear_twin_pairs[0]
         rest_len = np.linalg.norm(rest[b] - rest[a], axis=1)
-        return kind, a, b, np.asarray(stiff, float), rest_len, twin, weft_struct, warp_struct
+        return kind, a, b, stiff, rest_len, twin, weft_struct, warp_struct
 
     def _break_strains(self, count: int) -> np.ndarray:
         """Per-spring break strain ~ Normal(break_strain, spread), clipped above the transition strain.

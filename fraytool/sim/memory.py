@@ -1,0 +1,74 @@
+"""Memory a scene will need, estimated from the scene before anything is allocated, and what the
+machine has (issue 11: refuse what will not fit, with the estimate).
+
+The per-crossing figures are peak resident memory measured with `/usr/bin/time -v fraytool simulate
+SCENE --frames 3` on grids resized from the shipped scenes (this machine, numpy 2, numba 0.60):
+    drape 128^2 -> 256^2 (base model only):            about 1.05 KB more per crossing
+    fig7 128^2 -> 256^2 (tearing, self-collision on):  about 2.0 KB more per crossing
+and about 180 MB for the interpreter, numpy, numba and the compiled kernels. The estimate adds half
+again to the per-crossing figures (torn regions grow: yarn-level masses, self-collision candidates).
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Optional
+
+from fraytool.scene.spec import SceneSpec
+
+BASE_BYTES = 250 * 2**20
+"""Interpreter, numpy, numba and compiled kernels (measured about 180 MB), with margin."""
+BYTES_PER_CROSSING = 1600
+"""Base model: Model + State + solver scratch (measured about 1050 B), with margin."""
+TEARING_BYTES_PER_CROSSING = 1400
+"""Extra for tearing at yarn level and self-collision (measured about 950 B more), with margin."""
+
+
+def estimate_bytes(spec: SceneSpec) -> int:
+    """Peak resident memory [bytes] a simulation of `spec` is expected to need."""
+    crossings = spec.cloth.warp_yarns * spec.cloth.weft_yarns
+    per = BYTES_PER_CROSSING
+    if spec.cloth.tearing.enabled or spec.self_collision.enabled:
+        per += TEARING_BYTES_PER_CROSSING
+    return BASE_BYTES + crossings * per
+
+
+def available_bytes() -> Optional[int]:
+    """Memory this process may still use [bytes]: the smaller of /proc/meminfo's MemAvailable and a
+    cgroup v2 limit's headroom; None where neither can be read."""
+    found = []
+    try:
+        for line in Path("/proc/meminfo").read_text().splitlines():
+            if line.startswith("MemAvailable:"):
+                found.append(int(line.split()[1]) * 1024)
+    except (OSError, ValueError, IndexError):
+        pass
+    cg = Path("/sys/fs/cgroup")
+    try:
+        limit = (cg / "memory.max").read_text().strip()
+        if limit != "max":
+            found.append(int(limit) - int((cg / "memory.current").read_text().strip()))
+    except (OSError, ValueError):
+        pass
+    override = os.environ.get("FRAYTOOL_AVAILABLE_MEMORY_BYTES")  # for tests and for users who know better
+    if override:
+        try:
+            found.append(int(override))
+        except ValueError:
+            pass
+    return min(found) if found else None
+
+
+def gib(n: float) -> str:
+    return f"{n / 2**30:.2f} GiB" if n >= 2**30 else f"{n / 2**20:.0f} MiB"
+
+
+def memory_problem(spec: SceneSpec) -> Optional[str]:
+    """A one-line refusal if the estimate does not fit in the available memory, else None."""
+    need, have = estimate_bytes(spec), available_bytes()
+    if have is None or need <= have:
+        return None
+    c = spec.cloth
+    return (f"{spec.source}: [cloth] warp_yarns x weft_yarns = {c.warp_yarns} x {c.weft_yarns}: the simulation needs "
+            f"about {gib(need)} and this machine has {gib(have)} available; use a smaller grid, "
+            "or pass --force to try anyway")

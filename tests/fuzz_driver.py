@@ -1,0 +1,59 @@
+"""Run `fraytool check` (and, where it passes, `simulate --frames 2`) on many scene files in one
+process, as the CLI would: `python tests/fuzz_driver.py OUT_DIR FILE...` prints one JSON line per
+file with each command's exit code, stderr, and whether an exception escaped main() (a traceback) or
+the case hung (SIGALRM after HANG_S seconds). tests/test_fuzz_scenes.py runs it in a subprocess."""
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import signal
+import sys
+import traceback
+
+HANG_S = 30
+
+
+class Hang(Exception):
+    pass
+
+
+def _alarm(signum, frame):
+    raise Hang()
+
+
+def run(argv: list[str]) -> dict:
+    from fraytool.commands.main import main
+
+    err = io.StringIO()
+    result = {"argv": argv, "code": None, "traceback": None, "hang": False}
+    signal.alarm(HANG_S)
+    try:
+        with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+            result["code"] = main(argv)
+    except SystemExit as exc:
+        result["code"] = exc.code
+    except Hang:
+        result["hang"] = True
+    except BaseException:  # noqa: BLE001 - anything that escapes main() would be a traceback for the user
+        result["traceback"] = traceback.format_exc()
+    finally:
+        signal.alarm(0)
+    result["stderr"] = err.getvalue()
+    return result
+
+
+def main() -> int:
+    signal.signal(signal.SIGALRM, _alarm)
+    out_dir, files = sys.argv[1], sys.argv[2:]
+    for k, path in enumerate(files):
+        check = run(["check", path])
+        sim = None
+        if check["code"] == 0:
+            sim = run(["simulate", path, "--frames", "2", "-o", f"{out_dir}/case{k}"])
+        print(json.dumps({"file": path, "check": check, "simulate": sim}), flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
