@@ -41,6 +41,8 @@ CASES = {
     "tiny step": (_with("step_s = 0.0004", "step_s = 5e-324"), ["[time] step_s = 5e-324", ">= 1e-09"]),
     "tiny fps": (_with("fps = 24\n", "fps = 1e-300\n"), ["[time] fps = 1e-300", ">= 1"]),
     "huge seed": (_with("seed = 1\n", "seed = 18446744073709551616\n"), ["[scene] seed = 18446744073709551616", "<= 9.22337e+18"]),
+    "huge origin": (_with("origin_m = [-0.03, 0.1, -0.03]", "origin_m = [1e300, 0.1, -0.03]"),
+                    ["[cloth] origin_m = [1e+300, 0.1, -0.03]", "each >= -10000 and <= 10000"]),
     "cut outside the cloth": (GOOD + "\n[[cuts]]\nstart = [3.5, 100.0]\nend = [3.5, 2.0]\n",
                               ["[cuts.0] start = [3.5, 100.0]", "-1 <= j <="]),
 }

@@ -51,7 +51,7 @@ class Key:
             "int": "an integer",
             "bool": "true or false",
             "str": "a string",
-            "vec3": "an array of 3 numbers",
+            "vec3": "an array of 3 numbers, each",
             "color": "an array of 3 numbers in [0, 1]",
             "int2": "an array of 2 integers",
             "float2": "an array of 2 numbers",
@@ -107,6 +107,8 @@ class Key:
             if not all(math.isfinite(v) for v in out):
                 return False, None
             if k == "color" and not all(0.0 <= v <= 1.0 for v in out):
+                return False, None
+            if not all(self.in_range(v) for v in out):
                 return False, None
             return True, out
         if k == "int2":

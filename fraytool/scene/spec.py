@@ -19,6 +19,10 @@ from fraytool.scene.keys import key
 
 Vec3 = tuple[float, float, float]
 
+WORLD_M = 1.0e4
+"""Largest coordinate of a position key [m]: 10 km, far beyond any cloth shot, and small enough that
+positions keep sub-micrometre precision in float64 and stay finite in the float32 frame records."""
+
 
 @dataclass(frozen=True, kw_only=True)
 class SceneInfo:
@@ -112,7 +116,7 @@ class ClothSpec:
     thickness_m: float = key("float", lo=0, lo_open=True, hi=0.1,
                              doc="cloth thickness T [m]: weft and warp masses of a couple are T apart")
     mass_per_crossing_kg: float = key("float", lo=0, lo_open=True, hi=10.0, doc="mass of one crossing [kg]")
-    origin_m: Vec3 = key("vec3", (0.0, 0.0, 0.0), doc="world position of crossing (i = 0, j = 0) [m]")
+    origin_m: Vec3 = key("vec3", (0.0, 0.0, 0.0), lo=-WORLD_M, hi=WORLD_M, doc="world position of crossing (i = 0, j = 0) [m]")
     plane: str = key("str", "xz", choices=("xz", "xy", "yz"),
                      doc='plane the cloth spans at rest ("xz" flat, y up; "xy" vertical); weft along its first axis')
     weave: str = key("str", "plain", choices=("plain", "twill", "satin", "table"), doc="weave pattern")
@@ -134,12 +138,12 @@ class BodySpec:
     shape: str = key("str", choices=SHAPE_NAMES, doc="body shape")
     motion: str = key("str", "static", choices=MOTION_NAMES,
                       doc="kinematic bodies follow path or velocity_m_s; dynamic ones fly and are pushed by the cloth")
-    position_m: Vec3 = key("vec3", (0.0, 0.0, 0.0), doc="centre (sphere, box) or a point of the plane [m]")
+    position_m: Vec3 = key("vec3", (0.0, 0.0, 0.0), lo=-WORLD_M, hi=WORLD_M, doc="centre (sphere, box) or a point of the plane [m]")
     radius_m: float = key("float", 0.0, lo=0, lo_open=True, hi=100, doc="sphere radius [m]; required for spheres")
-    half_extents_m: Vec3 = key("vec3", (0.0, 0.0, 0.0), doc="box half sizes [m]; required for boxes")
+    half_extents_m: Vec3 = key("vec3", (0.0, 0.0, 0.0), lo=-WORLD_M, hi=WORLD_M, doc="box half sizes [m]; required for boxes")
     normal: Vec3 = key("vec3", (0.0, 1.0, 0.0), doc="plane normal, pointing to the free side")
     rotation_deg: Vec3 = key("vec3", (0.0, 0.0, 0.0), doc="fixed orientation as x, y, z Euler angles [degrees]")
-    velocity_m_s: Vec3 = key("vec3", (0.0, 0.0, 0.0),
+    velocity_m_s: Vec3 = key("vec3", (0.0, 0.0, 0.0), lo=-1e4, hi=1e4,
                              doc="kinematic: constant velocity; dynamic: initial velocity [m/s]")
     path: tuple[tuple[float, float, float, float], ...] = key(
         "path", (), doc="kinematic keyframes (t [s], x, y, z [m]), linearly interpolated; held after the last")
@@ -161,7 +165,7 @@ class AttachmentSpec:
     corner_size: int = key("int", 1, lo=1, hi=4096, doc="side of the corner block, in crossings")
     warp_range: Optional[tuple[int, int]] = key("int2", None, doc="inclusive range of warp yarn indices i")
     weft_range: Optional[tuple[int, int]] = key("int2", None, doc="inclusive range of weft yarn indices j")
-    region_center_m: Optional[Vec3] = key("vec3", None, doc="with region_radius_m: centre of a ball of held masses [m]")
+    region_center_m: Optional[Vec3] = key("vec3", None, lo=-WORLD_M, hi=WORLD_M, doc="with region_radius_m: centre of a ball of held masses [m]")
     region_radius_m: float = key("float", 0.0, lo=0, doc="with region_center_m: masses this close at rest are held [m]")
 
 
@@ -180,8 +184,8 @@ class CutSpec:
 class CameraSpec:
     """[camera]"""
 
-    position_m: Vec3 = key("vec3", (0.0, 0.3, 0.6), doc="eye [m]")
-    target_m: Vec3 = key("vec3", (0.0, 0.0, 0.0), doc="point looked at [m]")
+    position_m: Vec3 = key("vec3", (0.0, 0.3, 0.6), lo=-WORLD_M, hi=WORLD_M, doc="eye [m]")
+    target_m: Vec3 = key("vec3", (0.0, 0.0, 0.0), lo=-WORLD_M, hi=WORLD_M, doc="point looked at [m]")
     up: Vec3 = key("vec3", (0.0, 1.0, 0.0), doc="up direction")
     fov_deg: float = key("float", 40.0, lo=1, hi=170, doc="vertical field of view [degrees]")
 
@@ -256,7 +260,7 @@ class SceneSpec:
     scene: SceneInfo
     time: TimeSpec
     cloth: ClothSpec
-    gravity_m_s2: Vec3 = key("vec3", (0.0, -9.81, 0.0), doc="gravity [m/s^2]")
+    gravity_m_s2: Vec3 = key("vec3", (0.0, -9.81, 0.0), lo=-1e4, hi=1e4, doc="gravity [m/s^2]")
     bodies: tuple[BodySpec, ...] = ()
     attachments: tuple[AttachmentSpec, ...] = ()
     cuts: tuple[CutSpec, ...] = ()
