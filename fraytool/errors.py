@@ -36,13 +36,16 @@ _OS_ADVICE = {
     "EACCES": "make the folder writable or choose another output folder with -o",
     "EPERM": "make the folder writable or choose another output folder with -o",
     "EROFS": "the file system is read-only: choose another output folder with -o",
-    "ENOSPC": "free some space (or choose another output folder with -o), then run again with --resume",
-    "EDQUOT": "the disk quota is used up: free some space, then run again with --resume",
+    "ENOSPC": "free some space (or choose another output folder with -o), then run the command again "
+              "(simulate with --resume): what was written is kept",
+    "EDQUOT": "the disk quota is used up: free some space, then run the command again (simulate with "
+              "--resume): what was written is kept",
     "EEXIST": "a file is in the way of a folder: move it or choose another output folder with -o",
     "ENOTDIR": "a file is in the way of a folder: move it or choose another output folder with -o",
     "EISDIR": "a folder is in the way of a file: move it or choose another output folder with -o",
     "ENAMETOOLONG": "choose a shorter output folder with -o",
-    "EIO": "the storage reported an I/O error: check the disk, then run again with --resume",
+    "EIO": "the storage reported an I/O error: check the disk, then run the command again (simulate with "
+           "--resume)",
 }
 
 

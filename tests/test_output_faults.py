@@ -321,3 +321,34 @@ def test_read_only_folder_on_a_real_read_only_mount(reference, tmp_path, capsys)
         assert main(["simulate", str(scene), "-o", str(mnt / "out")]) == 1
         line = _one_failure_line(capsys.readouterr().err)
         assert str(mnt / "out") in line and "Read-only file system" in line
+
+
+def test_full_disk_while_rendering_pngs_exits_1_naming_the_png(reference, tmp_path, monkeypatch, capsys):
+    """Fault injected at the PNG writer (tmpfs or not): exit 1, the PNG's path in the line, the PNGs
+    written before it kept and verified, no temp file left; running again finishes the job."""
+    from fraytool.render import encode
+
+    scene, good = reference
+    out = _copy(good, tmp_path / "out")
+    real = encode.atomic_write_bytes
+    written = []
+
+    def failing(path, writer):
+        if len(written) == 3:
+            def short_write(f):  # the disk fills up in the middle of the PNG
+                f.write(b"\x89PNG")
+                raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+            return real(path, short_write)
+        written.append(path)
+        return real(path, writer)
+
+    monkeypatch.setattr(encode, "atomic_write_bytes", failing)
+    argv = ["render", str(scene), "-o", str(out), "--png", "--resolution", "64x48"]
+    assert main(argv) == 1
+    line = _one_failure_line(capsys.readouterr().err)
+    assert str(out / "png" / "frame_000003.png") in line and "No space left on device" in line and "again" in line
+    assert sorted(p.name for p in (out / "png").iterdir()) == [f"frame_00000{k}.png" for k in range(3)]
+    assert not list(out.glob(".*partial*")) and not (out / "small.mp4").exists()
+    monkeypatch.undo()
+    assert main(argv) == 0
+    assert "3 rendered, 3 kept" in capsys.readouterr().err
