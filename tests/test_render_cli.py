@@ -58,7 +58,25 @@ def test_frame_range_names_the_mp4_and_continues_a_shorter_simulation(tmp_path, 
     assert p["frames"] == 2 and p["size"] == (32, 24)
     assert main(["render", str(SCENE), "-o", str(out), "--no-mp4", "--png", "--wireframe", "only",
                  "--resolution", "33x25"]) == 0                  # odd sizes are fine without an MP4
-    assert len(list((out / "png").glob("*.png"))) == 4
+    assert len(list((out / "png_wireframe").glob("*.png"))) == 4
+
+
+def test_passes_never_overwrite_each_other(tmp_path):
+    """The beauty pass, the wireframe and the wireframe beside, whole and ranged, into one folder:
+    every file keeps its own name (docs/rendering.md lists them)."""
+    out = tmp_path / "out"
+    common = ["-o", str(out), "--png", "--resolution", "32x24"]
+    for extra in ([], ["--wireframe", "only"], ["--wireframe", "beside"], ["--frames", "0:2"],
+                  ["--wireframe", "beside", "--frames", "0:2"]):
+        assert main(["render", str(SCENE), *common, *extra]) == 0
+    names = sorted(p.name for p in out.iterdir() if p.suffix == ".mp4")
+    assert names == ["golden_small.mp4", "golden_small_000000-000002.mp4", "golden_small_beside.mp4",
+                     "golden_small_beside_000000-000002.mp4", "golden_small_wireframe.mp4"]
+    beauty = {p.name: p.read_bytes() for p in (out / "png").iterdir()}
+    assert len(beauty) == 4
+    for d in ("png_wireframe", "png_beside"):
+        assert sorted(p.name for p in (out / d).iterdir()) == sorted(beauty)
+        assert all((out / d / n).read_bytes() != b for n, b in beauty.items())  # other pixels, other files
 
 
 @pytest.mark.parametrize("flags,needle", [

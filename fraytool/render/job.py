@@ -3,9 +3,12 @@
 It fixes everything that decides the pixels (scene with camera and render overrides applied, image
 size, samples, wireframe mode) and where files go:
 
-    <out>/<scene>.mp4                       whole scene (no --frames)
-    <out>/<scene>_START-END[_stepS].mp4     a --frames range (END exclusive), e.g. for farm shards
-    <out>/png/frame_000000.png ...          --png: numbered by scene frame, so shards share one sequence
+    <out>/<scene><PASS>.mp4                      whole scene (no --frames)
+    <out>/<scene><PASS>_START-END[_stepS].mp4    a --frames range (END exclusive), e.g. for farm shards
+    <out>/png<PASS>/frame_000000.png ...         --png: numbered by scene frame, so shards share one sequence
+
+PASS (PASS_SUFFIX) is "" for the yarns (beauty), "_wireframe" for --wireframe only and "_beside" for
+--wireframe beside, so no pass or range ever overwrites another's files.
 
 `digest()` names the pixels: it hashes the simulation (scene_hash), camera, render settings, size,
 samples, wireframe mode, the shader sources and RENDER_REVISION. A PNG carries the digest of the job
@@ -23,6 +26,9 @@ from fraytool.render.options import FrameRange
 from fraytool.resources import shader_dir
 from fraytool.scene import scene_hash
 from fraytool.scene.spec import SceneSpec
+
+PASS_SUFFIX = {"off": "", "only": "_wireframe", "beside": "_beside"}
+"""File-name suffix of each render pass (the --wireframe mode)."""
 
 RENDER_REVISION = 1
 """Bump when a change in the Python side of the renderer changes pixels (shader edits count by themselves)."""
@@ -50,13 +56,19 @@ class RenderJob:
         return int(self.spec.render.samples)
 
     @property
+    def pass_suffix(self) -> str:
+        return PASS_SUFFIX[self.wireframe]
+
+    @property
     def mp4_path(self) -> Path:
-        name = self.spec.name if not self.ranged else f"{self.spec.name}_{self.frames.label()}"
+        name = self.spec.name + self.pass_suffix
+        if self.ranged:
+            name += f"_{self.frames.label()}"
         return self.out_dir / f"{name}.mp4"
 
     @property
     def png_dir(self) -> Path:
-        return self.out_dir / "png"
+        return self.out_dir / f"png{self.pass_suffix}"
 
     def png_path(self, frame: int) -> Path:
         return self.png_dir / f"frame_{frame:06d}.png"
