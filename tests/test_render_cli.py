@@ -148,3 +148,46 @@ def test_terminated_render_leaves_no_partial_mp4_and_resumes(tmp_path):
     assert r.returncode == 0, r.stderr
     assert f"{60 - len(kept)} rendered, {len(kept)} kept" in r.stderr
     assert probe(out / "golden_small.mp4")["frames"] == 60
+
+
+def _processes_mentioning(text: str) -> list[int]:
+    """Pids of live processes whose command line contains `text` (Linux /proc)."""
+    found = []
+    for d in Path("/proc").iterdir():
+        if d.name.isdigit():
+            try:
+                if text.encode() in (d / "cmdline").read_bytes():
+                    found.append(int(d.name))
+            except OSError:
+                pass
+    return found
+
+
+def test_killed_render_takes_its_ffmpeg_along_and_the_partial_is_swept(tmp_path):
+    """kill -9 of fraytool while it encodes: its ffmpeg child dies with it (no orphan finishing a
+    hidden partial MP4), and the next render sweeps the partial and writes the whole MP4."""
+    import signal
+    import time
+
+    scene = tmp_path / "long.toml"
+    scene.write_text(SCENE.read_text().replace("frames = 4", "frames = 60"))
+    out = tmp_path / "out"
+    assert fraytool("simulate", scene, "-o", out).returncode == 0
+    p = subprocess.Popen([sys.executable, "-m", "fraytool", "render", str(scene), "-o", str(out), "--png",
+                          "--resolution", "320x240"], stderr=subprocess.DEVNULL, stdin=subprocess.DEVNULL)
+    deadline = time.monotonic() + 120
+    while len(list((out / "png").glob("frame_*.png"))) < 3 and p.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.05)
+    partials = list(out.glob(".golden_small.partial-*.mp4"))
+    assert partials and _processes_mentioning(str(partials[0])), "ffmpeg was not encoding"
+    p.kill()
+    p.wait()
+    deadline = time.monotonic() + 10
+    while _processes_mentioning(str(partials[0])) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not _processes_mentioning(str(partials[0])), "ffmpeg outlived fraytool"
+    # killed with fraytool, not left to finish: a partial that is there has no index (moov) at its front
+    assert not partials[0].exists() or b"moov" not in partials[0].read_bytes()[: 1 << 16]
+    r = fraytool("render", scene, "-o", out, "--png", "--resolution", "320x240")
+    assert r.returncode == 0, r.stderr
+    assert not list(out.glob(".*partial*")) and probe(out / "golden_small.mp4")["frames"] == 60

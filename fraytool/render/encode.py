@@ -16,7 +16,11 @@ that the video has exactly the size the user asked for.
 from __future__ import annotations
 
 import os
+import signal
 import socket
+import subprocess
+import sys
+import tempfile
 from fractions import Fraction
 from pathlib import Path
 from typing import Optional
@@ -95,9 +99,21 @@ def remove_stale_partials(path: Path) -> None:
                 pass
 
 
+def _die_with_parent() -> None:  # pragma: no cover - runs in the child between fork and exec
+    """Linux: the child gets SIGKILL when the thread that started it dies, so a `kill -9` of fraytool
+    never leaves ffmpeg finishing a partial MP4 behind it."""
+    try:
+        import ctypes
+
+        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass
+
+
 class Mp4Writer:
-    """Stream frames into an H.264 MP4; `close()` publishes it, `abort()` (or an exception in a
-    `with` block) removes the temp file and leaves any previous MP4 untouched."""
+    """Stream frames into an H.264 MP4 through an ffmpeg child (the binary imageio-ffmpeg ships);
+    `close()` publishes it, `abort()` (or an exception in a `with` block) removes the temp file and
+    leaves any previous MP4 untouched. The child dies with fraytool (PR_SET_PDEATHSIG on Linux)."""
 
     def __init__(self, path: Path, size: tuple[int, int], fps: float, crf: int = 18, preset: str = X264_PRESET):
         check_even(size)
@@ -107,40 +123,53 @@ class Mp4Writer:
         remove_stale_partials(self.path)
         self.tmp = partial_mp4_path(self.path)
         self.frames = 0
-        self._gen = imageio_ffmpeg.write_frames(
-            str(self.tmp), self.size, fps=Fraction(fps).limit_denominator(1001), codec="libx264",
-            pix_fmt_in="rgb24", pix_fmt_out="yuv420p", quality=None, macro_block_size=1,
-            ffmpeg_log_level="error",
-            output_params=["-crf", str(int(crf)), "-preset", preset, "-movflags", "+faststart"])
-        self._gen.send(None)
+        rate = Fraction(fps).limit_denominator(1001)
+        cmd = [imageio_ffmpeg.get_ffmpeg_exe(), "-y", "-hide_banner", "-loglevel", "error",
+               "-f", "rawvideo", "-vcodec", "rawvideo", "-s", f"{self.size[0]}x{self.size[1]}", "-pix_fmt", "rgb24",
+               "-r", f"{rate.numerator}/{rate.denominator}", "-i", "-", "-an",
+               "-vcodec", "libx264", "-pix_fmt", "yuv420p", "-crf", str(int(crf)), "-preset", preset,
+               "-movflags", "+faststart", "-f", "mp4", str(self.tmp)]
+        self._log = tempfile.TemporaryFile()
+        self._proc: Optional[subprocess.Popen] = subprocess.Popen(
+            cmd, stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=self._log,
+            preexec_fn=_die_with_parent if sys.platform.startswith("linux") else None)
+
+    def _ffmpeg_said(self) -> str:
+        self._log.seek(0)
+        lines = self._log.read().decode(errors="replace").strip().splitlines()
+        return lines[-1] if lines else "no message"
 
     def write(self, image: np.ndarray) -> None:
         h, w = image.shape[:2]
         if (w, h) != self.size or image.dtype != np.uint8 or image.shape[2:] != (3,):
             raise ValueError(f"frame {image.shape} {image.dtype} does not match the video size {self.size}")
         try:
-            self._gen.send(np.ascontiguousarray(image))
-        except OSError as exc:
+            self._proc.stdin.write(np.ascontiguousarray(image).tobytes())
+        except (OSError, ValueError):
+            self._proc.wait()
+            said = self._ffmpeg_said()
             self.abort()
-            raise RunError(f"{self.path}: ffmpeg stopped while encoding: {str(exc).splitlines()[0]}") from None
+            raise RunError(f"{self.path}: ffmpeg stopped while encoding: {said}") from None
         self.frames += 1
 
     def close(self) -> Path:
         """Finish encoding and rename the temp file to the final name."""
-        if self._gen is None:
+        if self._proc is None:
             return self.path
         if self.frames == 0:
             self.abort()
             raise RunError(f"{self.path}: no frames to encode")
+        proc, self._proc = self._proc, None
         try:
-            self._gen.close()
-        except Exception as exc:
-            self._gen = None
+            proc.stdin.close()
+        except OSError:
+            pass
+        code = proc.wait()
+        if code != 0:
+            said = self._ffmpeg_said()
             self._unlink_tmp()
-            raise RunError(f"{self.path}: ffmpeg failed: {str(exc).splitlines()[0]}") from None
-        self._gen = None
-        # write_frames does not report ffmpeg's exit status: check that a finished MP4 is there
-        # (with +faststart the index atom, moov, sits at the front of a complete file).
+            raise RunError(f"{self.path}: ffmpeg failed (exit {code}): {said}")
+        # with +faststart the index atom, moov, sits at the front of a complete file
         try:
             with open(self.tmp, "rb+") as f:
                 head = f.read(1 << 16)
@@ -155,14 +184,14 @@ class Mp4Writer:
 
     def abort(self) -> None:
         """Stop ffmpeg at once (no waiting for queued frames) and delete the temp file."""
-        if self._gen is not None:
-            gen, self._gen = self._gen, None
+        if self._proc is not None:
+            proc, self._proc = self._proc, None
+            proc.kill()
             try:
-                gen.throw(SystemExit)          # write_frames then kills ffmpeg instead of waiting
-            except (SystemExit, StopIteration):
+                proc.stdin.close()
+            except OSError:
                 pass
-            except Exception:
-                pass
+            proc.wait()
         self._unlink_tmp()
 
     def _unlink_tmp(self) -> None:
