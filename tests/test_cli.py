@@ -1,7 +1,10 @@
 """The CLI contract other issues rely on: simulate --json, check, bench --json, --version, python -m."""
+import re
 import json
 import subprocess
 import sys
+
+import pytest
 
 from fraytool import __version__
 from fraytool.commands.main import main
@@ -53,3 +56,40 @@ def test_check_json_figures(capsys):
     assert out["masses"] == 4096
     assert out["springs_by_kind"]["structural_weft"] == 64 * 63
     assert 0 < out["stability_bound_s"] < 1
+
+
+@pytest.mark.parametrize("mode", ["log", "bar", "none"])
+def test_progress_modes(mode, tmp_path, capsys, monkeypatch):
+    import fraytool.progress
+
+    monkeypatch.setattr(fraytool.progress, "LOG_EVERY_S", 0.0)  # a line at every frame
+    scene = tmp_path / "s.toml"
+    scene.write_text(small_scene_text(frames=5))
+    assert main(["simulate", str(scene), "-o", str(tmp_path / "out"), "--progress", mode]) == 0
+    err = capsys.readouterr().err
+    lines = [ln for ln in err.splitlines() if ln.startswith("fraytool progress: ")]
+    if mode == "log":
+        assert "\r" not in err and len(lines) >= 4
+        assert re.fullmatch(r"fraytool progress: simulate small: 3/5 frames \(60%\), [0-9.]+ frames/s, ETA [0-9.]+ s",
+                            lines[1]), lines
+        assert lines[-1].startswith("fraytool progress: simulate small: 5/5 frames (100%)") and len(lines) == 4
+    elif mode == "bar":
+        assert "\r" in err and not lines
+    else:
+        assert "\r" not in err and not lines and "simulate small" not in err
+
+
+def test_progress_auto_is_log_off_a_terminal(monkeypatch):
+    import io
+
+    import fraytool.progress
+
+    monkeypatch.setattr(fraytool.progress, "_default_mode", "auto")
+    from fraytool.progress import Progress
+
+    class Tty(io.StringIO):
+        def isatty(self):
+            return True
+
+    assert Progress(3, "x", stream=io.StringIO()).mode == "log"
+    assert Progress(3, "x", stream=Tty()).mode == "bar"

@@ -40,6 +40,12 @@ def _positive_int(text: str) -> int:
     return v
 
 
+def _progress_flag(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--progress", choices=("auto", "bar", "log", "none"), default="auto",
+                   help="progress on stderr: a bar on a terminal, a line every few seconds (log), or none; "
+                        "auto (default): bar on a terminal, log otherwise")
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="fraytool", description="Woven cloth tearing with frayed edges: simulate and render.")
     p.add_argument("--version", action="version", version=f"fraytool {__version__}")
@@ -53,6 +59,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--resume", action="store_true", help="continue from the last complete frame")
     s.add_argument("--json", action="store_true", help="print a JSON summary on stdout at the end")
     s.add_argument("--force", action="store_true", help="run even if the memory estimate exceeds what is available")
+    _progress_flag(s)
 
     c = sub.add_parser("check", help="validate a scene and print derived figures; or check an output folder")
     c.add_argument("scene", nargs="?", help="scene file or shipped scene name (optional with --outputs)")
@@ -85,6 +92,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--fov", type=float, help="override [camera] fov_deg")
     r.add_argument("-v", "--verbose", action="store_true", help="print the GL renderer and version")
     r.add_argument("--force", action="store_true", help="run even if the memory estimate exceeds what is available")
+    _progress_flag(r)
 
     st = sub.add_parser("study", help="error against run time, or stability sweeps")
     st.add_argument("scene")
@@ -218,6 +226,9 @@ COMMANDS = {"simulate": cmd_simulate, "check": cmd_check, "bench": cmd_bench, "r
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
     args = build_parser().parse_args(argv)
+    from fraytool.progress import set_default_mode
+
+    set_default_mode(getattr(args, "progress", "auto"))
     try:
         return COMMANDS[args.command](args)
     except FraytoolError as exc:

@@ -65,7 +65,7 @@ def render_job(job: RenderJob, ctx: moderngl.Context, store: FrameStore, stream:
     result = RenderResult(png_dir=str(job.png_dir) if job.png else None)
     writer: Optional[Mp4Writer] = None
     frames = job.frames.frames()
-    bar = Progress(len(frames), job.spec.name, stream=stream, enabled=progress)
+    bar = Progress(len(frames), job.spec.name, stream=stream, enabled=progress, stage="render")
     try:
         if job.mp4:
             writer = Mp4Writer(job.mp4_path, job.size, job.spec.time.fps, crf=job.spec.output.crf)

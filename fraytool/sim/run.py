@@ -115,7 +115,7 @@ def _simulate_locked(spec: SceneSpec, store: FrameStore, frames: Optional[int], 
         store.start(model.arrays(), digest, _store_info(spec, model, total))
         sim, first_write = Simulation(spec, model=model), 1
         store.write_frame(sim.record(), sim.checkpoint_arrays())
-    bar = Progress(total, spec.name, stream=stream, enabled=progress)
+    bar = Progress(total, spec.name, stream=stream, enabled=progress, stage="simulate")
     t_last = time.perf_counter()
     try:
         while sim.frame + 1 < total:
