@@ -40,6 +40,12 @@ def _positive_int(text: str) -> int:
     return v
 
 
+def _set_flag(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--set", dest="sets", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a scene key, validated like the file: e.g. --set scene.seed=3, "
+                        "--set cloth.tearing.break_strain=0.3, --set bodies.0.radius_m=0.02 (repeatable)")
+
+
 def _progress_flag(p: argparse.ArgumentParser) -> None:
     p.add_argument("--progress", choices=("auto", "bar", "log", "none"), default="auto",
                    help="progress on stderr: a bar on a terminal, a line every few seconds (log), or none; "
@@ -60,6 +66,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--json", action="store_true", help="print a JSON summary on stdout at the end")
     s.add_argument("--force", action="store_true", help="run even if the memory estimate exceeds what is available")
     _progress_flag(s)
+    _set_flag(s)
 
     c = sub.add_parser("check", help="validate a scene and print derived figures; or check an output folder")
     c.add_argument("scene", nargs="?", help="scene file or shipped scene name (optional with --outputs)")
@@ -69,6 +76,7 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--json", action="store_true")
     c.add_argument("--force", action="store_true", help="build the model even if the memory estimate exceeds "
                    "what is available")
+    _set_flag(c)
 
     b = sub.add_parser("bench", help="time the simulation (and rendering) per stage")
     b.add_argument("scene")
@@ -93,6 +101,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("-v", "--verbose", action="store_true", help="print the GL renderer and version")
     r.add_argument("--force", action="store_true", help="run even if the memory estimate exceeds what is available")
     _progress_flag(r)
+    _set_flag(r)
 
     st = sub.add_parser("study", help="error against run time, or stability sweeps")
     st.add_argument("scene")
@@ -106,13 +115,14 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def _load(path: str, force: Optional[bool] = None):
-    """The scene; unless `force` is True (None: no memory check), refuse (exit 2) a scene whose memory
-    estimate exceeds what the machine has available."""
+def _load(path: str, force: Optional[bool] = None, sets: Sequence[str] = ()):
+    """The scene with --set overrides; unless `force` is True (None: no memory check), refuse (exit 2)
+    a scene whose memory estimate exceeds what the machine has available."""
     from fraytool.scene import load_scene
     from fraytool.errors import SceneError
+    from fraytool.scene.overrides import parse_assignment
 
-    spec = load_scene(path)
+    spec = load_scene(path, [parse_assignment(a) for a in sets])
     if force is False:
         from fraytool.sim.memory import memory_problem
 
@@ -125,7 +135,7 @@ def _load(path: str, force: Optional[bool] = None):
 def cmd_simulate(args) -> int:
     from fraytool.sim.run import default_out_dir, simulate_to_disk
 
-    spec = _load(args.scene, force=args.force)
+    spec = _load(args.scene, force=args.force, sets=args.sets)
     out = args.out or default_out_dir(spec)
     summary = simulate_to_disk(spec, out, frames=args.frames, resume=args.resume)
     if args.json:
@@ -148,7 +158,7 @@ def cmd_check(args) -> int:
     from fraytool.sim.memory import available_bytes, estimate_bytes
     from fraytool.sim.stability import stability_report
 
-    spec = _load(args.scene, force=args.force)
+    spec = _load(args.scene, force=args.force, sets=args.sets)
     model = build_model(spec)
     bound = check_step(spec, model)
     kinds = {name: int((model.spring_kind == k).sum()) for k, name in enumerate(SPRING_KIND_NAMES)}

@@ -107,7 +107,9 @@ def render_command(args, stream: Optional[TextIO] = None) -> int:
 
 def _render(args, stream: Optional[TextIO]) -> int:
     stream = stream or sys.stderr
-    spec = load_scene(args.scene)
+    from fraytool.scene.overrides import parse_assignment
+
+    spec = load_scene(args.scene, [parse_assignment(a) for a in getattr(args, "sets", None) or ()])
     if not getattr(args, "force", False):
         from fraytool.sim.memory import memory_problem
 

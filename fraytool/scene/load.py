@@ -11,11 +11,12 @@ import json
 import tomllib
 from dataclasses import asdict
 from pathlib import Path
-from typing import Any
+from typing import Any, Sequence
 
 from fraytool.errors import SceneError
 from fraytool.scene import rules, schema
 from fraytool.scene.keys import REQUIRED, Key, show
+from fraytool.scene.overrides import apply_overrides, describe
 from fraytool.scene.spec import (
     AttachmentSpec,
     CutSpec,
@@ -78,9 +79,9 @@ def _read_table(doc: dict, where: str, keys: dict[str, Key], problems: _Problems
     return out
 
 
-def parse_scene(text: str, source: str = "<string>") -> SceneSpec:
-    """Parse and validate scene TOML text; raises SceneError listing every problem."""
-    problems = _Problems(source)
+def parse_scene(text: str, source: str = "<string>", overrides: Sequence[tuple[str, Any]] = ()) -> SceneSpec:
+    """Parse and validate scene TOML text, with `overrides` ((dotted key, value), as from --set,
+    fraytool.scene.overrides) applied first; raises SceneError listing every problem."""
     try:
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -88,6 +89,11 @@ def parse_scene(text: str, source: str = "<string>") -> SceneSpec:
     except RecursionError:
         raise SceneError([f"{source}: not a scene: arrays or tables nested too deeply for the TOML "
                           "parser (a scene nests at most 3 levels)"]) from None
+    stem = Path(source).stem  # the default scene name
+    if overrides:
+        apply_overrides(doc, overrides)
+        source += describe(overrides)
+    problems = _Problems(source)
 
     for name, value in doc.items():
         if name not in schema.TOP:
@@ -127,17 +133,17 @@ def parse_scene(text: str, source: str = "<string>") -> SceneSpec:
     if problems.lines:
         raise SceneError(problems.lines)
 
-    spec = _assemble(values, bodies_raw, att_raw, cut_raw, source, problems)
+    spec = _assemble(values, bodies_raw, att_raw, cut_raw, source, problems, stem)
     if problems.lines:
         raise SceneError(problems.lines)
     return spec
 
 
 def _assemble(values: dict, bodies_raw: list, att_raw: list, cut_raw: list, source: str,
-              problems: _Problems) -> SceneSpec:
+              problems: _Problems, stem: str) -> SceneSpec:
     """Build the SceneSpec from checked tables, applying the rules that tie keys together."""
     s, t, c = values["scene"], values["time"], values["cloth"]
-    name = s["name"] or Path(source).stem
+    name = s["name"] or stem
     problems.extend("scene", rules.scene_name_problems(name, from_file_name=not s["name"]))
     tear = TearingSpec(**values["cloth.tearing"])
     problems.extend("cloth.tearing", rules.tearing_problems(tear))
@@ -191,7 +197,7 @@ def _assemble(values: dict, bodies_raw: list, att_raw: list, cut_raw: list, sour
     )
 
 
-def load_scene(path: str | Path) -> SceneSpec:
+def load_scene(path: str | Path, overrides: Sequence[tuple[str, Any]] = ()) -> SceneSpec:
     """Load a scene file. A bare name or a scenes/... path not found on disk is looked up among the
     scenes shipped with fraytool. Raises SceneError (exit 2) for a missing or invalid file."""
     from fraytool.resources import find_scene
@@ -205,7 +211,7 @@ def load_scene(path: str | Path) -> SceneSpec:
         line = p.read_bytes()[: exc.start].count(b"\n") + 1
         raise SceneError([f"{path}: not UTF-8 text (byte 0x{exc.object[exc.start]:02x} at line {line}); "
                           "TOML scene files are UTF-8"]) from None
-    return parse_scene(text, str(path))
+    return parse_scene(text, str(path), overrides)
 
 
 def scene_hash(spec: SceneSpec) -> str:
