@@ -103,6 +103,22 @@ def build_parser() -> argparse.ArgumentParser:
     _progress_flag(r)
     _set_flag(r)
 
+    ba = sub.add_parser("batch", help="render many shots (scenes, job files, wedges) on Dask distributed")
+    ba.add_argument("inputs", nargs="+", metavar="SCENE_OR_JOB", help="scene files, shipped scene names or job files (TOML)")
+    ba.add_argument("-o", "--out", type=Path, help="job folder (default outputs/<job name>/)")
+    ba.add_argument("--workers", type=_positive_int, help="local worker processes (default: one per core)")
+    ba.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="use a running Dask scheduler instead")
+    ba.add_argument("--wedge", dest="wedges", action="append", default=[], metavar="KEY=V1,V2,...",
+                    help="one shot per value (ranges: A..B, A..B:STEP), plus a contact sheet (repeatable)")
+    ba.add_argument("--frames", metavar="START:END[:STEP]", help="frame range of every shot")
+    ba.add_argument("--resolution", metavar="WxH")
+    ba.add_argument("--samples", type=int)
+    ba.add_argument("--wireframe", choices=("off", "only", "beside"))
+    ba.add_argument("--chunk-frames", type=_positive_int, help="frames per render task (default 24)")
+    ba.add_argument("--no-contact-sheet", action="store_true", help="no contact sheet for wedges")
+    _progress_flag(ba)
+    _set_flag(ba)
+
     st = sub.add_parser("study", help="error against run time, or stability sweeps")
     st.add_argument("scene")
     st.add_argument("-o", "--out", type=Path, help="output folder (default outputs/<scene name>/)")
@@ -230,7 +246,13 @@ def cmd_study(args) -> int:
     return study_command(args)
 
 
-COMMANDS = {"simulate": cmd_simulate, "check": cmd_check, "bench": cmd_bench, "render": cmd_render,
+def cmd_batch(args) -> int:
+    from fraytool.commands.batch import batch_command
+
+    return batch_command(args)
+
+
+COMMANDS = {"batch": cmd_batch, "simulate": cmd_simulate, "check": cmd_check, "bench": cmd_bench, "render": cmd_render,
             "study": cmd_study}
 
 

@@ -22,7 +22,15 @@ import json
 from dataclasses import dataclass
 from pathlib import Path
 
-from fraytool.render.options import FrameRange
+from fraytool.errors import InputError
+from fraytool.render.options import (
+    FrameRange,
+    check_fov,
+    check_samples,
+    parse_frame_range,
+    parse_resolution,
+    parse_vec3,
+)
 from fraytool.resources import shader_dir
 from fraytool.scene import scene_hash
 from fraytool.scene.spec import SceneSpec
@@ -108,3 +116,36 @@ def with_overrides(spec: SceneSpec, *, resolution=None, samples=None, camera_pos
         samples=int(samples) if samples is not None else render.samples,
     )
     return dataclasses.replace(spec, camera=cam, render=render)
+
+
+def build_job(spec: SceneSpec, args, out: Path) -> RenderJob:
+    """Validate the `fraytool render` flags (an argparse namespace: png, no_mp4, resolution, samples,
+    camera_position, camera_target, fov, frames, wireframe) against the scene and resolve them into a
+    RenderJob writing to `out`."""
+    png = bool(getattr(args, "png", False)) or spec.output.png
+    mp4 = spec.output.mp4 and not getattr(args, "no_mp4", False)
+    if not png and not mp4:
+        raise InputError("--no-mp4 without --png (and the scene's [output] png = false): nothing to write")
+    resolution = parse_resolution(args.resolution, need_even=mp4) if args.resolution else None
+    if resolution is None and mp4:
+        w, h = spec.render.resolution
+        if w % 2 or h % 2:
+            raise InputError(f"{spec.source}: [render] resolution = [{w}, {h}]: the MP4 (H.264, yuv420p) needs "
+                             "an even width and height; fix the scene or pass --resolution WxH")
+    position = parse_vec3("--camera-position", args.camera_position) if args.camera_position else None
+    target = parse_vec3("--camera-target", args.camera_target) if args.camera_target else None
+    spec = with_overrides(spec, resolution=resolution, samples=check_samples(args.samples),
+                          camera_position=position, camera_target=target, fov=check_fov(args.fov))
+    if args.frames:
+        frames, ranged = parse_frame_range(args.frames, spec.time.frames), True
+    else:
+        frames, ranged = FrameRange(0, spec.time.frames, 1), False
+    from fraytool.render.camera import Camera
+
+    try:
+        Camera(spec.camera)  # position == target or up parallel to the view: fail now, not later
+    except InputError as exc:
+        where = ", ".join(f for f, v in (("--camera-position", position), ("--camera-target", target)) if v)
+        raise InputError(f"{where or spec.source + ': [camera]'}: {exc}") from None
+    return RenderJob(spec=spec, out_dir=out, frames=frames, ranged=ranged,
+                     wireframe=getattr(args, "wireframe", None) or "off", png=png, mp4=mp4)

@@ -1,0 +1,76 @@
+"""`fraytool batch SCENE_OR_JOB... [-o DIR] [--workers N | --scheduler ADDR] [--set K=V] [--wedge K=V1,V2]`:
+many shots on Dask distributed (fraytool.farm, docs/farm.md). Exit 0 when every shot is done, 1 when
+any failed or was invalid (job.json says which and why), 2 for bad flags or job files."""
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+from fraytool.errors import InputError, RunError
+
+
+def batch_command(args) -> int:
+    from fraytool.farm.runner import local_client, remote_client, run_job
+    from fraytool.farm.shots import Job, RenderOptions, expand, load_job, parse_wedge, unique_names
+    from fraytool.render.options import parse_resolution
+    from fraytool.scene.overrides import parse_assignment
+
+    stream = sys.stderr
+    sets = [parse_assignment(a) for a in args.sets]
+    wedges = [parse_wedge(w) for w in args.wedges]
+    render = RenderOptions(resolution=parse_resolution(args.resolution, need_even=True) if args.resolution else None,
+                           samples=args.samples, wireframe=args.wireframe or "off", frames=args.frames)
+    job = None
+    shots = []
+    for item in args.inputs:
+        path = Path(item)
+        if path.suffix == ".toml" and path.is_file() and _is_job_file(path):
+            loaded = load_job(path, sets, wedges, render, args.chunk_frames)
+            job = job or loaded
+            shots += loaded.shots
+        else:
+            shots += expand(item, sets, wedges, render)
+    if not shots:
+        raise InputError("batch: give scene files, shipped scene names or job files")
+    name = job.name if job is not None and len(args.inputs) == 1 else "batch"
+    job = Job(name=name, shots=shots, chunk_frames=args.chunk_frames or (job.chunk_frames if job else 24))
+    unique_names(job.shots)
+    job_dir = Path(args.out) if args.out else Path("outputs") / name
+    for s in job.shots:
+        if s.error:
+            print(f"fraytool: batch: {s.name}: invalid: {s.error.splitlines()[0]}", file=stream)
+    if args.scheduler:
+        try:
+            client, cluster = remote_client(args.scheduler)
+        except OSError as exc:
+            raise RunError(f"--scheduler {args.scheduler}: cannot reach the Dask scheduler ({exc}); start one "
+                           "with `dask scheduler` and workers with `dask worker ADDRESS`") from None
+    else:
+        workers = args.workers or max(1, os.cpu_count() or 1)
+        client, cluster = local_client(workers, stream)
+    try:
+        print(f"fraytool: batch: {len(job.shots)} shot(s) on {len(client.scheduler_info()['workers'])} worker(s); "
+              f"Dask dashboard: {client.dashboard_link}", file=stream)
+        data = run_job(job, job_dir, client, stream, contact_sheets=not args.no_contact_sheet)
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+    bad = {n: e for n, e in data["shots"].items() if e.get("status") != "done" and n in {s.name for s in job.shots}}
+    for n, e in bad.items():
+        print(f"fraytool: batch: {n}: {e.get('status')}: {str(e.get('error', '')).splitlines()[0] if e.get('error') else ''}",
+              file=stream)
+    print(f"fraytool: batch: {len(job.shots) - len(bad)} of {len(job.shots)} shot(s) done; {job_dir / 'job.json'}",
+          file=stream)
+    return 0 if not bad else 1
+
+
+def _is_job_file(path: Path) -> bool:
+    import tomllib
+
+    try:
+        doc = tomllib.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError, RecursionError):
+        return False
+    return "shots" in doc or "job" in doc

@@ -1,0 +1,170 @@
+"""Running a Job on Dask distributed: per shot, simulate -> render chunks (in parallel) -> join,
+then a contact sheet per wedge; job.json records every task's status, times and outputs.
+
+The scheduler retries a task whose worker died (the task resumes what was on disk, see tasks.py);
+a task that raises is retried RETRIES times, then its shot is marked failed and the others go on.
+Re-running a job skips the shots job.json marks done whose outputs are all there.
+"""
+from __future__ import annotations
+
+import json
+import logging
+import os
+import sys
+import time
+from pathlib import Path
+from typing import Optional, TextIO
+
+from fraytool.farm import tasks
+from fraytool.farm.contact_sheet import contact_sheet_task
+from fraytool.farm.shots import Job, Shot
+from fraytool.io.frame_record import atomic_write_bytes
+from fraytool.progress import Progress
+
+RETRIES = 2
+JOB_JSON = "job.json"
+
+
+def _outputs_exist(entry: dict) -> bool:
+    outs = entry.get("outputs", {})
+    return bool(outs) and all(Path(p).exists() for p in outs.values())
+
+
+class JobRecord:
+    """job.json, rewritten atomically after every finished task."""
+
+    def __init__(self, job: Job, job_dir: Path):
+        self.path = job_dir / JOB_JSON
+        try:
+            old = json.loads(self.path.read_text())
+            old = old if isinstance(old, dict) and isinstance(old.get("shots"), dict) else {}
+        except (OSError, ValueError):
+            old = {}
+        self.data = {"job": job.name, "folder": str(job_dir), "started": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+                     "status": "running", "shots": old.get("shots", {}), "contact_sheets": old.get("contact_sheets", {})}
+
+    def shot(self, name: str) -> dict:
+        return self.data["shots"].setdefault(name, {})
+
+    def write(self) -> None:
+        text = json.dumps(self.data, indent=2, sort_keys=True, default=str).encode()
+        atomic_write_bytes(self.path, lambda f: f.write(text))
+
+
+def _chunks(frames, size: int) -> list[tuple[int, int, int]]:
+    """(start, end, step) chunks of a FrameRange, `size` frames each."""
+    idx = list(frames.frames())
+    out = []
+    for k in range(0, len(idx), size):
+        part = idx[k:k + size]
+        out.append((part[0], part[-1] + 1, frames.step))
+    return out
+
+
+def run_job(job: Job, job_dir: Path, client, stream: TextIO = sys.stderr, progress=None,
+            contact_sheets: bool = True) -> dict:
+    """Submit the job's tasks to a distributed `client`, wait, write job.json; returns its data."""
+    from distributed import as_completed
+
+    job_dir.mkdir(parents=True, exist_ok=True)
+    record = JobRecord(job, job_dir)
+    futures = {}  # future -> (shot name, task name)
+    final = {}    # shot name -> join future
+    groups: dict[str, list[Shot]] = {}
+    for shot in job.shots:
+        entry = record.shot(shot.name)
+        entry.update({"scene": shot.scene, "sets": [[k, v] for k, v in shot.sets], "folder": str(job_dir / shot.name)})
+        if shot.error:
+            entry.update({"status": "invalid", "error": shot.error, "tasks": {}})
+            continue
+        if entry.get("status") == "done" and _outputs_exist(entry):
+            print(f"fraytool: batch: {shot.name}: already done", file=stream)
+            if shot.group:
+                groups.setdefault(shot.group, []).append(shot)
+            continue
+        out = str(job_dir / shot.name)
+        frames = tasks.shot_frames(shot, Path(out))
+        entry.update({"status": "running", "tasks": {}, "error": None})
+        sim = client.submit(tasks.simulate_task, shot, out, frames.end, key=f"simulate-{shot.name}",
+                            retries=RETRIES, pure=False)
+        futures[sim] = (shot.name, "simulate")
+        chunks = []
+        for start, end, step in _chunks(frames, job.chunk_frames):
+            f = client.submit(tasks.render_chunk_task, shot, out, start, end, step, sim,
+                              key=f"render-{shot.name}-{start}-{end}", retries=RETRIES, pure=False)
+            futures[f] = (shot.name, f"render {start}-{end}")
+            chunks.append(f)
+        join = client.submit(tasks.join_task, shot, out, chunks, key=f"join-{shot.name}", retries=RETRIES, pure=False)
+        futures[join] = (shot.name, "join")
+        final[shot.name] = join
+        if shot.group:
+            groups.setdefault(shot.group, []).append(shot)
+    sheets = {}
+    for group, members in (groups.items() if contact_sheets else ()):
+        waits = [final[s.name] for s in members if s.name in final]
+        if len(members) < 2 or not waits and (job_dir / f"{group}_contact_sheet.mp4").exists():
+            continue
+        f = client.submit(contact_sheet_task, members, str(job_dir), group, waits,
+                          key=f"contact-sheet-{group}", retries=RETRIES, pure=False)
+        futures[f] = (group, "contact sheet")
+        sheets[group] = f
+    record.write()
+    bar = Progress(len(futures), job.name, stream=stream, enabled=progress, stage="batch", unit="tasks")
+    done = 0
+    for fut in as_completed(list(futures)):
+        name, task = futures[fut]
+        entry = record.data["contact_sheets"].setdefault(name, {}) if task == "contact sheet" else record.shot(name)
+        try:
+            result = fut.result()
+            status = {"status": "done", **result}
+        except Exception as exc:  # noqa: BLE001 - a failed task is reported, the others go on
+            status = {"status": "failed", "error": _one_line(exc)}
+            entry["status"], entry["error"] = "failed", entry.get("error") or f"{task}: {_one_line(exc)}"
+        entry.setdefault("tasks", {})[task] = status
+        if task == "join" and status["status"] == "done":
+            entry["status"] = "done"
+            entry["outputs"] = {"mp4": result["mp4"], "png": result["png_dir"]}
+        if task == "contact sheet" and status["status"] == "done":
+            entry.update({"status": "done", "outputs": {"mp4": result["mp4"]}})
+        done += 1
+        bar.update(done, f"{name}: {task}")
+        record.write()
+    bar.close()
+    shots = record.data["shots"]
+    failed = [n for n in (s.name for s in job.shots) if shots[n].get("status") != "done"]
+    record.data["status"] = "done" if not failed else "failed"
+    record.data["finished"] = time.strftime("%Y-%m-%dT%H:%M:%S%z")
+    record.write()
+    return record.data
+
+
+def _one_line(exc: BaseException) -> str:
+    text = str(exc).strip().splitlines()
+    return f"{type(exc).__name__}: {text[0][:300]}" if text else type(exc).__name__
+
+
+WORKER_ENV = {"LP_NUM_THREADS": "1", "NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1",
+              "DASK_LOGGING__DISTRIBUTED": "critical"}
+"""One core per worker: the kernels are serial, and Mesa's llvmpipe would otherwise rasterise on every
+core in every worker (N workers would fight over the same cores)."""
+
+
+def local_client(workers: int, stream: TextIO):
+    """An embedded LocalCluster: `workers` processes of one thread and one core each (WORKER_ENV)."""
+    from distributed import Client, LocalCluster
+
+    for name in ("distributed", "bokeh", "tornado"):
+        logging.getLogger(name).setLevel(logging.CRITICAL)
+    # failed tasks are reported in job.json and in one line each, not as worker log tracebacks
+    os.environ.setdefault("DASK_LOGGING__DISTRIBUTED", "critical")
+    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0",
+                           env=WORKER_ENV)
+    return Client(cluster), cluster
+
+
+def remote_client(address: str):
+    from distributed import Client
+
+    for name in ("distributed",):
+        logging.getLogger(name).setLevel(logging.ERROR)
+    return Client(address, timeout="20s"), None

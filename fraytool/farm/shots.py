@@ -1,0 +1,243 @@
+"""What `fraytool batch` runs: Shots, from scene files, a job file (TOML), --set and --wedge.
+
+A job file:
+
+    [job]
+    name = "seeds"            # default: the file's stem; job.json and the shot folders go to -o or outputs/<name>
+    chunk_frames = 24         # frames per render task (default 24)
+
+    [render]                  # defaults for every shot (each shot may override them in its own table)
+    resolution = [640, 360]
+    samples = 4
+    wireframe = "off"         # "off", "only", "beside"
+    frames = "0:48"           # START:END[:STEP]; default: the whole scene
+
+    [[shots]]
+    scene = "fig7_square_grab"                  # a path (relative to the job file) or a shipped name
+    set = { "cloth.tearing.break_strain" = 0.3 } # --set overrides (quoted dotted keys)
+    wedge = { "scene.seed" = [1, 2, 3, 4] }      # one shot per value, plus a contact sheet
+    render = { resolution = [320, 180] }
+
+A wedge (job file or `--wedge KEY=V1,V2,...`, ranges `KEY=1..8` for integers and `KEY=0.1..0.3:0.1`)
+expands one scene into one shot per value, named `<scene>_<last key part>-<value>`, each in its own
+folder; the values are set with the scene's name, so every output file has its own name.
+"""
+from __future__ import annotations
+
+import math
+import re
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Optional, Sequence
+
+from fraytool.errors import FraytoolError, InputError
+from fraytool.scene.overrides import parse_assignment, parse_value
+
+DEFAULT_CHUNK_FRAMES = 24
+MAX_WEDGE_VALUES = 1000
+_JOB_KEYS = {"name", "chunk_frames"}
+_RENDER_KEYS = {"resolution", "samples", "wireframe", "frames"}
+_SHOT_KEYS = {"scene", "set", "wedge", "render", "name"}
+
+
+@dataclass(frozen=True)
+class RenderOptions:
+    resolution: Optional[tuple[int, int]] = None
+    samples: Optional[int] = None
+    wireframe: str = "off"
+    frames: Optional[str] = None
+    """START:END[:STEP] or None for the whole scene."""
+
+
+@dataclass(frozen=True)
+class Shot:
+    name: str
+    """Folder name under the job folder, and the scene name of its files."""
+    scene: str
+    """Scene path or shipped name, as given."""
+    sets: tuple[tuple[str, Any], ...]
+    render: RenderOptions
+    group: str = ""
+    """Wedge group (the scene's own name) for the contact sheet; "" when not wedged."""
+    label: str = ""
+    """The wedged value, e.g. "seed=3", written on the contact sheet."""
+    error: Optional[str] = None
+    """Set when the shot is invalid (bad scene): reported, never run."""
+
+
+@dataclass
+class Job:
+    name: str
+    shots: list[Shot] = field(default_factory=list)
+    chunk_frames: int = DEFAULT_CHUNK_FRAMES
+
+
+def parse_wedge(text: str, flag: str = "--wedge") -> tuple[str, list[Any]]:
+    """'KEY=V1,V2,...' or 'KEY=A..B' (integers, inclusive) or 'KEY=A..B:STEP' -> (key, values)."""
+    key, value = parse_assignment(text, flag)
+    raw = text.partition("=")[2].strip()
+    m = re.fullmatch(r"(-?[0-9.e+-]+)\.\.(-?[0-9.e+-]+)(?::([0-9.e+-]+))?", raw)
+    if m:
+        a, b, step = (parse_value(x) if x is not None else None for x in m.groups())
+        if not all(isinstance(v, (int, float)) for v in (a, b)) or (step is not None and not isinstance(step, (int, float))):
+            raise InputError(f"{flag} {text}: a range is A..B or A..B:STEP with numbers")
+        if step is None:
+            if not (isinstance(a, int) and isinstance(b, int)):
+                raise InputError(f"{flag} {text}: a range without :STEP needs integers")
+            step = 1
+        if step <= 0 or b < a:
+            raise InputError(f"{flag} {text}: a range needs A <= B and STEP > 0")
+        count = int(math.floor((b - a) / step + 1e-9)) + 1
+        if count > MAX_WEDGE_VALUES:
+            raise InputError(f"{flag} {text}: {count} values; at most {MAX_WEDGE_VALUES}")
+        values = [a + k * step for k in range(count)]
+        values = [round(v, 12) if isinstance(v, float) else v for v in values]
+    elif isinstance(value, list):
+        values = value
+    else:
+        values = [parse_value(v.strip()) for v in _split_top(raw)]
+    if not values:
+        raise InputError(f"{flag} {text}: no values")
+    return key, values
+
+
+def _split_top(raw: str) -> list[str]:
+    """Split on commas outside brackets (so vector values stay whole)."""
+    parts, depth, cur = [], 0, ""
+    for ch in raw:
+        depth += ch in "[{"
+        depth -= ch in "]}"
+        if ch == "," and depth == 0:
+            parts.append(cur)
+            cur = ""
+        else:
+            cur += ch
+    parts.append(cur)
+    return [p for p in parts if p.strip()]
+
+
+def _value_text(v: Any) -> str:
+    text = str(v).lower() if isinstance(v, bool) else (f"{v:g}" if isinstance(v, float) else str(v))
+    return re.sub(r"[^A-Za-z0-9._-]+", "_", text).strip("_.") or "v"
+
+
+def expand(scene: str, sets: Sequence[tuple[str, Any]], wedges: Sequence[tuple[str, list[Any]]],
+           render: RenderOptions, name: Optional[str] = None) -> list[Shot]:
+    """One shot, or one per combination of wedge values, with its name and overrides."""
+    from fraytool.scene import load_scene
+
+    try:
+        base = name or load_scene(scene, list(sets)).name
+    except FraytoolError as exc:
+        return [Shot(name=name or Path(scene).stem, scene=scene, sets=tuple(sets), render=render, error=str(exc))]
+    combos: list[list[tuple[str, Any]]] = [[]]
+    for key, values in wedges:
+        combos = [c + [(key, v)] for c in combos for v in values]
+    shots = []
+    for combo in combos:
+        shot_name = base + "".join(f"_{k.split('.')[-1]}-{_value_text(v)}" for k, v in combo)
+        label = ", ".join(f"{k.split('.')[-1]}={v}" for k, v in combo)
+        all_sets = tuple(sets) + tuple(combo) + (("scene.name", shot_name),)
+        error = None
+        try:
+            load_scene(scene, list(all_sets))
+        except FraytoolError as exc:
+            error = str(exc)
+        shots.append(Shot(name=shot_name, scene=scene, sets=all_sets, render=render,
+                          group=base if wedges else "", label=label, error=error))
+    return shots
+
+
+def _render_options(table: dict, where: str, base: RenderOptions) -> RenderOptions:
+    if not isinstance(table, dict):
+        raise InputError(f"{where}: must be a table")
+    unknown = set(table) - _RENDER_KEYS
+    if unknown:
+        raise InputError(f"{where}: unknown key {sorted(unknown)[0]!r}; allowed keys: {', '.join(sorted(_RENDER_KEYS))}")
+    res = table.get("resolution", base.resolution)
+    if res is not None:
+        if not (isinstance(res, (list, tuple)) and len(res) == 2 and all(isinstance(v, int) and 2 <= v <= 8192 for v in res)):
+            raise InputError(f"{where} resolution = {res!r}: an array of 2 integers from 2 to 8192")
+        res = (int(res[0]), int(res[1]))
+    samples = table.get("samples", base.samples)
+    if samples is not None and not (isinstance(samples, int) and 0 <= samples <= 64):
+        raise InputError(f"{where} samples = {samples!r}: an integer from 0 to 64")
+    wire = table.get("wireframe", base.wireframe)
+    if wire not in ("off", "only", "beside"):
+        raise InputError(f'{where} wireframe = {wire!r}: one of "off", "only", "beside"')
+    frames = table.get("frames", base.frames)
+    if frames is not None and not isinstance(frames, str):
+        raise InputError(f'{where} frames = {frames!r}: a string "START:END[:STEP]"')
+    return RenderOptions(res, samples, wire, frames)
+
+
+def load_job(path: Path, sets: Sequence[tuple[str, Any]] = (), wedges: Sequence[tuple[str, list[Any]]] = (),
+             render: RenderOptions = RenderOptions(), chunk_frames: Optional[int] = None) -> Job:
+    """A job file (TOML), with command-line --set, --wedge and render options applied to every shot."""
+    path = Path(path)
+    try:
+        doc = tomllib.loads(path.read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read job file: {exc.strerror}") from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError, RecursionError) as exc:
+        raise InputError(f"{path}: not a valid TOML job file: {str(exc).splitlines()[0]}") from None
+    unknown = set(doc) - {"job", "render", "shots"}
+    if unknown:
+        raise InputError(f"{path}: unknown table [{sorted(unknown)[0]}]; allowed: [job], [render], [[shots]]")
+    head = doc.get("job", {})
+    if not isinstance(head, dict) or set(head) - _JOB_KEYS:
+        raise InputError(f"{path}: [job] allows the keys {', '.join(sorted(_JOB_KEYS))}")
+    name = head.get("name", path.stem)
+    chunk = chunk_frames or head.get("chunk_frames", DEFAULT_CHUNK_FRAMES)
+    if not isinstance(chunk, int) or not 1 <= chunk <= 100000:
+        raise InputError(f"{path}: [job] chunk_frames = {chunk!r}: an integer from 1 to 100000")
+    defaults = _render_options(doc.get("render", {}), f"{path}: [render]", RenderOptions())
+    defaults = _merge(defaults, render)
+    shots_raw = doc.get("shots", [])
+    if not isinstance(shots_raw, list) or not shots_raw or not all(isinstance(s, dict) for s in shots_raw):
+        raise InputError(f"{path}: needs at least one [[shots]] table with a scene")
+    job = Job(name=name, chunk_frames=chunk)
+    for i, raw in enumerate(shots_raw):
+        where = f"{path}: [shots.{i}]"
+        if set(raw) - _SHOT_KEYS or "scene" not in raw or not isinstance(raw["scene"], str):
+            raise InputError(f"{where}: needs scene = \"...\"; allowed keys: {', '.join(sorted(_SHOT_KEYS))}")
+        scene = raw["scene"]
+        if not Path(scene).is_absolute() and (path.parent / scene).exists():
+            scene = str(path.parent / scene)
+        shot_sets = list(_table_items(raw.get("set", {}), f"{where} set")) + list(sets)
+        shot_wedges = [(k, v if isinstance(v, list) else [v]) for k, v in _table_items(raw.get("wedge", {}), f"{where} wedge")]
+        shot_wedges += list(wedges)
+        opts = _render_options(raw.get("render", {}), f"{where} render", defaults)
+        job.shots += expand(scene, shot_sets, shot_wedges, _merge(opts, render), raw.get("name"))
+    return job
+
+
+def _table_items(table: Any, where: str) -> list[tuple[str, Any]]:
+    if not isinstance(table, dict):
+        raise InputError(f"{where}: must be an inline table of \"dotted.key\" = value")
+    return list(_flatten(table))
+
+
+def _flatten(table: dict, prefix: str = ""):
+    for k, v in table.items():
+        key = f"{prefix}{k}"
+        if isinstance(v, dict):
+            yield from _flatten(v, key + ".")
+        else:
+            yield key, v
+
+
+def _merge(base: RenderOptions, cli: RenderOptions) -> RenderOptions:
+    """Command-line render options win over the job file's."""
+    return RenderOptions(cli.resolution or base.resolution, cli.samples if cli.samples is not None else base.samples,
+                         cli.wireframe if cli.wireframe != "off" else base.wireframe, cli.frames or base.frames)
+
+
+def unique_names(shots: list[Shot]) -> None:
+    seen: dict[str, int] = {}
+    for s in shots:
+        seen[s.name] = seen.get(s.name, 0) + 1
+    dup = [n for n, c in seen.items() if c > 1]
+    if dup:
+        raise InputError(f"two shots are named {dup[0]!r}: give them a name (job file: name = ...) or other values")

@@ -1,0 +1,93 @@
+"""The work of one farm task, run on a Dask worker (or in-process): plain functions of plain,
+picklable arguments that return a small status dict. Every task is idempotent and resumes what an
+earlier, killed attempt left: the simulation continues from its checkpoint, a chunk keeps the PNGs
+that verify, the join re-encodes from the PNGs. So a task the scheduler retries on another worker
+gives the same bytes as an uninterrupted single-process `fraytool render`."""
+from __future__ import annotations
+
+import os
+import socket
+import time
+from dataclasses import replace
+from pathlib import Path
+
+from fraytool.farm.shots import Shot
+from fraytool.render.options import FrameRange
+
+
+def _where() -> str:
+    return f"{socket.gethostname()}:{os.getpid()}"
+
+
+def task_info(t0: float) -> dict:
+    """Seconds since t0 and the worker (host:pid), for job.json."""
+    return {"seconds": time.time() - t0, "worker": _where()}
+
+
+def load_shot(shot: Shot):
+    from fraytool.scene import load_scene
+
+    return load_scene(shot.scene, list(shot.sets))
+
+
+def render_job_for(shot: Shot, out_dir: Path, frames: FrameRange):
+    """The RenderJob `fraytool render` would make for this shot (PNG on), restricted to `frames`."""
+    from types import SimpleNamespace
+
+    from fraytool.render.job import build_job
+
+    spec = load_shot(shot)
+    r = shot.render
+    args = SimpleNamespace(png=True, no_mp4=False, out=str(out_dir), frames=r.frames,
+                           resolution=f"{r.resolution[0]}x{r.resolution[1]}" if r.resolution else None,
+                           samples=r.samples, camera_position=None, camera_target=None, fov=None,
+                           wireframe=r.wireframe)
+    job = build_job(spec, args, out_dir)
+    return job, replace(job, frames=frames)
+
+
+def shot_frames(shot: Shot, out_dir: Path) -> FrameRange:
+    job, _ = render_job_for(shot, out_dir, FrameRange(0, 1))
+    return job.frames
+
+
+def simulate_task(shot: Shot, out_dir: str, frames_needed: int) -> dict:
+    """Simulate (or continue) the shot's frames 0..frames_needed-1 into out_dir/frames."""
+    from fraytool.sim.run import simulate_to_disk
+
+    t0 = time.time()
+    spec = load_shot(shot)
+    summary = simulate_to_disk(spec, Path(out_dir), frames=frames_needed, resume=True, progress=False)
+    return {"task": "simulate", "seconds": time.time() - t0, "worker": _where(),
+            "frames": summary["frames"], "broken_springs": summary.get("broken_springs")}
+
+
+def render_chunk_task(shot: Shot, out_dir: str, start: int, end: int, step: int, _after=None) -> dict:
+    """Render frames start..end-1 (every step) of the shot to its PNG sequence."""
+    from fraytool.io.frame_store import FrameStore
+    from fraytool.render.context import create_context
+    from fraytool.render.sequence import render_job
+
+    t0 = time.time()
+    _, job = render_job_for(shot, Path(out_dir), FrameRange(start, end, step))
+    job = replace(job, mp4=False, png=True)
+    ctx = create_context()
+    try:
+        result = render_job(job, ctx, FrameStore(Path(out_dir)), progress=False)
+    finally:
+        ctx.release()
+    return {"task": f"render {start}-{end}", "seconds": time.time() - t0, "worker": _where(),
+            "rendered": result.rendered, "reused": result.reused}
+
+
+def join_task(shot: Shot, out_dir: str, _after=None) -> dict:
+    """Encode the shot's MP4 from its PNG sequence (the same pixels `fraytool render` encodes)."""
+    from fraytool.render.encode import Mp4Writer, read_png
+
+    t0 = time.time()
+    job, _ = render_job_for(shot, Path(out_dir), FrameRange(0, 1))
+    with Mp4Writer(job.mp4_path, job.size, job.spec.time.fps, crf=job.spec.output.crf) as writer:
+        for frame in job.frames.frames():
+            writer.write(read_png(job.png_path(frame)))
+    return {"task": "join", "seconds": time.time() - t0, "worker": _where(), "mp4": str(job.mp4_path),
+            "png_dir": str(job.png_dir)}

@@ -1,0 +1,146 @@
+"""`fraytool batch` on Dask distributed: shots, wedges and job files expand as documented; a real local
+cluster of two worker processes, one killed in the middle of the job, finishes with outputs
+byte-identical to single-process `fraytool render` runs; a bad shot is reported and the others finish;
+a re-run of a finished job does nothing and a half-finished one continues."""
+import json
+import os
+import signal
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+from fraytool.commands.main import main
+from fraytool.errors import InputError
+from fraytool.farm.shots import RenderOptions, expand, load_job, parse_wedge
+from helpers import small_scene_text
+
+
+@pytest.fixture
+def scene(tmp_path):
+    path = tmp_path / "s.toml"
+    path.write_text(small_scene_text(frames=24))
+    return path
+
+
+@pytest.mark.parametrize("text,key,values", [
+    ("scene.seed=1,2,3", "scene.seed", [1, 2, 3]),
+    ("scene.seed=1..4", "scene.seed", [1, 2, 3, 4]),
+    ("cloth.tearing.break_strain=0.1..0.3:0.1", "cloth.tearing.break_strain", [0.1, 0.2, 0.3]),
+    ("cloth.weave=plain,twill", "cloth.weave", ["plain", "twill"]),
+    ("world.gravity_m_s2=[0.0, -9.81, 0.0],[0.0, -1.0, 0.0]", "world.gravity_m_s2", [[0.0, -9.81, 0.0], [0.0, -1.0, 0.0]]),
+])
+def test_wedge_values(text, key, values):
+    assert parse_wedge(text) == (key, values)
+
+
+@pytest.mark.parametrize("text", ["scene.seed", "scene.seed=4..1", "scene.seed=1.5..3", "scene.seed=0..100000"])
+def test_bad_wedges_are_input_errors(text):
+    with pytest.raises(InputError):
+        parse_wedge(text)
+
+
+def test_wedge_expands_to_named_shots_with_their_values(scene):
+    shots = expand(str(scene), [("cloth.tearing.enabled", True)], [parse_wedge("scene.seed=1,2"),
+                                                                    parse_wedge("cloth.weave=plain,twill")], RenderOptions())
+    assert [s.name for s in shots] == ["small_seed-1_weave-plain", "small_seed-1_weave-twill",
+                                       "small_seed-2_weave-plain", "small_seed-2_weave-twill"]
+    assert shots[3].label == "seed=2, weave=twill" and shots[3].group == "small" and not shots[3].error
+    assert ("cloth.tearing.enabled", True) in shots[0].sets and ("scene.name", shots[0].name) in shots[0].sets
+
+
+def test_job_file(tmp_path, scene):
+    job = tmp_path / "job.toml"
+    job.write_text(f"""
+[job]
+name = "night"
+chunk_frames = 5
+[render]
+resolution = [64, 48]
+[[shots]]
+scene = "{scene.name}"
+wedge = {{ "scene.seed" = [1, 2] }}
+render = {{ frames = "0:10" }}
+[[shots]]
+scene = "{scene.name}"
+name = "heavy"
+set = {{ "cloth.springs.bend_n_per_m" = 1.0 }}
+[[shots]]
+scene = "missing_scene_name"
+""")
+    j = load_job(job)
+    assert j.name == "night" and j.chunk_frames == 5
+    assert [s.name for s in j.shots] == ["small_seed-1", "small_seed-2", "heavy", "missing_scene_name"]
+    assert j.shots[0].render == RenderOptions((64, 48), None, "off", "0:10")
+    assert j.shots[2].render.frames is None and j.shots[2].render.resolution == (64, 48)
+    assert j.shots[3].error and "missing_scene_name" in j.shots[3].error
+    job.write_text(job.read_text().replace("chunk_frames = 5", "chunk_frames = 5\nspeed = 2"))
+    with pytest.raises(InputError, match=r"\[job\] allows the keys"):
+        load_job(job)
+
+
+def _tree(folder: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*"))
+            if p.is_file() and p.name not in ("job.json", ".fraytool.lock")}
+
+
+def test_killed_worker_is_retried_and_outputs_match_single_process_renders(scene, tmp_path):
+    from distributed import Client, LocalCluster
+
+    from fraytool.farm.runner import run_job
+    from fraytool.farm.shots import Job
+
+    shots = expand(str(scene), [], [parse_wedge("scene.seed=1,2")], RenderOptions(resolution=(64, 48)))
+    job = Job("kill", shots, chunk_frames=4)
+    out = tmp_path / "farm"
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0") as cluster, \
+            Client(cluster) as client:
+        pids = client.run(os.getpid)
+        result = {}
+        runner = threading.Thread(target=lambda: result.update(run_job(job, out, client, progress="none")))
+        runner.start()
+        deadline = time.monotonic() + 120
+        while not list(out.glob("*/png/*.png")) and time.monotonic() < deadline:
+            time.sleep(0.02)
+        victim = sorted(pids.values())[0]
+        os.kill(victim, signal.SIGKILL)  # a worker dies in the middle of the job
+        runner.join(timeout=300)
+        assert not runner.is_alive()
+        assert victim not in client.run(os.getpid).values()  # the nanny started a new worker
+    assert result["status"] == "done", json.dumps(result, indent=1)[:3000]
+    for shot, seed in zip(shots, (1, 2)):
+        single = tmp_path / "single" / shot.name
+        assert main(["render", str(scene), "-o", str(single), "--png", "--resolution", "64x48",
+                     "--set", f"scene.seed={seed}", "--set", f"scene.name={shot.name}", "--progress", "none"]) == 0
+        farm, alone = _tree(out / shot.name), _tree(single)
+        assert sorted(farm) == sorted(alone)
+        different = [name for name in farm if farm[name] != alone[name]]
+        assert not different, different
+    assert (out / "small_contact_sheet.mp4").is_file()
+
+
+def test_bad_shot_is_reported_others_finish_rerun_does_nothing(scene, tmp_path, capsys):
+    bad = tmp_path / "bad.toml"
+    bad.write_text(small_scene_text().replace("spacing_m = 0.005", "spacing_m = -1"))
+    out = tmp_path / "job"
+    argv = ["batch", str(scene), str(bad), "-o", str(out), "--workers", "1", "--resolution", "64x48",
+            "--frames", "0:6", "--progress", "none"]
+    assert main(argv) == 1
+    err = capsys.readouterr().err
+    assert "bad: invalid" in err and "spacing_m = -1" in err and "1 of 2 shot(s) done" in err and "dashboard" in err
+    data = json.loads((out / "job.json").read_text())
+    assert data["status"] == "failed"
+    assert data["shots"]["bad"]["status"] == "invalid" and "spacing_m = -1" in data["shots"]["bad"]["error"]
+    good = data["shots"]["small"]
+    assert good["status"] == "done" and set(good["tasks"]) == {"simulate", "render 0-6", "join"}
+    assert Path(good["outputs"]["mp4"]).name == "small_000000-000006.mp4"
+    stamps = {p: p.stat().st_mtime_ns for p in (out / "small").rglob("*") if p.is_file()}
+    assert main(argv) == 1
+    assert "small: already done" in capsys.readouterr().err
+    assert {p: p.stat().st_mtime_ns for p in (out / "small").rglob("*") if p.is_file()} == stamps
+    Path(good["outputs"]["mp4"]).unlink()  # half-finished: the join runs again, nothing else is redone
+    assert main(argv) == 1
+    assert Path(good["outputs"]["mp4"]).is_file()
+    again = json.loads((out / "job.json").read_text())["shots"]["small"]["tasks"]
+    assert again["render 0-6"]["rendered"] == 0 and again["render 0-6"]["reused"] == 6
