@@ -279,7 +279,7 @@ def with_cloth(call):
 
 
 BAD = {
-    "negative spacing": (cloth(spacing_m=-0.01), ["ModelBuilder.add_cloth: spacing_m = -0.01", "a number > 0"]),
+    "negative spacing": (cloth(spacing_m=-0.01), ["ModelBuilder.add_cloth: spacing_m = -0.01", "a number >= 1e-06"]),
     "spacing as text": (cloth(spacing_m="5mm"), ['spacing_m = "5mm"', "a number"]),
     "too few yarns": (cloth(warp_yarns=1), ["warp_yarns = 1", "an integer >= 2"]),
     "fractional yarns": (cloth(weft_yarns=2.5), ["weft_yarns = 2.5", "an integer"]),

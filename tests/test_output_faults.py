@@ -352,3 +352,87 @@ def test_full_disk_while_rendering_pngs_exits_1_naming_the_png(reference, tmp_pa
     monkeypatch.undo()
     assert main(argv) == 0
     assert "3 rendered, 3 kept" in capsys.readouterr().err
+
+
+def _recomputed_manifest(out, **fields):
+    """A hostile edit: the manifest's fields changed and its checksum recomputed."""
+    from fraytool.io.frame_store import _manifest_checksum
+
+    path = out / "frames" / "manifest.json"
+    data = json.loads(path.read_text())
+    data.update(fields)
+    data["checksum"] = _manifest_checksum(data)
+    path.write_text(json.dumps(data))
+
+
+@pytest.mark.parametrize("fields", [{"frames_complete": "abc"}, {"frames_complete": None}, {"frames_complete": -3},
+                                    {"frames_complete": 10**9}, {"scene_hash": 7}])
+def test_a_manifest_with_nonsense_fields_is_damaged_not_a_traceback(fields, reference, tmp_path, capsys):
+    scene, good = reference
+    out = _copy(good, tmp_path / "out")
+    _recomputed_manifest(out, **fields)
+    capsys.readouterr()
+    assert main(["check", "--outputs", str(out)]) == 1
+    assert "manifest.json: fields out of range" in capsys.readouterr().err
+    assert main(["simulate", str(scene), "-o", str(out), "--resume"]) == 0
+    _assert_same_store(good, out)
+
+
+def test_a_stray_far_frame_does_not_make_a_million_frames(reference, tmp_path, capsys):
+    scene, good = reference
+    out = _copy(good, tmp_path / "out")
+    (out / "frames" / "manifest.json").unlink()
+    (out / "frames" / "frame_999999.npz").write_bytes(b"stray")
+    t = time.monotonic()
+    assert main(["check", "--outputs", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert time.monotonic() - t < 10 and len(err.splitlines()) < 10, err[:2000]
+
+
+def test_a_frames_folder_that_lost_its_manifest_is_still_ours(reference, tmp_path, capsys):
+    """After a full disk took the manifest: a fresh run may clear fraytool's own checksummed files."""
+    scene, good = reference
+    out = _copy(good, tmp_path / "out")
+    (out / "frames" / "manifest.json").unlink()
+    assert main(["simulate", str(scene), "-o", str(out)]) == 0
+    _assert_same_store(good, out)
+
+
+def test_someone_elses_manifest_does_not_make_a_folder_ours(reference, tmp_path, capsys):
+    scene, _ = reference
+    out = tmp_path / "out"
+    (out / "frames").mkdir(parents=True)
+    (out / "frames" / "manifest.json").write_text('{"my": "data"}')
+    (out / "frames" / "checkpoint.npz").write_text("precious")
+    (out / "frames" / ".user-notes.tmp").write_text("mine")
+    assert main(["simulate", str(scene), "-o", str(out)]) == 1
+    assert "did not write" in capsys.readouterr().err
+    assert (out / "frames" / "manifest.json").read_text() == '{"my": "data"}'
+    assert (out / "frames" / "checkpoint.npz").read_text() == "precious"
+    assert (out / "frames" / ".user-notes.tmp").read_text() == "mine"
+
+
+def test_json_outputs_are_strict_json(tmp_path, capsys):
+    def strict(text):
+        return json.loads(text, parse_constant=lambda c: pytest.fail(f"{c} in JSON output"))
+
+    scene = tmp_path / "held.toml"
+    scene.write_text(small_scene_text() + '\n[[bodies]]\nname = "hook"\nshape = "sphere"\nradius_m = 0.001\n'
+                     'position_m = [0.0, 2.0, 0.0]\n\n[[attachments]]\nbody = "hook"\nregion_center_m = [0.0, 0.1, 0.0]\n'
+                     "region_radius_m = 1.0\n")
+    assert main(["check", str(scene), "--json"]) == 0
+    info = strict(capsys.readouterr().out)
+    assert info["stability_bound_s"] == "inf"  # every mass is held: nothing can oscillate
+    assert main(["simulate", str(scene), "-o", str(tmp_path / "o"), "--json"]) == 0
+    strict(capsys.readouterr().out)
+
+
+def test_a_huge_flag_value_is_not_echoed_whole(reference, tmp_path, capsys):
+    scene, _ = reference
+    for argv in (["render", str(scene), "--camera-position", "1," * 3000], ["simulate", str(scene), "--frames", "9" * 5000],
+                 ["render", str(scene), "--frames", "0:" + "9" * 5000],
+                 ["render", str(scene), "--resolution", "9" * 5000 + "x2"]):
+        with contextlib.suppress(SystemExit):
+            assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert err and max(len(line) for line in err.splitlines()) < 1100, argv[2]

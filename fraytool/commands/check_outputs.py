@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Optional
 
 from fraytool.errors import InputError
-from fraytool.io.frame_record import is_temp_name
+from fraytool.io.frame_record import dead_writer, is_temp_name
 from fraytool.io.frame_store import FrameStore
 from fraytool.render.encode import png_settings
 from fraytool.scene import SceneSpec, scene_hash
@@ -32,7 +32,7 @@ def check_outputs(out_dir: Path, spec: Optional[SceneSpec] = None, as_json: bool
     for folder in (store.dir, png_dir, out_dir):
         if folder.is_dir():
             problems += [f"{p}: temp file of a killed write (removed by the next run)"
-                         for p in sorted(folder.iterdir()) if is_temp_name(p.name)]
+                         for p in sorted(folder.iterdir()) if is_temp_name(p.name) and dead_writer(p)]
     report = {"folder": str(out_dir), "frames_verified": survey.good_frames,
               "frames_counted": int(survey.manifest["frames_complete"]) if survey.manifest else None,
               "checkpoint_frame": survey.checkpoint_frame, "pngs": len(pngs), "problems": problems,

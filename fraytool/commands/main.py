@@ -13,6 +13,7 @@ from typing import Optional, Sequence
 
 from fraytool import __version__
 from fraytool.errors import FraytoolError, InputError, os_error_message
+from fraytool.io.failure import finite_json
 
 
 class _Parser(argparse.ArgumentParser):
@@ -20,8 +21,16 @@ class _Parser(argparse.ArgumentParser):
 
     def error(self, message: str):  # noqa: D102
         self.print_usage(sys.stderr)
-        print(f"{self.prog}: error: {message}", file=sys.stderr)
+        print(f"{self.prog}: error: {_cut(message)}", file=sys.stderr)
         raise SystemExit(2)
+
+
+MAX_LINE_CHARS = 1000
+
+
+def _cut(line: str) -> str:
+    """A message line of at most MAX_LINE_CHARS characters (a flag's value is quoted whole otherwise)."""
+    return line if len(line) <= MAX_LINE_CHARS else f"{line[:MAX_LINE_CHARS]}... ({len(line)} characters)"
 
 
 MAX_FRAMES = 1_000_000
@@ -155,7 +164,7 @@ def cmd_simulate(args) -> int:
     out = args.out or default_out_dir(spec)
     summary = simulate_to_disk(spec, out, frames=args.frames, resume=args.resume)
     if args.json:
-        print(json.dumps(summary))
+        print(json.dumps(finite_json(summary)))
     else:
         print(f"wrote {summary['frames']} frames to {out / 'frames'}", file=sys.stderr)
     return 0
@@ -199,7 +208,7 @@ def cmd_check(args) -> int:
 
         info["checks"] = run_scene_checks(spec)
     if args.json:
-        print(json.dumps(info))
+        print(json.dumps(finite_json(info)))
     else:
         checks = info.pop("checks", None)
         for k, v in info.items():
@@ -266,7 +275,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     except FraytoolError as exc:
         kind = "error" if isinstance(exc, InputError) else "run failed"
         for line in str(exc).splitlines() or [repr(exc)]:
-            print(f"fraytool: {kind}: {line}", file=sys.stderr)
+            print(f"fraytool: {kind}: {_cut(line)}", file=sys.stderr)
         return exc.exit_code
     except KeyboardInterrupt:
         print("fraytool: interrupted", file=sys.stderr)

@@ -25,20 +25,20 @@ def write_failure(folder: Path, diagnostic: dict, last_good_state: Optional[dict
         atomic_save_npz(folder / LAST_GOOD_STATE, last_good_state)
         diagnostic["last_good_state"] = LAST_GOOD_STATE
         diagnostic["last_good_state_step"] = int(last_good_state["step_index"])
-    text = json.dumps(_finite_json(diagnostic), indent=2, sort_keys=True, default=_json_default).encode()
+    text = json.dumps(finite_json(diagnostic), indent=2, sort_keys=True, default=_json_default).encode()
     path = folder / UNSTABLE_JSON
     atomic_write_bytes(path, lambda f: f.write(text))
     return path
 
 
-def _finite_json(obj):
+def finite_json(obj):
     """JSON has no NaN or infinity: write them as the strings "nan", "inf", "-inf"."""
     if isinstance(obj, float) and not math.isfinite(obj):
         return str(obj)
     if isinstance(obj, dict):
-        return {k: _finite_json(v) for k, v in obj.items()}
+        return {k: finite_json(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
-        return [_finite_json(v) for v in obj]
+        return [finite_json(v) for v in obj]
     return obj
 
 

@@ -7,6 +7,7 @@ See docs/architecture.md for the on-disk layout.
 from __future__ import annotations
 
 import os
+import re
 import socket
 import tempfile
 import time
@@ -84,16 +85,20 @@ def _writer_tag() -> str:
     return f"{host}-{os.getpid()}"
 
 
+_TEMP_NAME = re.compile(r"\..+\.[A-Za-z0-9_]+-[0-9]+\.[A-Za-z0-9_]+\.tmp")
+
+
 def is_temp_name(name: str) -> bool:
     """Name of a temp file of atomic_write_bytes (".NAME.HOST-PID.XXXXXXXX.tmp")."""
-    return name.startswith(".") and name.endswith(".tmp") and len(name) > 5
+    return _TEMP_NAME.fullmatch(name) is not None
 
 
 STALE_TEMP_S = 3600.0
 """A temp file of another host's writer (whose pid cannot be checked) is stale after this long."""
 
 
-def _dead_writer(p: Path) -> bool:
+def dead_writer(p: Path) -> bool:
+    """True if the temp file's writer is dead (this host: pid gone; another host: old)."""
     from fraytool.io.lock import pid_alive
 
     host, _, pid = p.name[:-4].rsplit(".", 2)[-2].rpartition("-")
@@ -112,7 +117,7 @@ def sweep_temp_files(folder: Path) -> list[Path]:
     swept = []
     if folder.is_dir():
         for p in folder.iterdir():
-            if is_temp_name(p.name) and p.is_file() and _dead_writer(p):
+            if is_temp_name(p.name) and p.is_file() and dead_writer(p):
                 p.unlink(missing_ok=True)
                 swept.append(p)
     return swept

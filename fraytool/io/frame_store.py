@@ -33,6 +33,10 @@ from fraytool.io.frame_record import FrameRecord, atomic_save_npz, atomic_write_
 MANIFEST = "manifest.json"
 TOPOLOGY = "topology.npz"
 CHECKPOINT = "checkpoint.npz"
+MAX_FRAMES = 1_000_000
+"""Most frames a store counts (as the largest [time] frames)."""
+MAX_PROBLEMS = 50
+"""Most problems a survey lists one by one."""
 STORE_FORMAT = 2
 """2: every file carries a checksum."""
 
@@ -132,6 +136,10 @@ class FrameStore:
             return None
         if not isinstance(data, dict) or data.get("checksum") != _manifest_checksum(data):
             return None
+        fc = data.get("frames_complete")
+        if not isinstance(fc, int) or isinstance(fc, bool) or not 0 <= fc <= MAX_FRAMES \
+                or not isinstance(data.get("scene_hash"), str):
+            return None  # a manifest that checks out but whose fields make no sense is damaged
         return data
 
     def manifest_problem(self) -> Optional[str]:
@@ -146,7 +154,32 @@ class FrameStore:
             return f"{path}: has no checksum (not written by this fraytool)"
         if data["checksum"] != _manifest_checksum(data):
             return f"{path}: checksum mismatch (corrupted)"
+        if self.manifest() is None:
+            return f"{path}: fields out of range (frames_complete, scene_hash)"
         return None
+
+    def owned(self) -> bool:
+        """True if the frames folder is fraytool's to clear: an intact manifest, or (a manifest lost to
+        a full disk or a kill) only files with fraytool's names whose .npz files verify, and no
+        manifest.json that is valid JSON of someone else."""
+        if self.manifest() is not None:
+            return True
+        for p in self.dir.iterdir():
+            if p.name == MANIFEST:
+                try:
+                    json.loads(p.read_text())
+                    return False  # valid JSON, not ours
+                except (OSError, ValueError):
+                    continue  # a damaged manifest of ours
+            if is_temp_name(p.name) or p.name in (UNSTABLE_JSON,):
+                continue
+            if not (p.is_file() and (p.name in _OURS or _FRAME_RE.fullmatch(p.name))):
+                return False
+            try:
+                load_verified(p, None)
+            except DamagedFile:
+                return False
+        return True
 
     def frame_path(self, frame: int) -> Path:
         return self.dir / frame_filename(frame)
@@ -183,6 +216,9 @@ class FrameStore:
         counts, or every frame file there is without one) and the checkpoint, against `scene_hash`
         (default: the manifest's)."""
         problems = []
+        from fraytool.io.lock import held_by_live_process
+
+        live_writer = held_by_live_process(self.out_dir)
         manifest = self.manifest()
         if manifest is None and (self.dir.exists() or frames):
             problems.append(self.manifest_problem())
@@ -199,6 +235,7 @@ class FrameStore:
             problems.append(str(exc))
         if frames is None:
             frames = int(manifest["frames_complete"]) if manifest else _count_frame_files(self.dir)
+        frames = min(frames, MAX_FRAMES)
         good = 0
         while good < frames:
             try:
@@ -207,11 +244,19 @@ class FrameStore:
                 problems.append(str(exc))
                 break
             good += 1
-        for k in range(good + 1, frames):  # name the other damaged frames too
+        on_disk = _frame_numbers(self.dir)
+        for k in range(good + 1, frames):  # name the other damaged frames (missing ones as one line)
+            if k not in on_disk:
+                continue
             try:
                 self._check_frame(k, digest)
             except DamagedFile as exc:
                 problems.append(str(exc))
+        missing = sum(1 for k in range(good + 1, frames) if k not in on_disk)
+        if missing:
+            problems.append(f"{self.dir}: {missing} more frame file(s) between {good + 1} and {frames - 1} missing")
+        if len(problems) > MAX_PROBLEMS:
+            problems = problems[:MAX_PROBLEMS] + [f"... and {len(problems) - MAX_PROBLEMS} more"]
         checkpoint_frame = None
         if self.dir.exists():
             try:
@@ -220,7 +265,7 @@ class FrameStore:
                 if good or (self.dir / CHECKPOINT).exists():
                     problems.append(str(exc))
         if manifest is not None and checkpoint_frame is not None and checkpoint_frame != good - 1 \
-                and good == int(manifest["frames_complete"]):
+                and good == int(manifest["frames_complete"]) and not live_writer:
             problems.append(f"{self.dir / CHECKPOINT}: is after frame {checkpoint_frame}, "
                             f"the manifest counts {good} frames")
         return Survey(manifest, good, checkpoint_frame, topology_ok, problems)
@@ -245,7 +290,7 @@ class FrameStore:
             raise OutputError(f"{self.dir}: is in the way of the frames folder (not a folder fraytool made); "
                              "move it or choose another output folder with -o")
         if self.dir.exists():
-            if not (self.dir / MANIFEST).is_file() and any(self.dir.iterdir()):
+            if not self.owned():
                 raise OutputError(f"{self.dir}: holds files fraytool did not write (no {MANIFEST}); "
                                  "not deleting them: move them or choose another output folder with -o")
             for p in self.dir.iterdir():
@@ -308,9 +353,17 @@ class FrameStore:
             self._write_manifest(m)
 
 
-def _count_frame_files(folder: Path) -> int:
-    """Without a manifest: 1 + the highest frame number on disk (0 if none)."""
+def _frame_numbers(folder: Path) -> set[int]:
     if not folder.is_dir():
-        return 0
-    numbers = [int(p.name[6:12]) for p in folder.iterdir() if _FRAME_RE.fullmatch(p.name)]
-    return max(numbers) + 1 if numbers else 0
+        return set()
+    return {int(p.name[6:12]) for p in folder.iterdir() if _FRAME_RE.fullmatch(p.name)}
+
+
+def _count_frame_files(folder: Path) -> int:
+    """Without a manifest: the frames 0, 1, 2, ... on disk without a gap (a stray frame_999999.npz
+    does not make a million frames to check)."""
+    numbers = _frame_numbers(folder)
+    k = 0
+    while k in numbers:
+        k += 1
+    return k

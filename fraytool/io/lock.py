@@ -87,6 +87,17 @@ def _describe(holder: dict) -> str:
             f"`fraytool {holder.get('command', '?')}` since {holder.get('started', '?')}")
 
 
+def held_by_live_process(out_dir: Path) -> bool:
+    """True if another live run holds out_dir's lock (its files may be mid-write)."""
+    path = Path(out_dir) / LOCK_NAME
+    holder = _read(path)
+    if holder is None:
+        return False
+    if holder.get("host") == socket.gethostname() and holder.get("pid") == os.getpid():
+        return False
+    return not _stale(path, holder)
+
+
 class OutputLock:
     """`with OutputLock(out_dir, "simulate"):` holds out_dir for this process."""
 

@@ -52,7 +52,7 @@ def parse_frame_range(text: str, scene_frames: int) -> FrameRange:
 
 def parse_resolution(text: str, need_even: bool) -> tuple[int, int]:
     """WxH with both sides in [2, MAX_SIDE]; even sides when an MP4 is written."""
-    m = re.fullmatch(r"\s*(\d+)\s*[xX]\s*(\d+)\s*", text)
+    m = re.fullmatch(r"\s*(\d{1,9})\s*[xX]\s*(\d{1,9})\s*", text)
     allowed = f"expected WIDTHxHEIGHT with whole numbers from 2 to {MAX_SIDE}, e.g. 1280x720"
     if not m:
         raise InputError(f"--resolution {text!r}: {allowed}")

@@ -55,7 +55,8 @@ class Key:
             "color": "an array of 3 numbers in [0, 1]",
             "int2": "an array of 2 integers",
             "float2": "an array of 2 numbers",
-            "path": "an array of [t, x, y, z] arrays of finite numbers, times >= 0 and increasing",
+            "path": "an array of [t, x, y, z] arrays of finite numbers, times from 0 to 1e6 s and increasing, "
+                    "positions",
             "table2d": "an array of equal-length arrays of 0/1",
         }[self.kind]
         bounds = []
@@ -82,7 +83,13 @@ class Key:
         """Check a value (from TOML, or a Python argument) and convert it to the key's Python type.
 
         Returns (ok, converted). Sequences may be lists (TOML), tuples or NumPy arrays (Python);
-        vectors come back as tuples of floats."""
+        vectors come back as tuples of floats. An integer too large for a float is simply out of range."""
+        try:
+            return self._convert(value)
+        except OverflowError:
+            return False, None
+
+    def _convert(self, value: Any) -> tuple[bool, Any]:
         if hasattr(value, "tolist"):  # NumPy scalar or array from a Python caller
             value = value.tolist()
         k = self.kind
@@ -134,7 +141,8 @@ class Key:
                 if not _is_seq(row) or len(row) != 4 or not all(_is_number(v) for v in row):
                     return False, None
                 rows.append(tuple(float(v) for v in row))
-                if not all(math.isfinite(v) for v in rows[-1]):
+                if not all(math.isfinite(v) for v in rows[-1]) or rows[-1][0] > PATH_MAX_TIME_S \
+                        or any(abs(v) > self.hi for v in rows[-1][1:] if self.hi is not None):
                     return False, None
             times = [r[0] for r in rows]
             if any(b <= a for a, b in zip(times, times[1:])) or any(t < 0 for t in times):
@@ -168,6 +176,9 @@ def keys_of(cls: type) -> dict[str, Key]:
     """The scene keys declared on a dataclass, in field order (fields that are not keys are left out)."""
     return {f.name: f.metadata["key"] for f in dataclasses.fields(cls) if "key" in f.metadata}
 
+
+PATH_MAX_TIME_S = 1.0e6
+"""Latest keyframe time of a path [s]."""
 
 SHOW_MAX_CHARS = 120
 """Longest value echoed in a message; longer ones are cut, with their size (a 1,000,000-item array

@@ -8,10 +8,11 @@ from __future__ import annotations
 
 import hashlib
 import json
+import re
 import tomllib
 from dataclasses import asdict
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any, Optional, Sequence
 
 from fraytool.errors import SceneError
 from fraytool.scene import rules, schema
@@ -79,13 +80,38 @@ def _read_table(doc: dict, where: str, keys: dict[str, Key], problems: _Problems
     return out
 
 
+MAX_SCENE_BYTES = 16 * 2**20
+"""Largest scene file (16 MiB): far above any real scene, far below what the TOML parser chokes on."""
+MAX_KEY_DEPTH = 16
+"""Most parts of a dotted key or table header (a scene uses at most 3)."""
+_KEY_PART = re.compile(r'^\s*\[{0,2}\s*([A-Za-z0-9_\-."' + "'" + r' ]+?)\s*(?:\]{1,2}\s*$|=)')
+
+
+def text_problem(text: str) -> Optional[str]:
+    """Why scene text is refused before parsing (too large, keys nested too deeply), or None. The
+    TOML parser's memory grows with the depth of a dotted key much faster than the file."""
+    if len(text) > MAX_SCENE_BYTES:
+        return f"{len(text)} characters: larger than any scene ({MAX_SCENE_BYTES} at most)"
+    for number, line in enumerate(text.splitlines(), 1):
+        m = _KEY_PART.match(line)
+        if m and m.group(1).count(".") >= MAX_KEY_DEPTH:
+            return (f"line {number}: a key or table nested {m.group(1).count('.') + 1} levels deep; "
+                    f"a scene nests at most 3 (at most {MAX_KEY_DEPTH} accepted)")
+    return None
+
+
 def parse_scene(text: str, source: str = "<string>", overrides: Sequence[tuple[str, Any]] = ()) -> SceneSpec:
     """Parse and validate scene TOML text, with `overrides` ((dotted key, value), as from --set,
     fraytool.scene.overrides) applied first; raises SceneError listing every problem."""
+    too_big = text_problem(text)
+    if too_big:
+        raise SceneError([f"{source}: {too_big}"])
     try:
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise SceneError([f"{source}: not valid TOML: {exc}"]) from None
+    except ValueError as exc:  # e.g. an integer literal longer than Python converts (4300 digits)
+        raise SceneError([f"{source}: not valid TOML: {str(exc).splitlines()[0][:200]}"]) from None
     except RecursionError:
         raise SceneError([f"{source}: not a scene: arrays or tables nested too deeply for the TOML "
                           "parser (a scene nests at most 3 levels)"]) from None

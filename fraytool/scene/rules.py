@@ -92,7 +92,7 @@ def attachment_problems(a: AttachmentSpec, body_names: Iterable[str], warp_yarns
     names = set(body_names)
     if a.body not in names:
         out.append(("body", a.body,
-                    "must name one of the [[bodies]]: " + (", ".join(sorted(names)) or "(none defined)")))
+                    "must name one of the [[bodies]]: " + (_some(sorted(names)) or "(none defined)")))
     chosen = [k for k in ("edge", "corner", "warp_range", "region_center_m") if getattr(a, k) is not None]
     if a.weft_range is not None and "warp_range" not in chosen:
         chosen.append("weft_range")
@@ -155,3 +155,9 @@ def checks_problems(check_frames: int, frames: int) -> list[Problem]:
     if check_frames > frames:
         return [("frames", check_frames, f"must be <= [time] frames = {frames}")]
     return []
+
+
+def _some(names: list[str], most: int = 10) -> str:
+    """The first `most` names, then how many more."""
+    text = ", ".join(names[:most])
+    return text + (f", ... ({len(names) - most} more)" if len(names) > most else "")

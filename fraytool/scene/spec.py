@@ -112,10 +112,10 @@ class ClothSpec:
                           doc="number of warp yarns (columns, index i); they run along the cloth's second axis")
     weft_yarns: int = key("int", lo=2, hi=4096,
                           doc="number of weft yarns (rows, index j); they run along the cloth's first axis")
-    spacing_m: float = key("float", lo=0, lo_open=True, hi=1.0, doc="distance between neighbouring yarns at rest [m]")
-    thickness_m: float = key("float", lo=0, lo_open=True, hi=0.1,
+    spacing_m: float = key("float", lo=1e-6, hi=1.0, doc="distance between neighbouring yarns at rest [m]")
+    thickness_m: float = key("float", lo=1e-7, hi=0.1,
                              doc="cloth thickness T [m]: weft and warp masses of a couple are T apart")
-    mass_per_crossing_kg: float = key("float", lo=0, lo_open=True, hi=10.0, doc="mass of one crossing [kg]")
+    mass_per_crossing_kg: float = key("float", lo=1e-12, hi=10.0, doc="mass of one crossing [kg]")
     origin_m: Vec3 = key("vec3", (0.0, 0.0, 0.0), lo=-WORLD_M, hi=WORLD_M, doc="world position of crossing (i = 0, j = 0) [m]")
     plane: str = key("str", "xz", choices=("xz", "xy", "yz"),
                      doc='plane the cloth spans at rest ("xz" flat, y up; "xy" vertical); weft along its first axis')
@@ -146,7 +146,7 @@ class BodySpec:
     velocity_m_s: Vec3 = key("vec3", (0.0, 0.0, 0.0), lo=-1e4, hi=1e4,
                              doc="kinematic: constant velocity; dynamic: initial velocity [m/s]")
     path: tuple[tuple[float, float, float, float], ...] = key(
-        "path", (), doc="kinematic keyframes (t [s], x, y, z [m]), linearly interpolated; held after the last")
+        "path", (), lo=-WORLD_M, hi=WORLD_M, doc="kinematic keyframes (t [s], x, y, z [m]), linearly interpolated; held after the last")
     mass_kg: float = key("float", 1.0, lo=0, lo_open=True, hi=1e6, doc="mass of a dynamic body [kg]")
     gravity: bool = key("bool", True, doc="a dynamic body feels gravity")
     friction: float = key("float", 0.3, lo=0, hi=10, doc="friction coefficient of the cloth against this body")
