@@ -43,8 +43,11 @@ def scenes_dir() -> Path:
 def find_scene(path: str | Path) -> Path:
     """Resolve a scene argument: an existing file, else a shipped scene by name or scenes/ path."""
     p = Path(path)
-    if p.is_file():
-        return p
+    try:
+        if p.is_file():
+            return p
+    except OSError as exc:  # a name too long for the file system, a path through a file, ...
+        raise SceneError([f"{str(path)[:200]}: cannot read scene file: {exc.strerror}"]) from None
     shipped = scenes_dir()
     candidates = []
     rel = p.parts[1:] if p.parts[:1] == ("scenes",) else p.parts

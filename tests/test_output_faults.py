@@ -436,3 +436,22 @@ def test_a_huge_flag_value_is_not_echoed_whole(reference, tmp_path, capsys):
             assert main(argv) == 2
         err = capsys.readouterr().err
         assert err and max(len(line) for line in err.splitlines()) < 1100, argv[2]
+
+
+def test_a_failed_atomic_write_names_the_file_not_its_temp(reference, tmp_path, capsys):
+    scene, good = reference
+    out = _copy(good, tmp_path / "out")
+    (out / "frames" / "frame_000002.npz").unlink()
+    (out / "frames" / "frame_000002.npz").mkdir()  # a folder where a frame goes
+    (out / "frames" / "frame_000002.npz" / "x").write_text("keep")
+    assert main(["simulate", str(scene), "-o", str(out)]) == 1
+    line = _one_failure_line(capsys.readouterr().err)
+    assert f"{out / 'frames' / 'frame_000002.npz'}:" in line and ".tmp" not in line, line
+
+
+def test_check_outputs_names_a_partial_mp4_of_a_killed_render(reference, tmp_path, capsys):
+    _, good = reference
+    out = _copy(good, tmp_path / "out")
+    (out / ".small.partial-otherhost-99.mp4").write_bytes(b"half")
+    assert main(["check", "--outputs", str(out)]) == 1
+    assert "partial MP4 of a killed render" in capsys.readouterr().err

@@ -58,6 +58,7 @@ def bench_simulation(spec, frames: int = DEFAULT_FRAMES, out_dir: Path | None = 
 
 def bench_command(args) -> int:
     spec = load_scene(args.scene)
+    _refuse_what_will_not_fit(spec)
     if getattr(args, "self_collision", None):
         spec = replace(spec, self_collision=replace(spec.self_collision, enabled=args.self_collision == "on"))
     frames = args.frames or DEFAULT_FRAMES
@@ -82,3 +83,13 @@ def bench_command(args) -> int:
         for name, ms in result["render_stages"].items():
             print(f"  {name:18s} {ms:8.2f} ms/frame", file=out)
     return 0
+
+
+def _refuse_what_will_not_fit(spec) -> None:
+    """As simulate: exit 2 with the estimate when the scene will not fit in the available memory."""
+    from fraytool.errors import SceneError
+    from fraytool.sim.memory import memory_problem
+
+    problem = memory_problem(spec)
+    if problem:
+        raise SceneError([problem.replace(", or pass --force to try anyway", "")])

@@ -79,6 +79,9 @@ def write_stability_sweep(spec: SceneSpec, folder: Path, quick: bool = False, st
 
 def study_command(args) -> int:
     spec = load_scene(args.scene)
+    from fraytool.commands.bench import _refuse_what_will_not_fit
+
+    _refuse_what_will_not_fit(spec)
     folder = study_dir(spec, args.out)
     try:
         return _study(spec, folder, args)

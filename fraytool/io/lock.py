@@ -131,7 +131,8 @@ class OutputLock:
                 if not _stale(self.path, holder):
                     if self.wait_stream is None:
                         raise OutputError(f"{self.out_dir}: in use by another fraytool run ({_describe(holder)}): "
-                                          "wait for it to finish or choose another output folder with -o") from None
+                                          "wait for it to finish or choose another output folder with -o (if no "
+                                          f"fraytool runs there, delete {self.path})") from None
                     if not said:
                         print(f"fraytool: waiting for {self.out_dir}: in use by another fraytool run "
                               f"({_describe(holder)})", file=self.wait_stream)
