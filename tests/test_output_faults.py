@@ -439,14 +439,15 @@ def test_a_huge_flag_value_is_not_echoed_whole(reference, tmp_path, capsys):
 
 
 def test_a_failed_atomic_write_names_the_file_not_its_temp(reference, tmp_path, capsys):
-    scene, good = reference
-    out = _copy(good, tmp_path / "out")
-    (out / "frames" / "frame_000002.npz").unlink()
-    (out / "frames" / "frame_000002.npz").mkdir()  # a folder where a frame goes
-    (out / "frames" / "frame_000002.npz" / "x").write_text("keep")
-    assert main(["simulate", str(scene), "-o", str(out)]) == 1
+    scene, _ = reference
+    out = tmp_path / "out"
+    assert main(["simulate", str(scene), "-o", str(out), "--frames", "3"]) == 0
+    (out / "frames" / "frame_000003.npz").mkdir()  # a folder where the next frame goes
+    (out / "frames" / "frame_000003.npz" / "x").write_text("keep")
+    assert main(["simulate", str(scene), "-o", str(out), "--resume"]) == 1
     line = _one_failure_line(capsys.readouterr().err)
-    assert f"{out / 'frames' / 'frame_000002.npz'}:" in line and ".tmp" not in line, line
+    assert f"{out / 'frames' / 'frame_000003.npz'}:" in line and ".tmp" not in line, line
+    assert (out / "frames" / "frame_000003.npz" / "x").read_text() == "keep"
 
 
 def test_check_outputs_names_a_partial_mp4_of_a_killed_render(reference, tmp_path, capsys):
@@ -455,3 +456,23 @@ def test_check_outputs_names_a_partial_mp4_of_a_killed_render(reference, tmp_pat
     (out / ".small.partial-otherhost-99.mp4").write_bytes(b"half")
     assert main(["check", "--outputs", str(out)]) == 1
     assert "partial MP4 of a killed render" in capsys.readouterr().err
+
+
+def test_a_fresh_run_that_fills_the_disk_gives_the_previous_frames_back(reference, tmp_path, monkeypatch, capsys):
+    """Scene A's frames are in the folder; scene B's fresh run fails on a full disk: A's frames are
+    back in place, intact, and nothing of B's is left."""
+    scene, good = reference
+    out = _copy(good, tmp_path / "out")
+    other = tmp_path / "other.toml"
+    other.write_text(small_scene_text(frames=FRAMES, seed=5))
+    _fail_writes_after(monkeypatch, 3, errno.ENOSPC)
+    assert main(["simulate", str(other), "-o", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert "the previous frames are back in place" in err and "No space left on device" in err
+    monkeypatch.undo()
+    assert not (out / "frames.previous").exists()
+    assert main(["check", "--outputs", str(out), str(scene)]) == 0
+    _assert_same_store(good, out)
+    # and a fresh run that completes leaves no frames.previous behind
+    assert main(["simulate", str(other), "-o", str(out)]) == 0
+    assert not (out / "frames.previous").exists() and FrameStore(out).frames_complete() == FRAMES

@@ -280,12 +280,20 @@ class FrameStore:
         """Delete temp files of dead writers (the caller holds the folder's lock)."""
         return sweep_temp_files(self.dir)
 
-    def start(self, topology: dict[str, np.ndarray], scene_hash: str, info: dict) -> None:
-        """Begin a fresh run: clear old frames, write the topology (Model.arrays()) and an empty manifest.
+    @property
+    def previous_dir(self) -> Path:
+        """Where a fresh run keeps the frames it replaces until it completes (frames.previous/)."""
+        return self.out_dir / "frames.previous"
 
-        Only files fraytool writes are deleted, and only from a frames folder that fraytool made (it
-        has a manifest); a folder holding anything else without a manifest is left as it is and the
-        run stops with an OutputError (exit 1)."""
+    def start(self, topology: dict[str, np.ndarray], scene_hash: str, info: dict) -> None:
+        """Begin a fresh run: set the old frames aside, write the topology (Model.arrays()) and an
+        empty manifest.
+
+        The old frames move to frames.previous/ and stay there until the new run completes
+        (`drop_previous`); a run that fails on I/O (a full disk) puts them back (`restore_previous`),
+        so the previous good output is untouched. Only files fraytool writes are ever deleted, and
+        only from a frames folder that fraytool made; a folder holding anything else is left as it is
+        and the run stops with an OutputError (exit 1)."""
         if self.dir.is_symlink() or (self.dir.exists() and not self.dir.is_dir()):
             raise OutputError(f"{self.dir}: is in the way of the frames folder (not a folder fraytool made); "
                              "move it or choose another output folder with -o")
@@ -293,14 +301,38 @@ class FrameStore:
             if not self.owned():
                 raise OutputError(f"{self.dir}: holds files fraytool did not write (no {MANIFEST}); "
                                  "not deleting them: move them or choose another output folder with -o")
-            for p in self.dir.iterdir():
-                if p.is_file() and (p.name in _OURS or _FRAME_RE.fullmatch(p.name) or is_temp_name(p.name)):
-                    p.unlink()
+            self.drop_previous()  # a leftover of an earlier fresh run that was killed
+            if not self.previous_dir.exists():
+                self.dir.rename(self.previous_dir)
+            else:  # someone's files stayed there: clear ours in place instead
+                _delete_ours(self.dir)
         self.dir.mkdir(parents=True, exist_ok=True)
         self._scene_hash = scene_hash
         self.write_topology(topology)
         self._write_manifest({**info, "scene_hash": scene_hash, "fraytool_version": __version__,
                               "store_format": STORE_FORMAT, "frames_complete": 0})
+
+    def drop_previous(self) -> None:
+        """Delete fraytool's files in frames.previous/ (and the folder, if nothing else is left)."""
+        if self.previous_dir.is_dir() and not self.previous_dir.is_symlink():
+            _delete_ours(self.previous_dir)
+            try:
+                self.previous_dir.rmdir()
+            except OSError:
+                pass  # other files stay where they are
+
+    def restore_previous(self) -> bool:
+        """After a failed fresh run: delete its frames and put the previous ones back. True if done."""
+        if not self.previous_dir.is_dir():
+            return False
+        if self.dir.is_dir():
+            _delete_ours(self.dir)
+            try:
+                self.dir.rmdir()
+            except OSError:
+                return False
+        self.previous_dir.rename(self.dir)
+        return True
 
     def reopen(self, scene_hash: str, info: dict, frames_complete: int, topology: dict[str, np.ndarray],
                rewrite_topology: bool) -> None:
@@ -351,6 +383,12 @@ class FrameStore:
         if m is not None and "unstable" in m:
             m.pop("unstable")
             self._write_manifest(m)
+
+
+def _delete_ours(folder: Path) -> None:
+    for p in folder.iterdir():
+        if p.is_file() and (p.name in _OURS or _FRAME_RE.fullmatch(p.name) or is_temp_name(p.name)):
+            p.unlink()
 
 
 def _frame_numbers(folder: Path) -> set[int]:

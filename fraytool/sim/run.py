@@ -114,7 +114,21 @@ def _simulate_locked(spec: SceneSpec, store: FrameStore, frames: Optional[int], 
     else:
         store.start(model.arrays(), digest, _store_info(spec, model, total))
         sim, first_write = Simulation(spec, model=model), 1
-        store.write_frame(sim.record(), sim.checkpoint_arrays())
+        try:
+            store.write_frame(sim.record(), sim.checkpoint_arrays())
+        except OSError:
+            store.restore_previous()
+            raise
+    try:
+        return _advance(spec, sim, store, total, first_write, progress, stream)
+    except OSError:
+        if point is None and store.restore_previous():  # a fresh run failed on I/O: the old frames are back
+            print(f"fraytool: {store.dir}: the previous frames are back in place", file=stream)
+        raise
+
+
+def _advance(spec: SceneSpec, sim: Simulation, store: FrameStore, total: int, first_write: int,
+             progress, stream) -> dict:
     bar = Progress(total, spec.name, stream=stream, enabled=progress, stage="simulate")
     t_last = time.perf_counter()
     try:
@@ -137,6 +151,7 @@ def _simulate_locked(spec: SceneSpec, store: FrameStore, frames: Optional[int], 
         raise _unstable_run(sim, store, exc) from None
     bar.close()
     store.update_manifest(frames_planned=max(total, store.manifest().get("frames_planned", 0)))
+    store.drop_previous()
     warning = sim.woven_strain_warning()
     if warning:
         print(f"fraytool: warning: {warning}", file=stream)
