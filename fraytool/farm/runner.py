@@ -21,7 +21,7 @@ from fraytool.farm.shots import Job, Shot
 from fraytool.io.frame_record import atomic_write_bytes
 from fraytool.progress import Progress
 
-RETRIES = 2
+RETRIES = 1
 JOB_JSON = "job.json"
 
 
