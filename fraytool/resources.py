@@ -57,5 +57,11 @@ def find_scene(path: str | Path) -> Path:
     for c in candidates:
         if c.is_file():
             return c
-    names = sorted(q.stem for q in shipped.glob("*.toml"))
-    raise SceneError([f"{path}: scene file not found (shipped scenes: {', '.join(names) or 'none'})"])
+    names = sorted(q.relative_to(shipped).with_suffix("").as_posix() for q in shipped.rglob("*.toml"))
+    import difflib
+
+    wanted = p.with_suffix("").as_posix() if p.suffix == ".toml" else p.as_posix()
+    wanted = wanted[len("scenes/"):] if wanted.startswith("scenes/") else wanted
+    close = difflib.get_close_matches(wanted, names, n=3, cutoff=0.5)
+    hint = f"did you mean {' or '.join(close)}? " if close else ""
+    raise SceneError([f"{str(path)[:200]}: scene file not found ({hint}shipped scenes: {', '.join(names) or 'none'})"])

@@ -35,9 +35,11 @@ def test_bench_json(tmp_path, capsys):
     scene.write_text(small_scene_text(frames=4))
     assert main(["bench", str(scene), "--frames", "3", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
-    assert set(out) >= {"scene", "masses", "springs", "frames", "ms_per_frame", "stages", "compile_s"}
+    assert set(out) >= {"scene", "masses", "springs", "frames", "ms_per_frame", "stages_ms_per_frame",
+                        "export_ms_per_frame", "compile_s"}
     assert out["frames"] == 3 and out["ms_per_frame"] > 0
-    assert {"forces", "integration", "strain_limiting", "export"} <= set(out["stages"])
+    assert {"forces", "integration", "strain_limiting"} <= set(out["stages_ms_per_frame"])
+    assert out["export_ms_per_frame"] > 0 and "export" not in out["stages_ms_per_frame"]
 
 
 def test_python_dash_m_and_default_out_dir(tmp_path):
@@ -93,3 +95,20 @@ def test_progress_auto_is_log_off_a_terminal(monkeypatch):
 
     assert Progress(3, "x", stream=io.StringIO()).mode == "log"
     assert Progress(3, "x", stream=Tty()).mode == "bar"
+
+
+def test_unknown_scene_name_suggests_the_closest_shipped_ones(capsys):
+    assert main(["check", "fig7_sqare_grab"]) == 2
+    err = capsys.readouterr().err
+    assert "did you mean fig7_square_grab" in err
+    assert main(["check", "stress/very_stif_small_step"]) == 2
+    assert "did you mean stress/very_stiff_small_step" in capsys.readouterr().err
+
+
+def test_a_negative_camera_position_needs_no_equals_sign(tmp_path):
+    from fraytool.commands.main import _join_negative_vectors, build_parser
+
+    argv = _join_negative_vectors(["render", "drape", "--camera-position", "-0.02,0.26,0.16",
+                                   "--camera-target", "-1,-2,-3", "--fov", "40"])
+    args = build_parser().parse_args(argv)
+    assert args.camera_position == "-0.02,0.26,0.16" and args.camera_target == "-1,-2,-3" and args.fov == 40.0

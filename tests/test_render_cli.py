@@ -74,6 +74,10 @@ def test_passes_never_overwrite_each_other(tmp_path):
                      "golden_small_beside_000000-000002.mp4", "golden_small_wireframe.mp4"]
     beauty = {p.name: p.read_bytes() for p in (out / "png").iterdir()}
     assert len(beauty) == 4
+    from PIL import Image
+
+    assert Image.open(out / "png" / "frame_000000.png").size == (32, 24)
+    assert Image.open(out / "png_beside" / "frame_000000.png").size == (64, 24)  # two panels of 32x24
     for d in ("png_wireframe", "png_beside"):
         assert sorted(p.name for p in (out / d).iterdir()) == sorted(beauty)
         assert all((out / d / n).read_bytes() != b for n, b in beauty.items())  # other pixels, other files

@@ -265,7 +265,27 @@ COMMANDS = {"batch": cmd_batch, "simulate": cmd_simulate, "check": cmd_check, "b
             "study": cmd_study}
 
 
+VECTOR_FLAGS = ("--camera-position", "--camera-target")
+"""Flags whose value may start with a minus sign (argparse would take "-0.02,0.26,0.16" for a flag)."""
+
+
+def _join_negative_vectors(argv: Sequence[str]) -> list[str]:
+    """`--camera-position -0.02,0.26,0.16` -> `--camera-position=-0.02,0.26,0.16`."""
+    out, i = [], 0
+    while i < len(argv):
+        tok = argv[i]
+        if tok in VECTOR_FLAGS and i + 1 < len(argv) and argv[i + 1][:2].lstrip("-")[:1] in "0123456789." \
+                and argv[i + 1].startswith("-"):
+            out.append(f"{tok}={argv[i + 1]}")
+            i += 2
+            continue
+        out.append(tok)
+        i += 1
+    return out
+
+
 def main(argv: Optional[Sequence[str]] = None) -> int:
+    argv = _join_negative_vectors(sys.argv[1:] if argv is None else list(argv))
     args = build_parser().parse_args(argv)
     from fraytool.progress import set_default_mode
 

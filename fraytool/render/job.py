@@ -56,8 +56,10 @@ class RenderJob:
 
     @property
     def size(self) -> tuple[int, int]:
+        """Output image size: the requested size, or twice its width with --wireframe beside (each
+        panel keeps the requested size and aspect)."""
         w, h = self.spec.render.resolution
-        return int(w), int(h)
+        return (2 * int(w) if self.wireframe == "beside" else int(w)), int(h)
 
     @property
     def samples(self) -> int:
