@@ -12,6 +12,7 @@ uniform vec3 u_axis_u;           // in-plane unit axes
 uniform vec3 u_axis_v;
 uniform float u_cell;            // checker cell size [m]
 uniform float u_fade_radius;     // distance where the plane has faded out [m]
+uniform float u_alpha_out;       // 1: fade into transparency (premultiplied), 0: into the background
 
 in vec3 v_position;
 in vec3 v_normal;
@@ -27,5 +28,9 @@ void main() {
     vec3 albedo = u_color * mix(0.85, 1.0, checker);
     vec3 color = albedo * (u_ambient + u_light_intensity * diffuse);
     float fade = smoothstep(0.35 * u_fade_radius, u_fade_radius, length(d));
-    f_color = vec4(mix(color, u_background, fade), 1.0);
+    if (u_alpha_out > 0.5) {
+        f_color = vec4(color * (1.0 - fade), 1.0 - fade);
+    } else {
+        f_color = vec4(mix(color, u_background, fade), 1.0);
+    }
 }

@@ -14,9 +14,10 @@ from fraytool.render.geometry import GeometryBuilder, YarnStyle
 from fraytool.render.renderer import Renderer, clamp_samples, panels
 
 
-def _render(ctx, pc, record, size=(160, 120), wireframe="off", render=None, camera=None, edit=None):
+def _render(ctx, pc, record, size=(160, 120), wireframe="off", render=None, camera=None, edit=None, alpha=False):
     render = render or pc.spec.render
-    renderer = Renderer(ctx, size, render.samples, render, camera or pc.spec.camera, pc.topology, wireframe)
+    renderer = Renderer(ctx, size, render.samples, render, camera or pc.spec.camera, pc.topology, wireframe,
+                        alpha=alpha)
     try:
         builder = GeometryBuilder(pc.topology, YarnStyle.from_spec(render, pc.topology), renderer.camera, size[1])
         geom = builder.build(record, yarns=wireframe != "only", lines=wireframe != "off")
@@ -127,6 +128,30 @@ def test_fading_ends_do_not_touch_opaque_pixels(gl_ctx, posed_cloth):
     clear_tips, _ = _render(gl_ctx, posed_cloth, rec, edit=invisible)
     assert np.array_equal(no_tips, clear_tips)
     assert not np.array_equal(base, no_tips)        # the fading ends do show
+
+
+def test_alpha_render_is_straight_alpha_that_composites_back_to_the_opaque_render(gl_ctx, posed_cloth):
+    """--alpha: transparent background (alpha 0), opaque yarn (255), the fading broken ends partial;
+    composited over the background colour in linear light the RGBA image gives the ordinary render back
+    (to a few levels where alpha is small: 8-bit colour divided by a small alpha)."""
+    from fraytool.render.color import over_background
+
+    rec = posed_cloth.torn()
+    for ground in (False, True):  # with the ground plane, its fade into the background becomes alpha
+        render = dataclasses.replace(posed_cloth.spec.render, ground_plane=ground)
+        rgb, _ = _render(gl_ctx, posed_cloth, rec, render=render)
+        rgba, _ = _render(gl_ctx, posed_cloth, rec, render=render, alpha=True)
+        assert rgba.shape == rgb.shape[:2] + (4,)
+        a = rgba[..., 3]
+        if not ground:
+            assert a[0, 0] == 0 and (a == 0).mean() > 0.3      # background
+        assert (a == 255).sum() > 200                           # the cloth
+        partial = (a > 0) & (a < 255)
+        assert partial.sum() > 20                               # fading ends, anti-aliased edges
+        back = over_background(rgba, render.background).astype(int)
+        diff = np.abs(back - rgb.astype(int)).max(axis=2)
+        assert diff[a == 255].max() <= 1 and diff[a == 0].max(initial=0) <= 1
+        assert np.percentile(diff[partial], 95) <= 3, (ground, np.percentile(diff[partial], 95))
 
 
 def test_translucent_triangles_are_drawn_far_to_near(gl_ctx, posed_cloth):

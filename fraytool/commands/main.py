@@ -102,6 +102,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--samples", type=int, help="MSAA samples (clamped to what the GL context supports)")
     r.add_argument("--png", action="store_true", help="also write a numbered PNG sequence in <out>/png/")
     r.add_argument("--no-mp4", action="store_true", help="do not write the MP4")
+    r.add_argument("--alpha", action="store_true", help="transparent background: RGBA PNGs with straight alpha "
+                   "(the fading yarn ends as partial alpha); the MP4 is composited over the background")
     r.add_argument("--wireframe", choices=("off", "only", "beside"), nargs="?", const="beside", default="off",
                    help="springs as lines, base model purple, yarn level blue (Fig. 8); default 'beside'")
     r.add_argument("--camera-position", metavar="X,Y,Z", help="override [camera] position_m")

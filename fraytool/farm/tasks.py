@@ -86,7 +86,8 @@ def join_task(shot: Shot, out_dir: str, _after=None) -> dict:
 
     t0 = time.time()
     job, _ = render_job_for(shot, Path(out_dir), FrameRange(0, 1))
-    with Mp4Writer(job.mp4_path, job.size, job.spec.time.fps, crf=job.spec.output.crf) as writer:
+    with Mp4Writer(job.mp4_path, job.size, job.spec.time.fps, crf=job.spec.output.crf,
+                   background_srgb=job.spec.render.background) as writer:
         for frame in job.frames.frames():
             writer.write(read_png(job.png_path(frame)))
     return {"task": "join", "seconds": time.time() - t0, "worker": _where(), "mp4": str(job.mp4_path),

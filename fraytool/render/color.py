@@ -21,3 +21,25 @@ def linear_to_srgb(c: Sequence[float] | np.ndarray) -> np.ndarray:
     """Encode linear RGB components in [0, 1] to sRGB."""
     c = np.clip(np.asarray(c, dtype=np.float64), 0.0, 1.0)
     return np.where(c <= 0.0031308, 12.92 * c, 1.055 * c ** (1.0 / 2.4) - 0.055)
+
+
+def straight_alpha_srgb(premultiplied: np.ndarray) -> np.ndarray:
+    """(H, W, 4) uint8 read from the sRGB framebuffer of an --alpha render (sRGB-encoded linear colour
+    premultiplied by alpha, linear alpha) -> (H, W, 4) uint8 straight alpha, sRGB colour, as PNG
+    stores it: colour = encode(decode(c) / alpha); fully transparent pixels are black."""
+    rgba = premultiplied.astype(np.float32) / 255.0
+    alpha = rgba[..., 3:4]
+    lin = srgb_to_linear(rgba[..., :3])
+    straight = np.where(alpha > 0.0, lin / np.maximum(alpha, 1e-6), 0.0)
+    out = np.empty_like(premultiplied)
+    out[..., :3] = np.clip(np.rint(linear_to_srgb(np.clip(straight, 0.0, 1.0)) * 255.0), 0, 255)
+    out[..., 3] = premultiplied[..., 3]
+    return out
+
+
+def over_background(rgba: np.ndarray, background_srgb) -> np.ndarray:
+    """(H, W, 4) uint8 straight-alpha sRGB composited over an sRGB colour in linear light -> (H, W, 3)."""
+    f = rgba.astype(np.float32) / 255.0
+    a = f[..., 3:4]
+    lin = srgb_to_linear(f[..., :3]) * a + srgb_to_linear(np.asarray(background_srgb, np.float32)) * (1.0 - a)
+    return np.clip(np.rint(linear_to_srgb(lin) * 255.0), 0, 255).astype(np.uint8)

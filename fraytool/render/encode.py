@@ -50,8 +50,9 @@ def check_even(size: tuple[int, int], what: str = "MP4 size") -> None:
 
 
 def write_png(path: Path, image: np.ndarray, settings_digest: str = "") -> None:
-    """Write an (H, W, 3) uint8 image as PNG atomically, tagged with `settings_digest`."""
-    img = Image.fromarray(np.ascontiguousarray(image), mode="RGB")
+    """Write an (H, W, 3) RGB or (H, W, 4) straight-alpha RGBA uint8 image as PNG atomically, tagged
+    with `settings_digest`."""
+    img = Image.fromarray(np.ascontiguousarray(image), mode="RGBA" if image.shape[2] == 4 else "RGB")
     info = PngImagePlugin.PngInfo()
     if settings_digest:
         info.add_text(PNG_SETTINGS_KEY, settings_digest)
@@ -71,9 +72,9 @@ def png_settings(path: Path) -> Optional[tuple[str, tuple[int, int]]]:
 
 
 def read_png(path: Path) -> np.ndarray:
-    """An (H, W, 3) uint8 image."""
+    """An (H, W, 3) uint8 image, or (H, W, 4) for a PNG with alpha."""
     with Image.open(path) as img:
-        return np.asarray(img.convert("RGB"))
+        return np.asarray(img.convert("RGBA" if img.mode in ("RGBA", "LA") else "RGB"))
 
 
 def _host() -> str:
@@ -115,8 +116,11 @@ class Mp4Writer:
     `close()` publishes it, `abort()` (or an exception in a `with` block) removes the temp file and
     leaves any previous MP4 untouched. The child dies with fraytool (PR_SET_PDEATHSIG on Linux)."""
 
-    def __init__(self, path: Path, size: tuple[int, int], fps: float, crf: int = 18, preset: str = X264_PRESET):
+    def __init__(self, path: Path, size: tuple[int, int], fps: float, crf: int = 18, preset: str = X264_PRESET,
+                 background_srgb=(0.0, 0.0, 0.0)):
+        """Frames with alpha (H, W, 4) are composited over `background_srgb` (H.264 has no alpha)."""
         check_even(size)
+        self.background_srgb = tuple(background_srgb)
         self.path = Path(path)
         self.size = (int(size[0]), int(size[1]))
         self.path.parent.mkdir(parents=True, exist_ok=True)
@@ -140,6 +144,10 @@ class Mp4Writer:
         return lines[-1] if lines else "no message"
 
     def write(self, image: np.ndarray) -> None:
+        if image.ndim == 3 and image.shape[2] == 4:
+            from fraytool.render.color import over_background
+
+            image = over_background(image, self.background_srgb)
         h, w = image.shape[:2]
         if (w, h) != self.size or image.dtype != np.uint8 or image.shape[2:] != (3,):
             raise ValueError(f"frame {image.shape} {image.dtype} does not match the video size {self.size}")

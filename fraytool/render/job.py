@@ -53,6 +53,8 @@ class RenderJob:
     wireframe: str = "off"
     png: bool = False
     mp4: bool = True
+    alpha: bool = False
+    """Transparent background: RGBA PNGs (straight alpha); the MP4 is composited over the background."""
 
     @property
     def size(self) -> tuple[int, int]:
@@ -94,6 +96,7 @@ class RenderJob:
             "camera": dataclasses.asdict(self.spec.camera),
             "render": dataclasses.asdict(self.spec.render),
             "wireframe": self.wireframe,
+            "alpha": self.alpha,
             "effective_samples": effective_samples,
             "revision": RENDER_REVISION,
             "shaders": shaders.hexdigest(),
@@ -150,4 +153,5 @@ def build_job(spec: SceneSpec, args, out: Path) -> RenderJob:
         where = ", ".join(f for f, v in (("--camera-position", position), ("--camera-target", target)) if v)
         raise InputError(f"{where or spec.source + ': [camera]'}: {exc}") from None
     return RenderJob(spec=spec, out_dir=out, frames=frames, ranged=ranged,
-                     wireframe=getattr(args, "wireframe", None) or "off", png=png, mp4=mp4)
+                     wireframe=getattr(args, "wireframe", None) or "off", png=png, mp4=mp4,
+                     alpha=bool(getattr(args, "alpha", False)))

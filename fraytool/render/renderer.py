@@ -36,7 +36,7 @@ import numpy as np
 
 from fraytool.render.bodies import BodySet, rotation_from_y, unit_cube, unit_quad, unit_sphere
 from fraytool.render.camera import Camera
-from fraytool.render.color import WIREFRAME_BASE_SRGB, WIREFRAME_YARN_SRGB, srgb_to_linear
+from fraytool.render.color import straight_alpha_srgb, WIREFRAME_BASE_SRGB, WIREFRAME_YARN_SRGB, srgb_to_linear
 from fraytool.errors import RunError
 from fraytool.render.context import check_gl_error
 from fraytool.render.geometry import FrameGeometry
@@ -122,10 +122,13 @@ class Renderer:
     """Draws frames of one run at one size. Holds GL objects; call `release()` when done."""
 
     def __init__(self, ctx: moderngl.Context, size: tuple[int, int], samples: int, render: RenderSpec,
-                 camera: CameraSpec, topology: Mapping[str, np.ndarray], wireframe: str = "off"):
+                 camera: CameraSpec, topology: Mapping[str, np.ndarray], wireframe: str = "off",
+                 alpha: bool = False):
+        """`alpha`: a transparent background; `read()` then gives (H, W, 4) straight alpha (docs/rendering.md)."""
         if wireframe not in WIREFRAME_MODES:
             raise ValueError(f"wireframe must be one of {WIREFRAME_MODES}, got {wireframe!r}")
         self.ctx = ctx
+        self.alpha = bool(alpha)
         self.size = (int(size[0]), int(size[1]))
         self.samples = clamp_samples(ctx, samples)
         self.render_spec = render
@@ -199,6 +202,7 @@ class Renderer:
         y["u_warp_color"].value = tuple(srgb_to_linear(r.warp_color))
         self._body_prog["u_color"].value = tuple(srgb_to_linear(r.body_color))
         self._background = tuple(srgb_to_linear(r.background))
+        self._clear = (0.0, 0.0, 0.0, 0.0) if self.alpha else (*self._background, 1.0)
         self._line_prog["u_base_color"].value = tuple(srgb_to_linear(WIREFRAME_BASE_SRGB))
         self._line_prog["u_yarn_color"].value = tuple(srgb_to_linear(WIREFRAME_YARN_SRGB))
 
@@ -248,6 +252,7 @@ class Renderer:
         g["u_normal_matrix"].write(_mat3(np.linalg.inv(model[:3, :3]).T))
         g["u_color"].value = tuple(srgb_to_linear(self.render_spec.body_color) * 0.8)
         g["u_background"].value = self._background
+        g["u_alpha_out"].value = 1.0 if self.alpha else 0.0
         g["u_centre"].value = tuple(centre)
         g["u_axis_u"].value = tuple(Rg[:, 0])
         g["u_axis_v"].value = tuple(Rg[:, 2])
@@ -273,7 +278,9 @@ class Renderer:
             order = np.argsort(self.camera.view_depth(mesh.centroid), kind="stable")  # far first
             self._translucent_ibo.write(mesh.translucent[order])
             ctx.enable(moderngl.BLEND)
-            ctx.blend_func = moderngl.SRC_ALPHA, moderngl.ONE_MINUS_SRC_ALPHA
+            # colour: over (premultiplied result); alpha: coverage a + a_dst (1 - a)
+            ctx.blend_func = (moderngl.SRC_ALPHA, moderngl.ONE_MINUS_SRC_ALPHA, moderngl.ONE,
+                              moderngl.ONE_MINUS_SRC_ALPHA)
             self._fbo_ms.depth_mask = False
             self._yarn_vao("translucent", self._translucent_ibo).render(
                 moderngl.TRIANGLES, vertices=mesh.translucent.size)
@@ -307,14 +314,14 @@ class Renderer:
         if geom.yarns is not None:
             self._upload_yarns(geom)
         if len(self.panels) == 1:
-            self._fbo_ms.clear(*self._background, 1.0, depth=1.0)
+            self._fbo_ms.clear(*self._clear, depth=1.0)
         # Panels are cleared and drawn one at a time inside their scissor box, wireframe first:
         # llvmpipe lets multisampled lines leak one pixel past the scissor edge, and the shaded
         # panel's own clear then wipes that leak.
         for p in sorted(self.panels, key=lambda p: p.view != "wireframe"):
             box = (p.x, 0, p.width, H)
             if len(self.panels) > 1:
-                self._fbo_ms.clear(*self._background, 1.0, depth=1.0, viewport=box)
+                self._fbo_ms.clear(*self._clear, depth=1.0, viewport=box)
             self._fbo_ms.viewport = box
             self._fbo_ms.scissor = box
             self._fbo_ms.use()                             # applies viewport and scissor
@@ -329,11 +336,14 @@ class Renderer:
         self.ctx.disable_direct(GL_FRAMEBUFFER_SRGB)      # leave the context as we found it
 
     def read(self) -> np.ndarray:
-        """The presented image as (H, W, 3) uint8 sRGB, top row first."""
+        """The presented image, top row first: (H, W, 3) uint8 sRGB, or with `alpha` (H, W, 4) uint8
+        straight (unassociated) alpha with sRGB colour, as PNG stores it."""
         W, H = self.size
-        raw = self._fbo_out.read(components=3, alignment=1)
+        n = 4 if self.alpha else 3
+        raw = self._fbo_out.read(components=n, alignment=1)
         check_gl_error(self.ctx, "drawing a frame")
-        return np.frombuffer(raw, dtype=np.uint8).reshape(H, W, 3)[::-1]
+        image = np.frombuffer(raw, dtype=np.uint8).reshape(H, W, n)[::-1]
+        return straight_alpha_srgb(image) if self.alpha else image
 
     def render(self, geom: FrameGeometry) -> np.ndarray:
         """Draw, resolve, present and read back one frame: (H, W, 3) uint8, top row first."""

@@ -57,7 +57,8 @@ def render_job(job: RenderJob, ctx: moderngl.Context, store: FrameStore, stream:
     if job.png:
         sweep_temp_files(job.png_dir)  # PNGs of a killed render (the caller holds the folder's lock)
     W, H = job.size
-    renderer = Renderer(ctx, job.size, job.samples, job.spec.render, job.spec.camera, topology, job.wireframe)
+    renderer = Renderer(ctx, job.size, job.samples, job.spec.render, job.spec.camera, topology, job.wireframe,
+                        alpha=job.alpha)
     digest = job.digest(renderer.samples)
     builder = GeometryBuilder(topology, YarnStyle.from_spec(job.spec.render, topology), renderer.camera, H)
     want_yarns = job.wireframe != "only"
@@ -68,7 +69,8 @@ def render_job(job: RenderJob, ctx: moderngl.Context, store: FrameStore, stream:
     bar = Progress(len(frames), job.spec.name, stream=stream, enabled=progress, stage="render")
     try:
         if job.mp4:
-            writer = Mp4Writer(job.mp4_path, job.size, job.spec.time.fps, crf=job.spec.output.crf)
+            writer = Mp4Writer(job.mp4_path, job.size, job.spec.time.fps, crf=job.spec.output.crf,
+                               background_srgb=job.spec.render.background)
         for i, frame in enumerate(frames):
             t0 = time.perf_counter()
             png_digest = frame_digest(digest, store, frame) if job.png else ""
