@@ -40,6 +40,24 @@ def _frames(n, w=64, h=48):
     return [np.roll(base, 2 * k, axis=1) for k in range(n)]
 
 
+def test_mp4_carries_bt709_tags_and_the_matching_matrix(tmp_path):
+    """Tagged BT.709, limited range, and encoded with the BT.709 matrix: a saturated red decodes back
+    to red with that matrix (BT.601's would shift it by tens of levels)."""
+    path = tmp_path / "clip.mp4"
+    red = np.zeros((48, 64, 3), np.uint8)
+    red[..., 0] = 200
+    with Mp4Writer(path, (64, 48), 24) as w:
+        for _ in range(3):
+            w.write(red)
+    exe = imageio_ffmpeg.get_ffmpeg_exe()
+    info = subprocess.run([exe, "-hide_banner", "-i", str(path)], capture_output=True, text=True).stderr
+    assert "yuv420p(tv, bt709" in info, info
+    raw = subprocess.run([exe, "-v", "error", "-i", str(path), "-vf", "scale=in_color_matrix=bt709:in_range=tv",
+                          "-frames:v", "1", "-f", "rawvideo", "-pix_fmt", "rgb24", "-"], capture_output=True).stdout
+    back = np.frombuffer(raw, np.uint8).reshape(48, 64, 3)[20:28, 28:36].astype(int)
+    assert np.abs(back - [200, 0, 0]).max() <= 4, back.mean(axis=(0, 1))
+
+
 @pytest.mark.parametrize("fps", [24.0, 25.0])
 def test_mp4_is_h264_yuv420p_with_size_fps_and_frame_count(tmp_path, fps):
     path = tmp_path / "clip.mp4"

@@ -131,6 +131,8 @@ class Mp4Writer:
         cmd = [imageio_ffmpeg.get_ffmpeg_exe(), "-y", "-hide_banner", "-loglevel", "error",
                "-f", "rawvideo", "-vcodec", "rawvideo", "-s", f"{self.size[0]}x{self.size[1]}", "-pix_fmt", "rgb24",
                "-r", f"{rate.numerator}/{rate.denominator}", "-i", "-", "-an",
+               # tagged BT.709, limited range; ffmpeg converts rgb24 with the tagged matrix (tested)
+               "-colorspace", "bt709", "-color_primaries", "bt709", "-color_trc", "bt709", "-color_range", "tv",
                "-vcodec", "libx264", "-pix_fmt", "yuv420p", "-crf", str(int(crf)), "-preset", preset,
                "-movflags", "+faststart", "-f", "mp4", str(self.tmp)]
         self._log = tempfile.TemporaryFile()
