@@ -72,7 +72,7 @@ scene = "missing_scene_name"
     j = load_job(job)
     assert j.name == "night" and j.chunk_frames == 5
     assert [s.name for s in j.shots] == ["small_seed-1", "small_seed-2", "heavy", "missing_scene_name"]
-    assert j.shots[0].render == RenderOptions((64, 48), None, "off", "0:10")
+    assert j.shots[0].render == RenderOptions((64, 48), None, None, "0:10")
     assert j.shots[2].render.frames is None and j.shots[2].render.resolution == (64, 48)
     assert j.shots[3].error and "missing_scene_name" in j.shots[3].error
     job.write_text(job.read_text().replace("chunk_frames = 5", "chunk_frames = 5\nspeed = 2"))
@@ -120,18 +120,23 @@ def test_killed_worker_is_retried_and_outputs_match_single_process_renders(scene
     assert (out / "small_contact_sheet.mp4").is_file()
 
 
-def test_bad_shot_is_reported_others_finish_rerun_does_nothing(scene, tmp_path, capsys):
+def test_bad_shot_is_reported_others_finish_rerun_does_nothing(scene, tmp_path, capsys, monkeypatch):
     bad = tmp_path / "bad.toml"
     bad.write_text(small_scene_text().replace("spacing_m = 0.005", "spacing_m = -1"))
+    short = tmp_path / "short.toml"
+    short.write_text(small_scene_text(frames=4, name="short"))
     out = tmp_path / "job"
-    argv = ["batch", str(scene), str(bad), "-o", str(out), "--workers", "1", "--resolution", "64x48",
+    monkeypatch.chdir(tmp_path)  # relative scene paths reach the workers as absolute ones
+    argv = ["batch", scene.name, bad.name, short.name, "-o", str(out), "--workers", "1", "--resolution", "64x48",
             "--frames", "0:6", "--progress", "none"]
     assert main(argv) == 1
     err = capsys.readouterr().err
-    assert "bad: invalid" in err and "spacing_m = -1" in err and "1 of 2 shot(s) done" in err and "dashboard" in err
+    assert err.count("bad: invalid") == 1 and "spacing_m = -1" in err and "1 of 3 shot(s) done" in err
+    assert "short: invalid" in err and "END <= 4" in err and "dashboard" in err
     data = json.loads((out / "job.json").read_text())
     assert data["status"] == "failed"
     assert data["shots"]["bad"]["status"] == "invalid" and "spacing_m = -1" in data["shots"]["bad"]["error"]
+    assert data["shots"]["small"]["scene"] == str(scene)
     good = data["shots"]["small"]
     assert good["status"] == "done" and set(good["tasks"]) == {"simulate", "render 0-6", "join"}
     assert Path(good["outputs"]["mp4"]).name == "small_000000-000006.mp4"
@@ -144,3 +149,39 @@ def test_bad_shot_is_reported_others_finish_rerun_does_nothing(scene, tmp_path, 
     assert Path(good["outputs"]["mp4"]).is_file()
     again = json.loads((out / "job.json").read_text())["shots"]["small"]["tasks"]
     assert again["render 0-6"]["rendered"] == 0 and again["render 0-6"]["reused"] == 6
+    (out / "small" / "png" / "frame_000003.png").unlink()  # a missing PNG: the shot is not done
+    assert main(argv) == 1
+    assert "small: already done" not in capsys.readouterr().err
+    assert json.loads((out / "job.json").read_text())["shots"]["small"]["tasks"]["render 0-6"]["rendered"] == 1
+    frame = out / "small" / "frames" / "frame_000005.npz"
+    before = frame.read_bytes()
+    assert main(argv + ["--set", "cloth.springs.bend_n_per_m=2.0"]) == 1  # other settings: done again
+    assert "small: already done" not in capsys.readouterr().err
+    assert frame.read_bytes() != before  # simulated afresh with the new settings
+    tasks = json.loads((out / "job.json").read_text())["shots"]["small"]["tasks"]
+    assert tasks["render 0-6"]["rendered"] == 6 and tasks["join"]["status"] == "done"
+
+
+@pytest.mark.parametrize("argv,needle", [
+    (["batch", "drape", "--scheduler", "bogus://x"], "expected an address like tcp://HOST:8786"),
+    (["batch", "drape", "--scheduler", "tcp://127.0.0.1:notaport"], "expected an address like tcp://HOST:8786"),
+    (["batch", "drape", "--scheduler", "tcp://127.0.0.1:8786", "--workers", "2"], "--workers starts a local cluster"),
+])
+def test_bad_batch_flags_exit_2_before_any_cluster(argv, needle, capsys):
+    assert main(argv) == 2
+    assert needle in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("text,needle", [
+    ("[job]\nname = 7\n[[shots]]\nscene = \"drape\"\n", "[job] name = '7'"),
+    ("[job]\nname = \"../../escaped\"\n[[shots]]\nscene = \"drape\"\n", "never a path"),
+    ("[[shot]]\nscene = \"drape\"\n", "[[shots]] tables"),
+    ("[[shots]]\nscene = \"drape\"\nframes = \"0:4\"\n", "unknown key 'frames'"),
+    ("[[shots\nscene = 1", "not valid TOML"),
+])
+def test_bad_job_files_exit_2(text, needle, tmp_path, capsys):
+    job = tmp_path / "job.toml"
+    job.write_text(text)
+    assert main(["batch", str(job), "-o", str(tmp_path / "out")]) == 2
+    assert needle in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()

@@ -4,6 +4,7 @@ any failed or was invalid (job.json says which and why), 2 for bad flags or job 
 from __future__ import annotations
 
 import os
+import re
 import sys
 from pathlib import Path
 
@@ -12,7 +13,7 @@ from fraytool.errors import InputError, RunError
 
 def batch_command(args) -> int:
     from fraytool.farm.runner import local_client, remote_client, run_job
-    from fraytool.farm.shots import Job, RenderOptions, expand, load_job, parse_wedge, unique_names
+    from fraytool.farm.shots import Job, RenderOptions, check_job_name, expand, load_job, parse_wedge, unique_names
     from fraytool.render.options import parse_resolution
     from fraytool.scene.overrides import parse_assignment
 
@@ -20,12 +21,14 @@ def batch_command(args) -> int:
     sets = [parse_assignment(a) for a in args.sets]
     wedges = [parse_wedge(w) for w in args.wedges]
     render = RenderOptions(resolution=parse_resolution(args.resolution, need_even=True) if args.resolution else None,
-                           samples=args.samples, wireframe=args.wireframe or "off", frames=args.frames)
+                           samples=args.samples, wireframe=args.wireframe, frames=args.frames)
+    if args.scheduler and args.workers:
+        raise InputError("--workers starts a local cluster; with --scheduler the cluster's own workers run the job")
     job = None
     shots = []
     for item in args.inputs:
         path = Path(item)
-        if path.suffix == ".toml" and path.is_file() and _is_job_file(path):
+        if path.suffix == ".toml" and path.is_file() and _is_job_file(path, item):
             loaded = load_job(path, sets, wedges, render, args.chunk_frames)
             job = job or loaded
             shots += loaded.shots
@@ -34,16 +37,16 @@ def batch_command(args) -> int:
     if not shots:
         raise InputError("batch: give scene files, shipped scene names or job files")
     name = job.name if job is not None and len(args.inputs) == 1 else "batch"
+    check_job_name(name, "job name")
     job = Job(name=name, shots=shots, chunk_frames=args.chunk_frames or (job.chunk_frames if job else 24))
     unique_names(job.shots)
-    job_dir = Path(args.out) if args.out else Path("outputs") / name
-    for s in job.shots:
-        if s.error:
-            print(f"fraytool: batch: {s.name}: invalid: {s.error.splitlines()[0]}", file=stream)
+    job_dir = (Path(args.out) if args.out else Path("outputs") / name).absolute()  # workers may run elsewhere
     if args.scheduler:
+        if not re.fullmatch(r"(tcp|tls|inproc|ucx)://[^\s:/]+(:\d{1,5})?", args.scheduler):
+            raise InputError(f"--scheduler {args.scheduler[:200]!r}: expected an address like tcp://HOST:8786")
         try:
             client, cluster = remote_client(args.scheduler)
-        except OSError as exc:
+        except (OSError, ValueError) as exc:
             raise RunError(f"--scheduler {args.scheduler}: cannot reach the Dask scheduler ({exc}); start one "
                            "with `dask scheduler` and workers with `dask worker ADDRESS`") from None
     else:
@@ -66,11 +69,16 @@ def batch_command(args) -> int:
     return 0 if not bad else 1
 
 
-def _is_job_file(path: Path) -> bool:
+def _is_job_file(path: Path, item: str) -> bool:
+    """A job file has [job] or [[shots]]; a TOML file that does not parse is neither (exit 2)."""
     import tomllib
 
     try:
         doc = tomllib.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError, RecursionError):
-        return False
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"{item}: cannot read: {exc}") from None
+    except (ValueError, RecursionError) as exc:
+        raise InputError(f"{item}: not valid TOML (neither a scene nor a job file): {str(exc).splitlines()[0][:200]}") from None
+    if "shot" in doc or "shots" in doc and not isinstance(doc["shots"], list):
+        raise InputError(f"{item}: a job file lists its shots as [[shots]] tables")
     return "shots" in doc or "job" in doc

@@ -17,6 +17,7 @@ from typing import Optional, TextIO
 
 from fraytool.farm import tasks
 from fraytool.farm.contact_sheet import contact_sheet_task
+from fraytool.errors import FraytoolError
 from fraytool.farm.shots import Job, Shot
 from fraytool.io.frame_record import atomic_write_bytes
 from fraytool.progress import Progress
@@ -25,9 +26,23 @@ RETRIES = 1
 JOB_JSON = "job.json"
 
 
-def _outputs_exist(entry: dict) -> bool:
+def settings_digest(shot: Shot, chunk_frames: int) -> str:
+    """What decides a shot's outputs: scene (file contents or shipped name), overrides, render options."""
+    import hashlib
+
+    h = hashlib.sha256(json.dumps([shot.scene, shot.sets, shot.render.__dict__], default=str).encode())
+    if Path(shot.scene).is_file():
+        h.update(Path(shot.scene).read_bytes())
+    return h.hexdigest()[:16]
+
+
+def _outputs_complete(entry: dict, frames) -> bool:
+    """The MP4 and every PNG of the shot's frame range are there."""
     outs = entry.get("outputs", {})
-    return bool(outs) and all(Path(p).exists() for p in outs.values())
+    if not outs or not Path(outs.get("mp4", "")).is_file():
+        return False
+    png = Path(outs.get("png", ""))
+    return all((png / f"frame_{k:06d}.png").is_file() for k in frames.frames())
 
 
 class JobRecord:
@@ -77,14 +92,19 @@ def run_job(job: Job, job_dir: Path, client, stream: TextIO = sys.stderr, progre
         if shot.error:
             entry.update({"status": "invalid", "error": shot.error, "tasks": {}})
             continue
-        if entry.get("status") == "done" and _outputs_exist(entry):
+        out = str(job_dir / shot.name)
+        try:
+            frames = tasks.shot_frames(shot, Path(out))  # render options checked against this scene
+        except FraytoolError as exc:
+            entry.update({"status": "invalid", "error": str(exc), "tasks": {}})
+            continue
+        digest = settings_digest(shot, job.chunk_frames)
+        if entry.get("status") == "done" and entry.get("settings") == digest and _outputs_complete(entry, frames):
             print(f"fraytool: batch: {shot.name}: already done", file=stream)
             if shot.group:
                 groups.setdefault(shot.group, []).append(shot)
             continue
-        out = str(job_dir / shot.name)
-        frames = tasks.shot_frames(shot, Path(out))
-        entry.update({"status": "running", "tasks": {}, "error": None})
+        entry.update({"status": "running", "tasks": {}, "error": None, "settings": digest, "outputs": {}})
         sim = client.submit(tasks.simulate_task, shot, out, frames.end, key=f"simulate-{shot.name}",
                             retries=RETRIES, pure=False)
         futures[sim] = (shot.name, "simulate")

@@ -45,7 +45,8 @@ _SHOT_KEYS = {"scene", "set", "wedge", "render", "name"}
 class RenderOptions:
     resolution: Optional[tuple[int, int]] = None
     samples: Optional[int] = None
-    wireframe: str = "off"
+    wireframe: Optional[str] = None
+    """"off", "only", "beside"; None: not given (off)."""
     frames: Optional[str] = None
     """START:END[:STEP] or None for the whole scene."""
 
@@ -127,6 +128,8 @@ def expand(scene: str, sets: Sequence[tuple[str, Any]], wedges: Sequence[tuple[s
     """One shot, or one per combination of wedge values, with its name and overrides."""
     from fraytool.scene import load_scene
 
+    if Path(scene).is_file():
+        scene = str(Path(scene).resolve())  # remote workers run elsewhere
     try:
         base = name or load_scene(scene, list(sets)).name
     except FraytoolError as exc:
@@ -161,10 +164,10 @@ def _render_options(table: dict, where: str, base: RenderOptions) -> RenderOptio
             raise InputError(f"{where} resolution = {res!r}: an array of 2 integers from 2 to 8192")
         res = (int(res[0]), int(res[1]))
     samples = table.get("samples", base.samples)
-    if samples is not None and not (isinstance(samples, int) and 0 <= samples <= 64):
+    if samples is not None and not (isinstance(samples, int) and not isinstance(samples, bool) and 0 <= samples <= 64):
         raise InputError(f"{where} samples = {samples!r}: an integer from 0 to 64")
     wire = table.get("wireframe", base.wireframe)
-    if wire not in ("off", "only", "beside"):
+    if wire not in ("off", "only", "beside", None):
         raise InputError(f'{where} wireframe = {wire!r}: one of "off", "only", "beside"')
     frames = table.get("frames", base.frames)
     if frames is not None and not isinstance(frames, str):
@@ -189,6 +192,7 @@ def load_job(path: Path, sets: Sequence[tuple[str, Any]] = (), wedges: Sequence[
     if not isinstance(head, dict) or set(head) - _JOB_KEYS:
         raise InputError(f"{path}: [job] allows the keys {', '.join(sorted(_JOB_KEYS))}")
     name = head.get("name", path.stem)
+    check_job_name(name, f"{path}: [job] name")
     chunk = chunk_frames or head.get("chunk_frames", DEFAULT_CHUNK_FRAMES)
     if not isinstance(chunk, int) or not 1 <= chunk <= 100000:
         raise InputError(f"{path}: [job] chunk_frames = {chunk!r}: an integer from 1 to 100000")
@@ -200,15 +204,22 @@ def load_job(path: Path, sets: Sequence[tuple[str, Any]] = (), wedges: Sequence[
     job = Job(name=name, chunk_frames=chunk)
     for i, raw in enumerate(shots_raw):
         where = f"{path}: [shots.{i}]"
-        if set(raw) - _SHOT_KEYS or "scene" not in raw or not isinstance(raw["scene"], str):
-            raise InputError(f"{where}: needs scene = \"...\"; allowed keys: {', '.join(sorted(_SHOT_KEYS))}")
+        unknown = sorted(set(raw) - _SHOT_KEYS)
+        if unknown:
+            raise InputError(f"{where}: unknown key {unknown[0]!r}; allowed keys: {', '.join(sorted(_SHOT_KEYS))} "
+                             "(render options go in render = {{ ... }})")
+        if not isinstance(raw.get("scene"), str):
+            raise InputError(f"{where}: needs scene = \"...\" (a scene file or a shipped scene name)")
         scene = raw["scene"]
         if not Path(scene).is_absolute() and (path.parent / scene).exists():
             scene = str(path.parent / scene)
         shot_sets = list(_table_items(raw.get("set", {}), f"{where} set")) + list(sets)
-        shot_wedges = [(k, v if isinstance(v, list) else [v]) for k, v in _table_items(raw.get("wedge", {}), f"{where} wedge")]
+        shot_wedges = [(k, v) if isinstance(v, list) else parse_wedge(f"{k}={v}", f"{where} wedge")
+                       for k, v in _table_items(raw.get("wedge", {}), f"{where} wedge")]
         shot_wedges += list(wedges)
         opts = _render_options(raw.get("render", {}), f"{where} render", defaults)
+        if raw.get("name") is not None:
+            check_job_name(raw["name"], f"{where} name")
         job.shots += expand(scene, shot_sets, shot_wedges, _merge(opts, render), raw.get("name"))
     return job
 
@@ -231,7 +242,16 @@ def _flatten(table: dict, prefix: str = ""):
 def _merge(base: RenderOptions, cli: RenderOptions) -> RenderOptions:
     """Command-line render options win over the job file's."""
     return RenderOptions(cli.resolution or base.resolution, cli.samples if cli.samples is not None else base.samples,
-                         cli.wireframe if cli.wireframe != "off" else base.wireframe, cli.frames or base.frames)
+                         cli.wireframe if cli.wireframe is not None else base.wireframe, cli.frames or base.frames)
+
+
+def check_job_name(name: Any, where: str) -> None:
+    """A job's name is a folder name, never a path (the rules of [scene] name)."""
+    from fraytool.scene.rules import scene_name_problems
+
+    if not isinstance(name, str) or scene_name_problems(name, from_file_name=False):
+        raise InputError(f"{where} = {str(name)[:120]!r}: letters, digits, '-', '_', '.' (not leading), at most 100 "
+                         "characters; a name, never a path")
 
 
 def unique_names(shots: list[Shot]) -> None:

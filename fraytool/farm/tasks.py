@@ -55,9 +55,15 @@ def simulate_task(shot: Shot, out_dir: str, frames_needed: int) -> dict:
     """Simulate (or continue) the shot's frames 0..frames_needed-1 into out_dir/frames."""
     from fraytool.sim.run import simulate_to_disk
 
+    from fraytool.io.frame_store import FrameStore
+    from fraytool.scene import scene_hash
+
     t0 = time.time()
     spec = load_shot(shot)
-    summary = simulate_to_disk(spec, Path(out_dir), frames=frames_needed, resume=True, progress=False)
+    store = FrameStore(Path(out_dir))
+    # continue (or repair) this shot's own frames; frames of other settings are replaced
+    resume = store.manifest() is None or store.matches(scene_hash(spec))
+    summary = simulate_to_disk(spec, Path(out_dir), frames=frames_needed, resume=resume, progress=False)
     return {"task": "simulate", "seconds": time.time() - t0, "worker": _where(),
             "frames": summary["frames"], "broken_springs": summary.get("broken_springs")}
 
