@@ -4,6 +4,7 @@ byte-identical to single-process `fraytool render` runs; a bad shot is reported 
 a re-run of a finished job does nothing and a half-finished one continues."""
 import json
 import os
+import re
 import signal
 import threading
 import time
@@ -185,3 +186,16 @@ def test_bad_job_files_exit_2(text, needle, tmp_path, capsys):
     assert main(["batch", str(job), "-o", str(tmp_path / "out")]) == 2
     assert needle in capsys.readouterr().err
     assert not (tmp_path / "out").exists()
+
+
+def test_batch_log_reports_frames_per_stage(scene, tmp_path, capsys, monkeypatch):
+    import fraytool.progress
+
+    monkeypatch.setattr(fraytool.progress, "LOG_EVERY_S", 0.0)
+    argv = ["batch", str(scene), "-o", str(tmp_path / "o"), "--workers", "1", "--resolution", "64x48",
+            "--frames", "0:6", "--chunk-frames", "3", "--progress", "log"]
+    assert main(argv) == 0
+    lines = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("fraytool progress: batch")]
+    assert len(lines) >= 4
+    assert re.search(r"simulate 6/6 frames \([0-9.]+/s\); render 6/6 frames \([0-9.]+/s\); join 1/1 shots", lines[-1])
+    assert any(re.search(r"render 3/6 frames \([0-9.]+/s, ETA [0-9]+ s\)", ln) for ln in lines), lines

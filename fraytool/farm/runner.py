@@ -20,7 +20,7 @@ from fraytool.farm.contact_sheet import contact_sheet_task
 from fraytool.errors import FraytoolError
 from fraytool.farm.shots import Job, Shot
 from fraytool.io.frame_record import atomic_write_bytes
-from fraytool.progress import Progress
+from fraytool import progress as progress_settings
 
 RETRIES = 1
 JOB_JSON = "job.json"
@@ -84,6 +84,7 @@ def run_job(job: Job, job_dir: Path, client, stream: TextIO = sys.stderr, progre
     job_dir.mkdir(parents=True, exist_ok=True)
     record = JobRecord(job, job_dir)
     futures = {}  # future -> (shot name, task name)
+    shot_frames_of: dict[str, int] = {}
     final = {}    # shot name -> join future
     groups: dict[str, list[Shot]] = {}
     for shot in job.shots:
@@ -98,6 +99,7 @@ def run_job(job: Job, job_dir: Path, client, stream: TextIO = sys.stderr, progre
         except FraytoolError as exc:
             entry.update({"status": "invalid", "error": str(exc), "tasks": {}})
             continue
+        shot_frames_of[shot.name] = frames.end
         digest = settings_digest(shot, job.chunk_frames)
         if entry.get("status") == "done" and entry.get("settings") == digest and _outputs_complete(entry, frames):
             print(f"fraytool: batch: {shot.name}: already done", file=stream)
@@ -129,7 +131,7 @@ def run_job(job: Job, job_dir: Path, client, stream: TextIO = sys.stderr, progre
         futures[f] = (group, "contact sheet")
         sheets[group] = f
     record.write()
-    bar = Progress(len(futures), job.name, stream=stream, enabled=progress, stage="batch", unit="tasks")
+    stages = StageProgress(futures, shot_frames_of, stream, progress, job.name)
     done = 0
     for fut in as_completed(list(futures)):
         name, task = futures[fut]
@@ -147,15 +149,73 @@ def run_job(job: Job, job_dir: Path, client, stream: TextIO = sys.stderr, progre
         if task == "contact sheet" and status["status"] == "done":
             entry.update({"status": "done", "outputs": {"mp4": result["mp4"]}})
         done += 1
-        bar.update(done, f"{name}: {task}")
+        stages.finished(fut)
         record.write()
-    bar.close()
+    stages.close()
     shots = record.data["shots"]
     failed = [n for n in (s.name for s in job.shots) if shots[n].get("status") != "done"]
     record.data["status"] = "done" if not failed else "failed"
     record.data["finished"] = time.strftime("%Y-%m-%dT%H:%M:%S%z")
     record.write()
     return record.data
+
+
+class StageProgress:
+    """Batch progress per stage: frames simulated and rendered, shots joined, each with its rate and
+    ETA, as a bar on a terminal or a line every LOG_EVERY_S seconds off one (fraytool.progress)."""
+
+    def __init__(self, futures: dict, frames_of: dict, stream: TextIO, mode, label: str):
+        from fraytool.progress import resolve_mode
+
+        self.futures, self.stream = futures, stream
+        self.mode = resolve_mode(mode, stream)
+        self.start = self.last = time.perf_counter()
+        self.label = label
+        self.total = {"simulate": 0, "render": 0, "join": 0}
+        self.done = dict.fromkeys(self.total, 0)
+        self.weight = {}
+        for fut, (name, task) in futures.items():
+            stage = task.split()[0]
+            if stage == "render":
+                a, b = (int(x) for x in task.split()[1].split("-"))
+                w = len(range(a, b, 1))
+            elif stage == "simulate":
+                w = frames_of.get(name, 0)
+            else:
+                w = 1
+            if stage in self.total:
+                self.total[stage] += w
+                self.weight[fut] = (stage, w)
+
+    def line(self) -> str:
+        elapsed = time.perf_counter() - self.start
+        parts = []
+        for stage, unit in (("simulate", "frames"), ("render", "frames"), ("join", "shots")):
+            total, done = self.total[stage], self.done[stage]
+            if not total:
+                continue
+            rate = done / elapsed if elapsed > 0 else 0.0
+            eta = f", ETA {(total - done) / rate:.0f} s" if 0 < done < total else ""
+            parts.append(f"{stage} {done}/{total} {unit} ({rate:.1f}/s{eta})")
+        return f"fraytool progress: batch {self.label}: " + "; ".join(parts)
+
+    def finished(self, fut) -> None:
+        stage, w = self.weight.get(fut, (None, 0))
+        if stage:
+            self.done[stage] += w
+        now = time.perf_counter()
+        if self.mode == "bar":
+            self.stream.write("\r" + self.line() + "   ")
+            self.stream.flush()
+        elif self.mode == "log" and now - self.last >= progress_settings.LOG_EVERY_S:
+            self.last = now
+            print(self.line(), file=self.stream, flush=True)
+
+    def close(self) -> None:
+        if self.mode == "bar":
+            self.stream.write("\n")
+        elif self.mode == "log" and time.perf_counter() - self.start >= progress_settings.LOG_EVERY_S:
+            print(self.line(), file=self.stream, flush=True)
 
 
 def _one_line(exc: BaseException) -> str:
