@@ -476,3 +476,14 @@ def test_a_fresh_run_that_fills_the_disk_gives_the_previous_frames_back(referenc
     # and a fresh run that completes leaves no frames.previous behind
     assert main(["simulate", str(other), "-o", str(out)]) == 0
     assert not (out / "frames.previous").exists() and FrameStore(out).frames_complete() == FRAMES
+
+
+def test_resume_over_another_scenes_frames_exits_1_saying_why(reference, tmp_path, capsys):
+    scene, good = reference
+    out = _copy(good, tmp_path / "out")
+    other = tmp_path / "other.toml"
+    other.write_text(small_scene_text(frames=FRAMES, seed=9))
+    assert main(["simulate", str(other), "-o", str(out), "--resume"]) == 1
+    line = _one_failure_line(capsys.readouterr().err)
+    assert "different scene" in line and "cannot be continued" in line and "without --resume" in line
+    _assert_same_store(good, out)  # nothing was touched

@@ -74,8 +74,9 @@ def _resume_point(spec: SceneSpec, model: Model, store: FrameStore, digest: str,
     or None when nothing there can be reused (a fresh start)."""
     m = store.manifest()
     if m is not None and m.get("scene_hash") != digest:
-        raise InputError(f"{store.dir}: frames were made from a different scene or version "
-                         f"(scene hash {m.get('scene_hash')} != {digest}); run without --resume")
+        raise OutputError(f"{store.dir}: frames were made from a different scene or version "
+                          f"(scene hash {m.get('scene_hash')} != {digest}): they cannot be continued; run "
+                          "without --resume to replace them, or choose another output folder with -o")
     survey = store.survey(digest)
     if survey.manifest is None and survey.good_frames == 0:
         if store.dir.exists() and any(store.dir.iterdir()):
