@@ -48,6 +48,16 @@ def small_scene_text(**overrides) -> str:
     return SMALL_SCENE.format(**values)
 
 
+BALL = """
+[[bodies]]
+name = "ball"
+shape = "sphere"
+radius_m = 0.02
+position_m = [0.0, 0.07, 0.0]
+"""
+"""A ball 7 cm above the origin, to add to small_scene_text()."""
+
+
 def small_scene(extra: str = "", **overrides):
     return parse_scene(small_scene_text(**overrides) + extra, "small.toml")
 

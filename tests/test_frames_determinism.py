@@ -14,15 +14,8 @@ import pytest
 from fraytool.io.frame_store import FrameStore, save_verified
 from fraytool.sim.run import simulate_to_disk
 from fraytool.scene import parse_scene
-from helpers import assert_arrays_equal, pulled_strip_text, small_scene, small_scene_text
+from helpers import BALL, assert_arrays_equal, pulled_strip_text, small_scene, small_scene_text
 
-BALL = """
-[[bodies]]
-name = "ball"
-shape = "sphere"
-radius_m = 0.02
-position_m = [0.0, 0.07, 0.0]
-"""
 
 
 def _frames(out: Path) -> list[dict]:

@@ -3,15 +3,8 @@ import pytest
 
 from fraytool.commands.main import main
 from fraytool.scene import load_scene, parse_scene, scene_hash
-from helpers import small_scene_text
+from helpers import BALL, small_scene_text
 
-BALL = """
-[[bodies]]
-name = "ball"
-shape = "sphere"
-radius_m = 0.02
-position_m = [0.0, 0.07, 0.0]
-"""
 
 
 @pytest.fixture

@@ -170,7 +170,6 @@ def _processes_mentioning(text: str) -> list[int]:
 def test_killed_render_takes_its_ffmpeg_along_and_the_partial_is_swept(tmp_path):
     """kill -9 of fraytool while it encodes: its ffmpeg child dies with it (no orphan finishing a
     hidden partial MP4), and the next render sweeps the partial and writes the whole MP4."""
-    import signal
     import time
 
     scene = tmp_path / "long.toml"

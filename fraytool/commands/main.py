@@ -231,7 +231,7 @@ def cmd_check(args) -> int:
 
 
 def _rounded(v):
-    """Figures for people: floats to 6 significant digits, byte counts in MiB or GiB."""
+    """Figures for people: floats to 6 significant digits, dicts as "key value" pairs."""
     if isinstance(v, float):
         return f"{v:.6g}"
     if isinstance(v, dict):

@@ -10,7 +10,7 @@ import sys
 from pathlib import Path
 from typing import Optional, TextIO
 
-from fraytool.errors import InputError, SceneError
+from fraytool.errors import SceneError
 from fraytool.io.frame_store import FrameStore
 from fraytool.io.lock import OutputLock
 from fraytool.render.job import build_job

@@ -13,7 +13,7 @@ import os
 import sys
 import time
 from pathlib import Path
-from typing import Optional, TextIO
+from typing import TextIO
 
 from fraytool.farm import tasks
 from fraytool.farm.contact_sheet import contact_sheet_task
@@ -26,7 +26,7 @@ RETRIES = 1
 JOB_JSON = "job.json"
 
 
-def settings_digest(shot: Shot, chunk_frames: int) -> str:
+def settings_digest(shot: Shot) -> str:
     """What decides a shot's outputs: scene (file contents or shipped name), overrides, render options."""
     import hashlib
 
@@ -100,7 +100,7 @@ def run_job(job: Job, job_dir: Path, client, stream: TextIO = sys.stderr, progre
             entry.update({"status": "invalid", "error": str(exc), "tasks": {}})
             continue
         shot_frames_of[shot.name] = frames.end
-        digest = settings_digest(shot, job.chunk_frames)
+        digest = settings_digest(shot)
         if entry.get("status") == "done" and entry.get("settings") == digest and _outputs_complete(entry, frames):
             print(f"fraytool: batch: {shot.name}: already done", file=stream)
             if shot.group:

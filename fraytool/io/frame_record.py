@@ -79,10 +79,14 @@ def atomic_write_bytes(path: Path, writer) -> None:
         raise
 
 
+def host_tag() -> str:
+    """This machine's name as file names carry it (letters and digits, "_" for anything else)."""
+    return "".join(c if c.isalnum() else "_" for c in socket.gethostname()) or "host"
+
+
 def _writer_tag() -> str:
     """HOST-PID of this process, as temp file names carry it (so a sweep knows whose they are)."""
-    host = "".join(c if c.isalnum() else "_" for c in socket.gethostname()) or "host"
-    return f"{host}-{os.getpid()}"
+    return f"{host_tag()}-{os.getpid()}"
 
 
 _TEMP_NAME = re.compile(r"\..+\.[A-Za-z0-9_]+-[0-9]+\.[A-Za-z0-9_]+\.tmp")
@@ -102,7 +106,7 @@ def dead_writer(p: Path) -> bool:
     from fraytool.io.lock import pid_alive
 
     host, _, pid = p.name[:-4].rsplit(".", 2)[-2].rpartition("-")
-    if pid.isdigit() and host == _writer_tag().rpartition("-")[0]:
+    if pid.isdigit() and host == host_tag():
         return not pid_alive(int(pid))
     try:
         return time.time() - p.stat().st_mtime > STALE_TEMP_S

@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import os
 import signal
-import socket
 import subprocess
 import sys
 import tempfile
@@ -30,7 +29,7 @@ import numpy as np
 from PIL import Image, PngImagePlugin
 
 from fraytool.errors import InputError, RunError
-from fraytool.io.frame_record import atomic_write_bytes
+from fraytool.io.frame_record import atomic_write_bytes, host_tag
 from fraytool.io.lock import pid_alive
 
 PNG_SETTINGS_KEY = "fraytool:render-settings"
@@ -77,21 +76,17 @@ def read_png(path: Path) -> np.ndarray:
         return np.asarray(img.convert("RGBA" if img.mode in ("RGBA", "LA") else "RGB"))
 
 
-def _host() -> str:
-    return "".join(c if c.isalnum() else "_" for c in socket.gethostname()) or "host"
-
-
 def partial_mp4_path(path: Path) -> Path:
     """Temp file the MP4 is encoded into before the final rename: .NAME.partial-HOST-PID.mp4."""
     path = Path(path)
-    return path.with_name(f".{path.stem}.partial-{_host()}-{os.getpid()}.mp4")
+    return path.with_name(f".{path.stem}.partial-{host_tag()}-{os.getpid()}.mp4")
 
 
 def remove_stale_partials(path: Path) -> None:
     """Delete temp MP4s of `path` left by killed runs on this host (never another machine's, on a
     shared folder, and never a live process's)."""
     path = Path(path)
-    for p in path.parent.glob(f".{path.stem}.partial-{_host()}-*.mp4"):
+    for p in path.parent.glob(f".{path.stem}.partial-{host_tag()}-*.mp4"):
         pid = p.name.rsplit("-", 1)[-1].split(".")[0]
         if pid.isdigit() and not pid_alive(int(pid)):
             try:

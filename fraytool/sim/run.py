@@ -11,7 +11,7 @@ import time
 from pathlib import Path
 from typing import Optional
 
-from fraytool.errors import InputError, OutputError, SceneError
+from fraytool.errors import OutputError, SceneError
 from fraytool.io.frame_store import FrameStore
 from fraytool.io.lock import OutputLock
 from fraytool.progress import Progress
