@@ -199,3 +199,149 @@ def damp_overstretched(
         particle_position_m[b, 0] -= w_b * f * ux
         particle_position_m[b, 1] -= w_b * f * uy
         particle_position_m[b, 2] -= w_b * f * uz
+
+
+@nb.njit(cache=True, fastmath=False)
+def _solve_line(
+    first, last, line_springs, spring_rest_length_m, stretch, alpha,
+    particle_inv_mass, spring_particle_a, spring_particle_b, spring_alive,
+    tension, diag, upper, rhs, unit, particle_position_m,
+):
+    """One block-Gauss-Seidel update of the yarn line line_springs[first:last] (see
+    `limit_strain_lines`); returns the largest residual strain it met (before its update)."""
+    worst = 0.0
+    k = first
+    while k < last:
+        # -- gather the next block: consecutive active springs chained end to start ------------
+        start = k
+        end = k
+        while end < last:
+            s = line_springs[end]
+            if not spring_alive[s]:
+                break
+            a = spring_particle_a[s]
+            b = spring_particle_b[s]
+            if end > start and spring_particle_b[line_springs[end - 1]] != a:
+                break
+            w_a = particle_inv_mass[a]
+            w_b = particle_inv_mass[b]
+            if w_a + w_b == 0.0:
+                break
+            rest = spring_rest_length_m[s]
+            max_length = stretch * rest
+            dx = particle_position_m[b, 0] - particle_position_m[a, 0]
+            dy = particle_position_m[b, 1] - particle_position_m[a, 1]
+            dz = particle_position_m[b, 2] - particle_position_m[a, 2]
+            d2 = dx * dx + dy * dy + dz * dz
+            mu = tension[end]
+            if (mu == 0.0 and d2 <= max_length * max_length) or d2 == 0.0:
+                break  # slack and not pulling (or degenerate): not in the block
+            length = math.sqrt(d2)
+            unit[end, 0] = dx / length
+            unit[end, 1] = dy / length
+            unit[end, 2] = dz / length
+            residual = length - max_length - alpha * mu
+            r = residual / rest
+            if r > worst:
+                worst = r
+            elif mu > 0.0 and -r > worst:
+                worst = -r  # pulling harder than the stretch asks: also a residual
+            rhs[end] = residual
+            diag[end] = w_a + w_b + alpha
+            if end > start:
+                upper[end - 1] = -w_a * (unit[end - 1, 0] * unit[end, 0] + unit[end - 1, 1] * unit[end, 1]
+                                         + unit[end - 1, 2] * unit[end, 2])
+            end += 1
+        if end == start:
+            k = start + 1  # an inactive spring: skip it
+            continue
+        # -- Thomas algorithm on the symmetric tridiagonal block [start, end) -------------------
+        for i in range(start + 1, end):
+            f = upper[i - 1] / diag[i - 1]
+            diag[i] -= f * upper[i - 1]
+            rhs[i] -= f * rhs[i - 1]
+        rhs[end - 1] /= diag[end - 1]
+        for i in range(end - 2, start - 1, -1):
+            rhs[i] = (rhs[i] - upper[i] * rhs[i + 1]) / diag[i]
+        # -- new tensions (>= 0) and the moves they make ------------------------------------
+        for i in range(start, end):
+            s = line_springs[i]
+            mu = tension[i]
+            new_mu = mu + rhs[i]
+            if new_mu < 0.0:
+                new_mu = 0.0
+            dmu = new_mu - mu
+            tension[i] = new_mu
+            if dmu == 0.0:
+                continue
+            a = spring_particle_a[s]
+            b = spring_particle_b[s]
+            ca = particle_inv_mass[a] * dmu
+            cb = particle_inv_mass[b] * dmu
+            particle_position_m[a, 0] += ca * unit[i, 0]
+            particle_position_m[a, 1] += ca * unit[i, 1]
+            particle_position_m[a, 2] += ca * unit[i, 2]
+            particle_position_m[b, 0] -= cb * unit[i, 0]
+            particle_position_m[b, 1] -= cb * unit[i, 1]
+            particle_position_m[b, 2] -= cb * unit[i, 2]
+        k = end
+    return worst
+
+
+@nb.njit(cache=True, fastmath=False)
+def limit_strain_lines(
+    # model
+    line_springs, line_start, group_start, spring_rest_length_m, strain_limit, tolerance, max_iterations,
+    compliance_s2_per_kg,
+    # state in
+    particle_inv_mass, spring_particle_a, spring_particle_b, spring_alive,
+    # scratch (tension zeroed here; the others overwritten)
+    tension, diag, upper, rhs, unit, line_worst,
+    # state in/out
+    particle_position_m,
+):
+    """The compliant strain limit of `limit_strain_compliant` (XPBD, same multipliers and fixed
+    point), solved a whole yarn at a time: block Gauss-Seidel over yarn lines instead of point
+    Gauss-Seidel over springs.
+
+    Point Gauss-Seidel moves a correction one spring along the yarn per sweep, so a yarn pulled at
+    both ends by grips needs sweeps in proportion to the square of its length and stopped at its cap
+    while the grips pulled. Here every sweep solves, for each yarn line (line_springs[line_start[l]:
+    line_start[l + 1]], in order along the yarn), the linearised system of all its active springs
+    at once: with u_k the unit directions and C_k = l_k - (1 + limit) L_k,
+
+        (J W J^T + alpha~ I) d_mu = C - alpha~ mu,
+        (J W J^T)_kk = w_a + w_b,  (J W J^T)_k,k+1 = -w_shared (u_k . u_k+1),
+
+    a tridiagonal system (a chain) solved exactly by the Thomas algorithm (diagonally dominant:
+    alpha~ > 0); then mu' = max(0, mu + d_mu) and each end moves by w d_mu' u as in the point
+    version. A block is a run of consecutive live springs chained end to start that are pulling or
+    past the limit; others separate blocks. The sweeps alternate between the line groups
+    (group_start: weft lines [group_start[0], group_start[1]), warp lines after), so weft and warp
+    meet at base-level crossings only between groups.
+
+    Lines of one group share no mass, so their order inside the group does not matter (and they
+    could be solved in parallel: each writes its own slice of the scratch and its own line_worst
+    entry, the largest residual taken after the group). Returns (sweeps used,
+    converged) like `limit_strain_compliant`; `tension` holds the multipliers, indexed like
+    line_springs."""
+    stretch = 1.0 + strain_limit
+    alpha = compliance_s2_per_kg
+    for k in range(tension.shape[0]):
+        tension[k] = 0.0
+    groups = group_start.shape[0] - 1
+    for it in range(max_iterations):
+        worst = 0.0
+        for g in range(groups):
+            lo = group_start[g]
+            hi = group_start[g + 1]
+            for l in range(lo, hi):
+                line_worst[l] = _solve_line(line_start[l], line_start[l + 1], line_springs, spring_rest_length_m,
+                                            stretch, alpha, particle_inv_mass, spring_particle_a, spring_particle_b,
+                                            spring_alive, tension, diag, upper, rhs, unit, particle_position_m)
+            for l in range(lo, hi):
+                if line_worst[l] > worst:
+                    worst = line_worst[l]
+        if worst <= tolerance:
+            return it + 1, True
+    return max_iterations, max_iterations == 0

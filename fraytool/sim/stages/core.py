@@ -18,7 +18,7 @@ from fraytool.sim.kernels.integrate import (
 )
 from fraytool.sim.kernels.pieces import label_pieces
 from fraytool.sim.kernels.rigid_contact import collide_rigid
-from fraytool.sim.kernels.strain_limit import damp_overstretched, limit_strain, limit_strain_compliant
+from fraytool.sim.kernels.strain_limit import damp_overstretched, limit_strain, limit_strain_lines
 from fraytool.sim.model import Model
 from fraytool.sim.rigid import advance_bodies, apply_cloth_impulse
 from fraytool.sim.stages.base import StepBuffers
@@ -32,6 +32,19 @@ def colour_ordered_structural_springs(model: Model) -> np.ndarray:
     warp = model.warp_structural_spring
     groups = [weft[:, 0::2], weft[:, 1::2], warp[:, 0::2], warp[:, 1::2]]
     return np.concatenate([np.sort(g.ravel()) for g in groups]).astype(np.int32)
+
+
+def yarn_line_springs(model: Model) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The structural springs yarn by yarn for `limit_strain_lines`: (springs in order along each
+    yarn, weft yarns first; start of each yarn in that list (+ the end); start of each line group:
+    [0, weft yarns, weft + warp yarns])."""
+    weft = model.weft_structural_spring
+    warp = model.warp_structural_spring
+    springs = np.concatenate([weft.ravel(), warp.ravel()]).astype(np.int32)
+    starts = np.concatenate([np.arange(weft.shape[0]) * weft.shape[1],
+                             weft.size + np.arange(warp.shape[0] + 1) * warp.shape[1]]).astype(np.int64)
+    groups = np.array([0, weft.shape[0], weft.shape[0] + warp.shape[0]], np.int64)
+    return springs, starts, groups
 
 
 class _NoSummary:
@@ -141,13 +154,18 @@ class Attachments(_NoSummary):
 
 
 class StrainLimiting(_NoSummary):
-    """Step 5: strain limiting by constraint projection (§4.1) over the structural springs in four
-    colour groups (weft i even, weft i odd, warp j even, warp j odd): no two springs of a group share
-    a mass, so a sweep is order-independent inside each group and has no spatial sweep direction.
-    With [cloth.strain] stiffness_n_per_m > 0 the limit is a compliant constraint (XPBD,
-    `limit_strain_compliant`): where it cannot be met the yarn stretches by a definite amount, so the
-    sweeps converge instead of stopping at the cap with a residual that depends on the step. With
-    [cloth.strain] damping_ratio > 0 a dashpot first resists the stretching of springs past the limit
+    """Step 5: strain limiting by constraint projection (§4.1).
+
+    With [cloth.strain] stiffness_n_per_m = 0 (the paper's hard projection, `limit_strain`): point
+    Gauss-Seidel over the structural springs in four colour groups (weft i even, weft i odd, warp j
+    even, warp j odd): no two springs of a group share a mass, so a sweep is order-independent inside
+    each group and has no spatial sweep direction.
+
+    With stiffness_n_per_m > 0 the limit is a compliant constraint (XPBD, `limit_strain_lines`): where
+    it cannot be met the yarn stretches by a definite amount, and every sweep solves each yarn whole
+    (a tridiagonal system), weft yarns then warp yarns, so the sweeps converge to the tolerance
+    instead of stopping at the cap with a residual that depends on the step. With [cloth.strain]
+    damping_ratio > 0 a dashpot first resists the stretching of springs past the limit
     (`damp_overstretched`)."""
 
     name = "strain_limiting"
@@ -156,7 +174,16 @@ class StrainLimiting(_NoSummary):
     def __init__(self, model: Model):
         self.model = model
         self.limited_springs = colour_ordered_structural_springs(model)
-        self._tension = np.zeros(self.limited_springs.shape[0])
+        self.compliant = model.strain_stiffness_n_per_m > 0.0
+        if self.compliant:
+            self.line_springs, self.line_start, self.line_groups = yarn_line_springs(model)
+            n = self.line_springs.shape[0]
+            self._tension = np.zeros(n)
+            self._diag = np.zeros(n)
+            self._upper = np.zeros(n)
+            self._rhs = np.zeros(n)
+            self._unit = np.zeros((n, 3))
+            self._line_worst = np.zeros(self.line_start.shape[0] - 1)
         self.iterations_last = 0
         self.iterations_max = 0
         self.cap_hits = 0
@@ -169,19 +196,18 @@ class StrainLimiting(_NoSummary):
                                m.strain_damping_n_s_per_m, dt_s, state.particle_inv_mass, state.spring_particle_a,
                                state.spring_particle_b, state.spring_alive, buffers.prev_position_m,
                                state.particle_position_m)
-        if m.strain_stiffness_n_per_m > 0.0:
-            it, converged = limit_strain_compliant(
-                self.limited_springs, state.spring_rest_length_m, m.strain_limit, m.strain_tolerance,
-                m.strain_max_iterations, 1.0 / (m.strain_stiffness_n_per_m * dt_s * dt_s), state.particle_inv_mass,
-                state.spring_particle_a, state.spring_particle_b, state.spring_alive, self._tension,
+        if self.compliant:
+            it, converged = limit_strain_lines(
+                self.line_springs, self.line_start, self.line_groups, state.spring_rest_length_m, m.strain_limit,
+                m.strain_tolerance, m.strain_max_iterations, 1.0 / (m.strain_stiffness_n_per_m * dt_s * dt_s),
+                state.particle_inv_mass, state.spring_particle_a, state.spring_particle_b, state.spring_alive,
+                self._tension, self._diag, self._upper, self._rhs, self._unit, self._line_worst,
                 state.particle_position_m)
-            self.iterations_last = it
-            self.iterations_max = max(self.iterations_max, it)
-            self.cap_hits += 0 if converged else 1
-            return
-        it, converged = limit_strain(self.limited_springs, state.spring_rest_length_m, m.strain_limit, m.strain_tolerance,
-                                     m.strain_max_iterations, state.particle_inv_mass, state.spring_particle_a,
-                                     state.spring_particle_b, state.spring_alive, state.particle_position_m)
+        else:
+            it, converged = limit_strain(self.limited_springs, state.spring_rest_length_m, m.strain_limit,
+                                         m.strain_tolerance, m.strain_max_iterations, state.particle_inv_mass,
+                                         state.spring_particle_a, state.spring_particle_b, state.spring_alive,
+                                         state.particle_position_m)
         self.iterations_last = it
         self.iterations_max = max(self.iterations_max, it)
         self.cap_hits += 0 if converged else 1

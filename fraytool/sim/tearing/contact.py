@@ -58,7 +58,7 @@ import math
 import numba as nb
 import numpy as np
 
-from fraytool.collision.ccd import edge_edge_ccd_many
+from fraytool.collision.ccd import edge_edge_ccd_kernel
 from fraytool.collision.segment import segment_closest_params
 from fraytool.kinds import SHEAR
 
@@ -246,37 +246,63 @@ def project_couples(model_in, particles_inout, crossings_inout, springs_inout, c
     return kept
 
 
-def settle_crosses_yarns(x_start: np.ndarray, x_end: np.ndarray, spring_particle_a: np.ndarray,
-                         spring_particle_b: np.ndarray, segments: np.ndarray) -> bool:
+@nb.njit(cache=True, fastmath=False)
+def settle_crosses_yarns(x_start, x_end, spring_particle_a, spring_particle_b, segments):
     """Would moving the particles from x_start to x_end (linearly) carry one of `segments` (yarn
     springs) through another? Only segments with a moved end are tested, against every segment
     whose box meets their swept box, with the exact edge-edge CCD (fraytool.collision.ccd, centre
     lines, thickness 0); pairs sharing an end are skipped. For YarnTearing.settle, which moves
     masses after this step's self-collision pass and so must not undo what that pass ensured."""
-    a, b = spring_particle_a[segments], spring_particle_b[segments]
-    moved_particle = np.any(x_start != x_end, axis=1)
-    moving = moved_particle[a] | moved_particle[b]
-    if not moving.any():
+    n = segments.shape[0]
+    box = np.empty((n, 6))
+    moving = np.zeros(n, np.bool_)
+    union = np.empty(6)
+    for k in range(3):
+        union[k] = np.inf
+        union[3 + k] = -np.inf
+    any_moving = False
+    for q in range(n):
+        pa = spring_particle_a[segments[q]]
+        pb = spring_particle_b[segments[q]]
+        for k in range(3):
+            lo = min(min(x_start[pa, k], x_start[pb, k]), min(x_end[pa, k], x_end[pb, k]))
+            hi = max(max(x_start[pa, k], x_start[pb, k]), max(x_end[pa, k], x_end[pb, k]))
+            box[q, k] = lo
+            box[q, 3 + k] = hi
+            if x_start[pa, k] != x_end[pa, k] or x_start[pb, k] != x_end[pb, k]:
+                moving[q] = True
+        if moving[q]:
+            any_moving = True
+            for k in range(3):
+                union[k] = min(union[k], box[q, k])
+                union[3 + k] = max(union[3 + k], box[q, 3 + k])
+    if not any_moving:
         return False
-    k = np.flatnonzero(moving)
-    lo_k = np.minimum(np.minimum(x_start[a[k]], x_start[b[k]]), np.minimum(x_end[a[k]], x_end[b[k]]))
-    hi_k = np.maximum(np.maximum(x_start[a[k]], x_start[b[k]]), np.maximum(x_end[a[k]], x_end[b[k]]))
-    # segments whose end-of-move box meets the moved segments' joint box (unmoved ones do not move)
-    lo_all, hi_all = lo_k.min(axis=0), hi_k.max(axis=0)
-    pa, pb = x_end[a], x_end[b]
-    near = np.flatnonzero(np.all((np.minimum(pa, pb) <= hi_all) & (np.maximum(pa, pb) >= lo_all), axis=1)
-                          | moving)
-    lo = np.minimum(np.minimum(x_start[a[near]], x_start[b[near]]), np.minimum(pa[near], pb[near]))
-    hi = np.maximum(np.maximum(x_start[a[near]], x_start[b[near]]), np.maximum(pa[near], pb[near]))
-    meet = np.all((lo_k[:, None, :] <= hi[None, :, :]) & (lo[None, :, :] <= hi_k[:, None, :]), axis=2)
-    i, j = np.nonzero(meet)
-    i, j = k[i], near[j]
-    share = (a[i] == a[j]) | (a[i] == b[j]) | (b[i] == a[j]) | (b[i] == b[j])
-    keep = ~share & ((i < j) | ~moving[j])  # each moving pair once
-    i, j = i[keep], j[keep]
-    if not len(i):
-        return False
-    start = np.stack([x_start[a[i]], x_start[b[i]], x_start[a[j]], x_start[b[j]]], axis=1)
-    end = np.stack([x_end[a[i]], x_end[b[i]], x_end[a[j]], x_end[b[j]]], axis=1)
-    hit, _ = edge_edge_ccd_many(start, end, 0.0)
-    return bool(np.any(hit))
+    near = np.empty(n, np.int64)
+    count = 0
+    for q in range(n):
+        if moving[q] or (box[q, 0] <= union[3] and box[q, 3] >= union[0] and box[q, 1] <= union[4]
+                         and box[q, 4] >= union[1] and box[q, 2] <= union[5] and box[q, 5] >= union[2]):
+            near[count] = q
+            count += 1
+    for i in range(n):
+        if not moving[i]:
+            continue
+        a1 = spring_particle_a[segments[i]]
+        b1 = spring_particle_b[segments[i]]
+        for r in range(count):
+            j = near[r]
+            if moving[j] and j <= i:
+                continue  # each moving pair once
+            if (box[i, 0] > box[j, 3] or box[j, 0] > box[i, 3] or box[i, 1] > box[j, 4] or box[j, 1] > box[i, 4]
+                    or box[i, 2] > box[j, 5] or box[j, 2] > box[i, 5]):
+                continue
+            a2 = spring_particle_a[segments[j]]
+            b2 = spring_particle_b[segments[j]]
+            if a1 == a2 or a1 == b2 or b1 == a2 or b1 == b2:
+                continue
+            hit, _ = edge_edge_ccd_kernel(x_start[a1], x_start[b1], x_start[a2], x_start[b2],
+                                          x_end[a1], x_end[b1], x_end[a2], x_end[b2], 0.0)
+            if hit:
+                return True
+    return False
