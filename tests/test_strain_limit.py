@@ -260,3 +260,26 @@ def test_yarn_line_solve_matches_the_implicit_chain_step():
                                        z.copy(), np.zeros((n, 3)), np.zeros(1), x)
     assert converged and it < 20
     np.testing.assert_allclose(x, point, atol=1e-10)
+
+
+def test_dashpot_past_the_limit_decays_as_the_exact_exponential_at_any_step():
+    """Two free masses on a line past the limit, moving apart at v0: under the dashpot alone the
+    stretch rate obeys dv/dt = -c (w_a + w_b) v, so after T it is v0 exp(-c (w_a + w_b) T), whatever
+    the step (one step of g = 3.6, about half the figure scenes' g, included). Momentum is kept."""
+    from fraytool.sim.kernels.strain_limit import damp_overstretched
+
+    mass, rest, limit, c, v0, T = 5e-6, 0.004, 0.10, 0.0894, 0.3, 1e-4
+    w = np.full(2, 1.0 / mass)
+    a, b = np.array([0], np.int32), np.array([1], np.int32)
+    for steps in (1, 4, 32):
+        dt = T / steps
+        x = np.array([[0.0, 0.0, 0.0], [1.3 * rest, 0.0, 0.0]])
+        v = np.array([[-v0 / 2, 0.0, 0.0], [v0 / 2, 0.0, 0.0]])
+        for _ in range(steps):
+            prev = x.copy()
+            x = x + v * dt
+            damp_overstretched(np.array([0], np.int32), np.array([rest]), limit, c, dt, w, a, b, np.array([True]),
+                               prev, x)
+            v = (x - prev) / dt
+        np.testing.assert_allclose(v[1, 0] - v[0, 0], v0 * math.exp(-c * 2.0 / mass * T), rtol=1e-8)
+        assert abs(v[0, 0] + v[1, 0]) < 1e-12  # momentum
