@@ -13,7 +13,6 @@ from __future__ import annotations
 import math
 
 import numba as nb
-import numpy as np
 
 from fraytool.kinds import SHAPE_PLANE, SHAPE_SPHERE
 
@@ -33,34 +32,57 @@ def surface_contact(shape, center, rotation, radius, half_extents, normal, x, ma
         nx = rotation[0, 0] * normal[0] + rotation[0, 1] * normal[1] + rotation[0, 2] * normal[2]
         ny = rotation[1, 0] * normal[0] + rotation[1, 1] * normal[1] + rotation[1, 2] * normal[2]
         nz = rotation[2, 0] * normal[0] + rotation[2, 1] * normal[1] + rotation[2, 2] * normal[2]
-        return (x[0] - center[0]) * nx + (x[1] - center[1]) * ny + (x[2] - center[2]) * nz - margin, nx, ny, nz
-    # box: work in the body frame, local = R^T (x - c)
-    local = np.empty(3)
-    for d in range(3):
-        local[d] = (rotation[0, d] * (x[0] - center[0]) + rotation[1, d] * (x[1] - center[1])
-                    + rotation[2, d] * (x[2] - center[2]))
+        return plane_distance(rotation, normal, x[0] - center[0], x[1] - center[1], x[2] - center[2], margin), \
+            nx, ny, nz
+    # box: work in the body frame, local = R^T (x - c); scalars only (no allocation per call)
+    l0 = rotation[0, 0] * (x[0] - center[0]) + rotation[1, 0] * (x[1] - center[1]) + rotation[2, 0] * (x[2] - center[2])
+    l1 = rotation[0, 1] * (x[0] - center[0]) + rotation[1, 1] * (x[1] - center[1]) + rotation[2, 1] * (x[2] - center[2])
+    l2 = rotation[0, 2] * (x[0] - center[0]) + rotation[1, 2] * (x[1] - center[1]) + rotation[2, 2] * (x[2] - center[2])
     outside = 0.0
     best_axis = 0
     best_gap = -1e300
     for d in range(3):
-        gap = abs(local[d]) - half_extents[d]
+        ld = l0 if d == 0 else (l1 if d == 1 else l2)
+        gap = abs(ld) - half_extents[d]
         if gap > 0.0:
             outside += gap * gap
         if gap > best_gap:
             best_gap = gap
             best_axis = d
     if outside > 0.0:
-        # outside the box: normal from the closest point of the box
-        q = np.empty(3)
-        for d in range(3):
-            q[d] = min(max(local[d], -half_extents[d]), half_extents[d])
+        # outside the box: normal from the closest point q of the box
         dist = math.sqrt(outside)
-        ln = (local - q) / dist
-        return dist - margin, (rotation[0, 0] * ln[0] + rotation[0, 1] * ln[1] + rotation[0, 2] * ln[2]), \
-            (rotation[1, 0] * ln[0] + rotation[1, 1] * ln[1] + rotation[1, 2] * ln[2]), \
-            (rotation[2, 0] * ln[0] + rotation[2, 1] * ln[1] + rotation[2, 2] * ln[2])
-    sign = 1.0 if local[best_axis] >= 0.0 else -1.0
+        n0 = (l0 - min(max(l0, -half_extents[0]), half_extents[0])) / dist
+        n1 = (l1 - min(max(l1, -half_extents[1]), half_extents[1])) / dist
+        n2 = (l2 - min(max(l2, -half_extents[2]), half_extents[2])) / dist
+        return dist - margin, (rotation[0, 0] * n0 + rotation[0, 1] * n1 + rotation[0, 2] * n2), \
+            (rotation[1, 0] * n0 + rotation[1, 1] * n1 + rotation[1, 2] * n2), \
+            (rotation[2, 0] * n0 + rotation[2, 1] * n1 + rotation[2, 2] * n2)
+    best_local = l0 if best_axis == 0 else (l1 if best_axis == 1 else l2)
+    sign = 1.0 if best_local >= 0.0 else -1.0
     return best_gap - margin, sign * rotation[0, best_axis], sign * rotation[1, best_axis], sign * rotation[2, best_axis]
+
+
+@nb.njit(cache=True, fastmath=False, inline="always")
+def plane_distance(rotation, normal, ex, ey, ez, margin):
+    """Signed distance of the point centre + (ex, ey, ez) from a plane body (normal R n), margin included."""
+    nx = rotation[0, 0] * normal[0] + rotation[0, 1] * normal[1] + rotation[0, 2] * normal[2]
+    ny = rotation[1, 0] * normal[0] + rotation[1, 1] * normal[1] + rotation[1, 2] * normal[2]
+    nz = rotation[2, 0] * normal[0] + rotation[2, 1] * normal[1] + rotation[2, 2] * normal[2]
+    return ex * nx + ey * ny + ez * nz - margin
+
+
+@nb.njit(cache=True, fastmath=False)
+def bounding_radius(shape, radius, half_extents, margin):
+    """Radius about the body centre beyond which no point is in contact (margin included, with a
+    relative slack of 1e-9 so the skip never disagrees with `surface_contact` by a rounding);
+    infinite for a plane."""
+    if shape == SHAPE_SPHERE:
+        return (radius + margin) * (1.0 + 1e-9)
+    if shape == SHAPE_PLANE:
+        return math.inf
+    he = math.sqrt(half_extents[0] ** 2 + half_extents[1] ** 2 + half_extents[2] ** 2)
+    return (he + margin) * (1.0 + 1e-9)
 
 
 @nb.njit(cache=True, fastmath=False)
@@ -92,12 +114,22 @@ def collide_rigid(
     """Push particles out of bodies with friction; returns the number of contacts."""
     contacts = 0
     body_impulse_out[:] = 0.0
+    bodies = body_shape.shape[0]
     for p in range(particle_position_m.shape[0]):
         if particle_inv_mass[p] == 0.0:
             continue  # inactive or held: held particles follow their body, not contacts
-        for k in range(body_shape.shape[0]):
+        for k in range(bodies):
             if not body_collide[k]:
                 continue
+            reach = bounding_radius(body_shape[k], body_radius_m[k], body_half_extents_m[k], margin_m)
+            ex = particle_position_m[p, 0] - body_position_m[k, 0]
+            ey = particle_position_m[p, 1] - body_position_m[k, 1]
+            ez = particle_position_m[p, 2] - body_position_m[k, 2]
+            if ex * ex + ey * ey + ez * ez > reach * reach:
+                continue  # beyond the body's bounding sphere: no contact (the test below would say so)
+            if body_shape[k] == SHAPE_PLANE and plane_distance(body_rotation[k], body_normal[k], ex, ey, ez,
+                                                               margin_m) >= 0.0:
+                continue  # above the plane: the same signed distance `surface_contact` computes
             x = particle_position_m[p]
             x0 = x[0]
             x1 = x[1]
