@@ -37,15 +37,8 @@ import math
 import numba as nb
 import numpy as np
 
-from fraytool.collision.narrow import (SEPARATION_REL, _apart_at_end, _apart_boxes_end, _outside_reach, _plane_gap,
-                                      _share_end, end_segment_boxes)
+from fraytool.collision.narrow import (_apart_at_end, _apart_boxes_end, _outside_reach, _share_end, end_segment_boxes)
 from fraytool.collision.segment import segment_closest_params
-
-
-@nb.njit(cache=True, fastmath=False, inline="always")
-def _dot(u, v):
-    """u . v of two 3-vectors (no BLAS: numba's `@` needs SciPy)."""
-    return u[0] * v[0] + u[1] * v[1] + u[2] * v[2]
 
 
 @nb.njit(cache=True, fastmath=False)
@@ -57,54 +50,98 @@ def closest_parameters(p1, p2, p3, p4):
 
 @nb.njit(cache=True, fastmath=False)
 def _normal(xs, xe, i1, i2, i3, i4, t):
-    """Unit separation normal of the pair at time t (see the module docstring, step 1)."""
+    """Unit separation normal (n0, n1, n2) of the pair at time t (see the module docstring, step 1).
+    Scalars throughout: no allocation per pair."""
     for k in range(2):
         tt = t if k == 0 else 0.0
-        p1 = xs[i1] + tt * (xe[i1] - xs[i1])
-        p2 = xs[i2] + tt * (xe[i2] - xs[i2])
-        p3 = xs[i3] + tt * (xe[i3] - xs[i3])
-        p4 = xs[i4] + tt * (xe[i4] - xs[i4])
-        s, u = closest_parameters(p1, p2, p3, p4)
-        d = (1.0 - s) * p1 + s * p2 - (1.0 - u) * p3 - u * p4
-        length = math.sqrt(_dot(d, d))
+        p10 = xs[i1, 0] + tt * (xe[i1, 0] - xs[i1, 0])
+        p11 = xs[i1, 1] + tt * (xe[i1, 1] - xs[i1, 1])
+        p12 = xs[i1, 2] + tt * (xe[i1, 2] - xs[i1, 2])
+        p20 = xs[i2, 0] + tt * (xe[i2, 0] - xs[i2, 0])
+        p21 = xs[i2, 1] + tt * (xe[i2, 1] - xs[i2, 1])
+        p22 = xs[i2, 2] + tt * (xe[i2, 2] - xs[i2, 2])
+        p30 = xs[i3, 0] + tt * (xe[i3, 0] - xs[i3, 0])
+        p31 = xs[i3, 1] + tt * (xe[i3, 1] - xs[i3, 1])
+        p32 = xs[i3, 2] + tt * (xe[i3, 2] - xs[i3, 2])
+        p40 = xs[i4, 0] + tt * (xe[i4, 0] - xs[i4, 0])
+        p41 = xs[i4, 1] + tt * (xe[i4, 1] - xs[i4, 1])
+        p42 = xs[i4, 2] + tt * (xe[i4, 2] - xs[i4, 2])
+        s, u = segment_closest_params(p10, p11, p12, p20, p21, p22, p30, p31, p32, p40, p41, p42)
+        d0 = (1.0 - s) * p10 + s * p20 - (1.0 - u) * p30 - u * p40
+        d1 = (1.0 - s) * p11 + s * p21 - (1.0 - u) * p31 - u * p41
+        d2 = (1.0 - s) * p12 + s * p22 - (1.0 - u) * p32 - u * p42
+        length = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
         if length > 1e-12:
-            return d / length
-    n = np.cross(xs[i2] - xs[i1], xs[i4] - xs[i3])
-    length = math.sqrt(_dot(n, n))
+            return d0 / length, d1 / length, d2 / length
+    # the cross product of the segments at the step start
+    a0 = xs[i2, 0] - xs[i1, 0]
+    a1 = xs[i2, 1] - xs[i1, 1]
+    a2 = xs[i2, 2] - xs[i1, 2]
+    b0 = xs[i4, 0] - xs[i3, 0]
+    b1 = xs[i4, 1] - xs[i3, 1]
+    b2 = xs[i4, 2] - xs[i3, 2]
+    c0 = a1 * b2 - a2 * b1
+    c1 = a2 * b0 - a0 * b2
+    c2 = a0 * b1 - a1 * b0
+    length = math.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
     if length > 1e-300:
-        return n / length
-    return np.array([0.0, 0.0, 1.0])
+        return c0 / length, c1 / length, c2 / length
+    return 0.0, 0.0, 1.0
 
 
 @nb.njit(cache=True, fastmath=False)
-def _correct_pair(contact_distance_m, friction, x_start, i1, i2, i3, i4, n, particle_inv_mass, x_end):
+def _correct_pair(contact_distance_m, friction, x_start, i1, i2, i3, i4, n0, n1, n2, particle_inv_mass, x_end):
     """Move the four end points so the closest points are contact_distance_m apart along n, with
-    friction on the tangential relative motion (module docstring, steps 2-3). Returns True if moved."""
+    friction on the tangential relative motion (module docstring, steps 2-3). Returns True if moved.
+    Scalars throughout: no allocation per pair."""
     s, u = closest_parameters(x_end[i1], x_end[i2], x_end[i3], x_end[i4])
     w1, w2, w3, w4 = particle_inv_mass[i1], particle_inv_mass[i2], particle_inv_mass[i3], particle_inv_mass[i4]
     denom = (1.0 - s) ** 2 * w1 + s * s * w2 + (1.0 - u) ** 2 * w3 + u * u * w4
     if denom == 0.0:
         return False  # all four ends held by bodies: nothing can move
-    a = (1.0 - s) * x_end[i1] + s * x_end[i2]
-    b = (1.0 - u) * x_end[i3] + u * x_end[i4]
-    gap = _dot(a - b, n)
+    a0 = (1.0 - s) * x_end[i1, 0] + s * x_end[i2, 0]
+    a1 = (1.0 - s) * x_end[i1, 1] + s * x_end[i2, 1]
+    a2 = (1.0 - s) * x_end[i1, 2] + s * x_end[i2, 2]
+    b0 = (1.0 - u) * x_end[i3, 0] + u * x_end[i4, 0]
+    b1 = (1.0 - u) * x_end[i3, 1] + u * x_end[i4, 1]
+    b2 = (1.0 - u) * x_end[i3, 2] + u * x_end[i4, 2]
+    gap = (a0 - b0) * n0 + (a1 - b1) * n1 + (a2 - b2) * n2
     if gap >= contact_distance_m:
         return False
     lam = (contact_distance_m - gap) / denom
-    a0 = (1.0 - s) * x_start[i1] + s * x_start[i2]
-    b0 = (1.0 - u) * x_start[i3] + u * x_start[i4]
-    rel = (a - a0) - (b - b0)
-    tang = rel - _dot(rel, n) * n
-    tl = math.sqrt(_dot(tang, tang))
+    # relative displacement of the closest points over the step
+    r0 = (a0 - ((1.0 - s) * x_start[i1, 0] + s * x_start[i2, 0])) - (b0 - ((1.0 - u) * x_start[i3, 0] + u * x_start[i4, 0]))
+    r1 = (a1 - ((1.0 - s) * x_start[i1, 1] + s * x_start[i2, 1])) - (b1 - ((1.0 - u) * x_start[i3, 1] + u * x_start[i4, 1]))
+    r2 = (a2 - ((1.0 - s) * x_start[i1, 2] + s * x_start[i2, 2])) - (b2 - ((1.0 - u) * x_start[i3, 2] + u * x_start[i4, 2]))
+    rn = r0 * n0 + r1 * n1 + r2 * n2
+    t0 = r0 - rn * n0
+    t1 = r1 - rn * n1
+    t2 = r2 - rn * n2
+    tl = math.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
     corr = lam * denom  # normal correction of the relative position
     scale = 0.0
     if tl > 0.0:
         scale = 1.0 if tl <= friction * corr else friction * corr / tl
-    r = lam * n - (scale / denom) * tang  # relative correction, split barycentrically
-    x_end[i1] += (1.0 - s) * w1 * r
-    x_end[i2] += s * w2 * r
-    x_end[i3] -= (1.0 - u) * w3 * r
-    x_end[i4] -= u * w4 * r
+    f = scale / denom
+    c0 = lam * n0 - f * t0  # relative correction, split barycentrically
+    c1 = lam * n1 - f * t1
+    c2 = lam * n2 - f * t2
+    k1 = (1.0 - s) * w1
+    k2 = s * w2
+    k3 = (1.0 - u) * w3
+    k4 = u * w4
+    x_end[i1, 0] += k1 * c0
+    x_end[i1, 1] += k1 * c1
+    x_end[i1, 2] += k1 * c2
+    x_end[i2, 0] += k2 * c0
+    x_end[i2, 1] += k2 * c1
+    x_end[i2, 2] += k2 * c2
+    x_end[i3, 0] -= k3 * c0
+    x_end[i3, 1] -= k3 * c1
+    x_end[i3, 2] -= k3 * c2
+    x_end[i4, 0] -= k4 * c0
+    x_end[i4, 1] -= k4 * c1
+    x_end[i4, 2] -= k4 * c2
     return True
 
 
@@ -142,8 +179,8 @@ def respond_pairs(
                 before[p, 2] = x_end[p, 2]
                 touched[n_touched] = p
                 n_touched += 1
-        n = _normal(x_start, x_end, i1, i2, i3, i4, t_hit[k])
-        if _correct_pair(contact_distance_m, friction, x_start, i1, i2, i3, i4, n, particle_inv_mass, x_end):
+        n0, n1, n2 = _normal(x_start, x_end, i1, i2, i3, i4, t_hit[k])
+        if _correct_pair(contact_distance_m, friction, x_start, i1, i2, i3, i4, n0, n1, n2, particle_inv_mass, x_end):
             moved += 1
             left = left or _outside_reach(x_end, reach, i1, i2, i3, i4)
     for q in range(n_touched):
@@ -173,9 +210,10 @@ def repel_close_pairs(
 
     The end boxes of the listed ``segments`` are computed once (``end_segment_boxes``) and the axis
     pre-test reads them, as long as no correction of this call moved one of the pair's end
-    particles (``dirty``): same answers, bit for bit, as computing them per pair."""
+    particles (``dirty``): same answers, bit for bit, as computing them per pair. Then the closest
+    distance itself decides (no plane-gap pre-test: at one instant that gap is a lower bound of the
+    distance, so it could only skip pairs the distance test skips). No allocation per pair."""
     moved = 0
-    seg = np.empty((4, 3))
     end_segment_boxes(x_end, spring_particle_a, spring_particle_b, segments, box)
     dirty[:] = False
     for k in range(first, candidates.shape[0]):
@@ -192,16 +230,18 @@ def repel_close_pairs(
                 continue
         elif _share_end(i1, i2, i3, i4) or _apart_at_end(x_end, i1, i2, i3, i4, contact_distance_m):
             continue  # (the distance below would be >= d_c)
-        gap, scale = _plane_gap(x_end, x_end, i1, i2, i3, i4, seg)
-        if gap > contact_distance_m + SEPARATION_REL * scale:
-            continue  # likewise
         s, u = closest_parameters(x_end[i1], x_end[i2], x_end[i3], x_end[i4])
-        d = (1.0 - s) * x_end[i1] + s * x_end[i2] - (1.0 - u) * x_end[i3] - u * x_end[i4]
-        dist = math.sqrt(_dot(d, d))
+        d0 = (1.0 - s) * x_end[i1, 0] + s * x_end[i2, 0] - (1.0 - u) * x_end[i3, 0] - u * x_end[i4, 0]
+        d1 = (1.0 - s) * x_end[i1, 1] + s * x_end[i2, 1] - (1.0 - u) * x_end[i3, 1] - u * x_end[i4, 1]
+        d2 = (1.0 - s) * x_end[i1, 2] + s * x_end[i2, 2] - (1.0 - u) * x_end[i3, 2] - u * x_end[i4, 2]
+        dist = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
         if dist >= contact_distance_m:
             continue
-        n = d / dist if dist > 1e-12 else _normal(x_start, x_end, i1, i2, i3, i4, 0.0)
-        if _correct_pair(contact_distance_m, friction, x_start, i1, i2, i3, i4, n, particle_inv_mass, x_end):
+        if dist > 1e-12:
+            n0, n1, n2 = d0 / dist, d1 / dist, d2 / dist
+        else:
+            n0, n1, n2 = _normal(x_start, x_end, i1, i2, i3, i4, 0.0)
+        if _correct_pair(contact_distance_m, friction, x_start, i1, i2, i3, i4, n0, n1, n2, particle_inv_mass, x_end):
             moved += 1
             dirty[i1] = True
             dirty[i2] = True
