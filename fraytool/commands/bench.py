@@ -21,8 +21,20 @@ from fraytool.sim.simulation import Simulation
 DEFAULT_FRAMES = 48
 
 
+def _peak_rss_bytes() -> int:
+    """Peak resident set size of this process so far (Linux reports ru_maxrss in KiB)."""
+    import resource
+
+    return int(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss) * 1024
+
+
 def bench_simulation(spec, frames: int = DEFAULT_FRAMES, out_dir: Path | None = None) -> dict:
-    """Simulate `frames` frames after a warm-up frame; returns the bench figures."""
+    """Simulate `frames` frames after a warm-up frame; returns the bench figures.
+
+    bytes_per_crossing: (peak RSS at the end - peak RSS before the model was built) / crossings,
+    i.e. what the model, the state, the solver's scratch, the stages and numba's compiled kernels
+    added; for small scenes the kernels dominate, for large ones the per-crossing arrays."""
+    rss_before = _peak_rss_bytes()
     t0 = time.perf_counter()
     sim = Simulation(spec)
     with tempfile.TemporaryDirectory() as tmp:
@@ -52,12 +64,16 @@ def bench_simulation(spec, frames: int = DEFAULT_FRAMES, out_dir: Path | None = 
         "export_ms_per_frame": 1e3 * statistics.median(export_s),
         "compile_s": compile_s,
         "strain_iterations_max": sim.solver.strain_iterations_max,
+        "peak_rss_bytes": _peak_rss_bytes(),
+        "bytes_per_crossing": (_peak_rss_bytes() - rss_before) / max(1, sim.model.crossing_count),
         "summary": sim.summary(),
     }
 
 
 def bench_command(args) -> int:
-    spec = load_scene(args.scene)
+    from fraytool.scene.overrides import parse_assignment
+
+    spec = load_scene(args.scene, [parse_assignment(a) for a in getattr(args, "sets", None) or ()])
     _refuse_what_will_not_fit(spec)
     if getattr(args, "self_collision", None):
         spec = replace(spec, self_collision=replace(spec.self_collision, enabled=args.self_collision == "on"))
@@ -80,6 +96,8 @@ def bench_command(args) -> int:
         print(f"  {name:18s} {ms:8.2f} ms/frame (mean)", file=out)
     print(f"export: {result['export_ms_per_frame']:.2f} ms per frame (median; writing the frame record and "
           "checkpoint, not in the simulation figure)", file=out)
+    print(f"memory: peak RSS {result['peak_rss_bytes'] / 2**20:.0f} MiB; "
+          f"{result['bytes_per_crossing']:.0f} bytes per crossing over the RSS before the model was built", file=out)
     if "render_stages_ms_per_frame" in result:
         print(f"render: {result['render_ms_per_frame']:.2f} ms per frame", file=out)
         for name, ms in result["render_stages_ms_per_frame"].items():

@@ -93,6 +93,7 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--render", action="store_true", help="also time the render stages")
     b.add_argument("--self-collision", choices=("on", "off"), help="override the scene's [self_collision] enabled")
     b.add_argument("--json", action="store_true")
+    _set_flag(b)
 
     r = sub.add_parser("render", help="simulate (or reuse frames) and render PNG / MP4")
     r.add_argument("scene")

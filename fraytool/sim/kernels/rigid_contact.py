@@ -114,22 +114,34 @@ def collide_rigid(
     """Push particles out of bodies with friction; returns the number of contacts."""
     contacts = 0
     body_impulse_out[:] = 0.0
-    bodies = body_shape.shape[0]
-    for p in range(particle_position_m.shape[0]):
-        if particle_inv_mass[p] == 0.0:
-            continue  # inactive or held: held particles follow their body, not contacts
-        for k in range(bodies):
-            if not body_collide[k]:
-                continue
-            reach = bounding_radius(body_shape[k], body_radius_m[k], body_half_extents_m[k], margin_m)
-            ex = particle_position_m[p, 0] - body_position_m[k, 0]
-            ey = particle_position_m[p, 1] - body_position_m[k, 1]
-            ez = particle_position_m[p, 2] - body_position_m[k, 2]
-            if ex * ex + ey * ey + ez * ez > reach * reach:
+    # Body by body (each particle still meets the bodies in index order, and each body's impulse
+    # sums the particles in index order: the same arithmetic as particle by particle), so the
+    # body's constants are computed once per call.
+    for k in range(body_shape.shape[0]):
+        if not body_collide[k]:
+            continue
+        reach = bounding_radius(body_shape[k], body_radius_m[k], body_half_extents_m[k], margin_m)
+        reach2 = reach * reach
+        plane = body_shape[k] == SHAPE_PLANE
+        rotation = body_rotation[k]
+        normal = body_normal[k]
+        pnx = rotation[0, 0] * normal[0] + rotation[0, 1] * normal[1] + rotation[0, 2] * normal[2]
+        pny = rotation[1, 0] * normal[0] + rotation[1, 1] * normal[1] + rotation[1, 2] * normal[2]
+        pnz = rotation[2, 0] * normal[0] + rotation[2, 1] * normal[1] + rotation[2, 2] * normal[2]
+        cx = body_position_m[k, 0]
+        cy = body_position_m[k, 1]
+        cz = body_position_m[k, 2]
+        for p in range(particle_position_m.shape[0]):
+            if particle_inv_mass[p] == 0.0:
+                continue  # inactive or held: held particles follow their body, not contacts
+            ex = particle_position_m[p, 0] - cx
+            ey = particle_position_m[p, 1] - cy
+            ez = particle_position_m[p, 2] - cz
+            if plane:
+                if ex * pnx + ey * pny + ez * pnz - margin_m >= 0.0:
+                    continue  # above the plane: the signed distance `surface_contact` computes
+            elif ex * ex + ey * ey + ez * ez > reach2:
                 continue  # beyond the body's bounding sphere: no contact (the test below would say so)
-            if body_shape[k] == SHAPE_PLANE and plane_distance(body_rotation[k], body_normal[k], ex, ey, ez,
-                                                               margin_m) >= 0.0:
-                continue  # above the plane: the same signed distance `surface_contact` computes
             x = particle_position_m[p]
             x0 = x[0]
             x1 = x[1]
