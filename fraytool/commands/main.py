@@ -1,4 +1,4 @@
-"""The `fraytool` command: simulate, render, check, bench, study.
+"""The `fraytool` command: simulate, render, check, bench, study, batch.
 
 Exit codes: 0 success, 1 failed run (unstable simulation, no GL context, I/O), 2 bad input
 (scene file or flags). Errors print one clear message, never a traceback.
@@ -94,16 +94,25 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--self-collision", choices=("on", "off"), help="override the scene's [self_collision] enabled")
     b.add_argument("--json", action="store_true")
 
-    r = sub.add_parser("render", help="simulate (or reuse frames) and render PNG / MP4")
+    r = sub.add_parser("render", help="simulate (or reuse frames) and render PNG / EXR / MP4 / ProRes")
     r.add_argument("scene")
     r.add_argument("-o", "--out", type=Path, help="output folder (default outputs/<scene name>/)")
     r.add_argument("--frames", metavar="START:END[:STEP]", help="frame range to render (END exclusive)")
-    r.add_argument("--resolution", metavar="WxH", help="image size, e.g. 1280x720 (even numbers)")
+    r.add_argument("--resolution", metavar="WxH", help="image size, e.g. 1280x720 (even numbers for H.264)")
     r.add_argument("--samples", type=int, help="MSAA samples (clamped to what the GL context supports)")
     r.add_argument("--png", action="store_true", help="also write a numbered PNG sequence in <out>/png/")
-    r.add_argument("--no-mp4", action="store_true", help="do not write the MP4")
+    r.add_argument("--depth", metavar="BITS", default="8",
+                   help="bits per channel of the PNGs: 8 (default) or 16 (drawn in float; RGB, or RGBA with --alpha)")
+    r.add_argument("--exr", action="store_true", help="also write an OpenEXR sequence in <out>/exr/: half-float "
+                   "R, G, B, A in linear light, premultiplied by alpha, and Z, the distance from the camera along "
+                   "its view axis in metres (+inf where nothing is drawn)")
+    r.add_argument("--no-mp4", action="store_true", help="do not write the video (the MP4, or the .mov of --codec prores)")
+    r.add_argument("--codec", choices=("h264", "prores"), default="h264",
+                   help="video codec: h264 (default; <scene>.mp4, no alpha) or prores (ProRes 4444 with alpha, "
+                        "10-bit, <scene>.mov, for compositing; implies --alpha)")
     r.add_argument("--alpha", action="store_true", help="transparent background: RGBA PNGs with straight alpha "
-                   "(the fading yarn ends as partial alpha); the MP4 is composited over the background")
+                   "in sRGB (the fading yarn ends as partial alpha), EXR alpha; the H.264 MP4 is composited over "
+                   "the background, ProRes keeps the alpha")
     r.add_argument("--wireframe", choices=("off", "only", "beside"), nargs="?", const="beside", default="off",
                    help="springs as lines, base model purple, yarn level blue (Fig. 8); default 'beside'")
     r.add_argument("--camera-position", metavar="X,Y,Z", help="override [camera] position_m")
