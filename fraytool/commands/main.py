@@ -1,4 +1,4 @@
-"""The `fraytool` command: simulate, render, check, bench, study, batch.
+"""The `fraytool` command: simulate, render, export, check, bench, study, batch.
 
 Exit codes: 0 success, 1 failed run (unstable simulation, no GL context, I/O), 2 bad input
 (scene file or flags). Errors print one clear message, never a traceback.
@@ -122,6 +122,19 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--force", action="store_true", help="run even if the memory estimate exceeds what is available")
     _progress_flag(r)
     _set_flag(r)
+
+    e = sub.add_parser("export", help="simulate (or reuse frames) and write the yarns and bodies as USD")
+    e.add_argument("scene")
+    e.add_argument("--usd", required=True, type=Path, metavar="OUT.usd",
+                   help="USD file to write (.usd or .usdc binary, .usda text): yarns as BasisCurves (cubic "
+                        "Catmull-Rom through the yarn centre lines, widths, weft/warp displayColor, the fade of "
+                        "broken ends as displayOpacity), bodies as Sphere / Cube / Plane, a time sample per "
+                        "frame; needs the usd extra: pip install \"fraytool[usd]\"")
+    e.add_argument("-o", "--out", type=Path, help="folder of the frame records (default outputs/<scene name>/)")
+    e.add_argument("--frames", metavar="START:END[:STEP]", help="frame range to export (END exclusive)")
+    e.add_argument("--force", action="store_true", help="run even if the memory estimate exceeds what is available")
+    _progress_flag(e)
+    _set_flag(e)
 
     ba = sub.add_parser("batch", help="render many shots (scenes, job files, wedges) on Dask distributed")
     ba.add_argument("inputs", nargs="+", metavar="SCENE_OR_JOB", help="scene files, shipped scene names or job files (TOML)")
@@ -272,8 +285,14 @@ def cmd_batch(args) -> int:
     return batch_command(args)
 
 
+def cmd_export(args) -> int:
+    from fraytool.commands.export import export_command
+
+    return export_command(args)
+
+
 COMMANDS = {"batch": cmd_batch, "simulate": cmd_simulate, "check": cmd_check, "bench": cmd_bench, "render": cmd_render,
-            "study": cmd_study}
+            "study": cmd_study, "export": cmd_export}
 
 
 VECTOR_FLAGS = ("--camera-position", "--camera-target")
