@@ -79,27 +79,31 @@ def test_odd_sizes_are_refused_clearly(tmp_path):
     assert not list(tmp_path.iterdir())
 
 
-def test_interrupted_encode_leaves_no_file_and_keeps_the_old_one(tmp_path):
-    path = tmp_path / "clip.mp4"
+@pytest.mark.parametrize("codec,suffix", [("h264", ".mp4"), ("prores", ".mov")])
+def test_interrupted_encode_leaves_no_file_and_keeps_the_old_one(tmp_path, codec, suffix):
+    path = tmp_path / f"clip{suffix}"
     path.write_bytes(b"previous finished video")
     with pytest.raises(KeyboardInterrupt):
-        with VideoWriter(path, (64, 48), 24) as w:
+        with VideoWriter(path, (64, 48), 24, codec=codec) as w:
             for f in _frames(3):
                 w.write(f)
+            assert w.tmp.name.startswith(".clip.partial-") and w.tmp.suffix == suffix
             raise KeyboardInterrupt
     assert path.read_bytes() == b"previous finished video"
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["clip.mp4"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == [path.name]
 
 
-def test_stale_partials_of_dead_runs_are_removed(tmp_path):
-    path = tmp_path / "clip.mp4"
+@pytest.mark.parametrize("suffix", [".mp4", ".mov", ".usd"])
+def test_stale_partials_of_dead_runs_are_removed(tmp_path, suffix):
+    path = tmp_path / f"clip{suffix}"
     mine = partial_path(path)
-    dead = mine.with_name(mine.name.replace(f"-{os.getpid()}.mp4", "-999999999.mp4"))
-    other_host = tmp_path / ".clip.partial-elsewhere-999999999.mp4"
-    for p in (mine, dead, other_host):
+    dead = mine.with_name(mine.name.replace(f"-{os.getpid()}{suffix}", f"-999999999{suffix}"))
+    other_host = tmp_path / f".clip.partial-elsewhere-999999999{suffix}"
+    other_kind = tmp_path / ".clip.partial-elsewhere-999999999.xyz"
+    for p in (mine, dead, other_host, other_kind):
         p.write_bytes(b"x")
     remove_stale_partials(path)
-    assert not dead.exists() and mine.exists() and other_host.exists()
+    assert not dead.exists() and mine.exists() and other_host.exists() and other_kind.exists()
 
 
 def test_png_is_atomic_tagged_and_round_trips(tmp_path):

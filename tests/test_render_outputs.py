@@ -191,6 +191,8 @@ def test_exr_holds_linear_premultiplied_rgba_and_z(tmp_path, capsys):
     a = clear["A"].astype(np.float32)[..., None]
     composite = np.stack([clear[c] for c in "RGB"], -1).astype(np.float32) + background * (1.0 - a)
     np.testing.assert_allclose(composite, rgba[..., :3], rtol=4e-3, atol=1e-3)
+    assert main(["render", str(SCENE), "-o", str(out), *LEVEL_FLAGS, "--exr", "--alpha", "--no-mp4"]) == 0
+    assert "0 rendered, 1 kept" in capsys.readouterr().err            # the same settings: kept
 
 
 def test_prores_render_carries_the_alpha_of_the_16bit_pngs_and_resumes(tmp_path, capsys):
