@@ -152,3 +152,19 @@ def test_export_fades_broken_ends_and_places_turned_boxes(tmp_path, posed_cloth)
     for corner in ((1, 1, 1), (-1, 1, -1), (1, -1, 1)):
         world = np.array(M.Transform(Gf.Vec3d(*corner)))
         np.testing.assert_allclose(world, R @ (np.array(corner) * [0.01, 0.02, 0.03]) + [0.01, 0.03, -0.02], atol=1e-6)
+
+
+def test_up_axis_follows_the_camera(tmp_path, posed_cloth):
+    """USD allows Y or Z up: a scene whose camera has z up gets a Z-up stage (the shipped ones Y)."""
+    pytest.importorskip("pxr")
+    from pxr import Usd, UsdGeom
+
+    from fraytool.export.usd import up_axis, write_usd
+
+    spec = posed_cloth.spec
+    z_up = dataclasses.replace(spec, camera=dataclasses.replace(spec.camera, up=(0.1, 0.2, -0.9)))
+    path = write_usd(tmp_path / "z.usdc", z_up, posed_cloth.topology, [posed_cloth.copy(5)])
+    stage = Usd.Stage.Open(str(path))
+    assert UsdGeom.GetStageUpAxis(stage) == UsdGeom.Tokens.z
+    assert (stage.GetStartTimeCode(), stage.GetEndTimeCode()) == (5, 5)
+    assert up_axis((0.0, 1.0, 0.0)) == "Y" and up_axis((0.3, -0.8, 0.5)) == "Y"

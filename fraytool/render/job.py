@@ -74,12 +74,6 @@ class RenderJob:
         return "float" if self.png_bits == 16 or self.exr or self.codec == "prores" else "srgb8"
 
     @property
-    def image_bits(self) -> int:
-        """Bits per channel of the images the renderer hands out (PNG and video): 16 from the float
-        target, else 8."""
-        return 16 if self.target == "float" else 8
-
-    @property
     def size(self) -> tuple[int, int]:
         """Output image size: the requested size, or twice its width with --wireframe beside (each
         panel keeps the requested size and aspect)."""
