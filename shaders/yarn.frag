@@ -30,5 +30,8 @@ void main() {
     float diffuse = mix(max(n_l, 0.0), v_kajiya.x, u_kajiya_weight);
     float highlight = u_specular * v_kajiya.y * smoothstep(-0.2, 0.3, n_l);
     vec3 color = v_albedo.rgb * (u_ambient + u_light_intensity * diffuse) + vec3(u_light_intensity * highlight);
-    f_color = vec4(color, v_albedo.a);
+    // Clamped as a fixed-point target clamps before blending, so a float target blends the same:
+    // with MSAA, attributes are evaluated at the pixel centre, which may lie outside the triangle,
+    // and the fade alpha extrapolated there can leave [0, 1].
+    f_color = vec4(max(color, 0.0), clamp(v_albedo.a, 0.0, 1.0));
 }

@@ -29,9 +29,9 @@ def check_outputs(out_dir: Path, spec: Optional[SceneSpec] = None, as_json: bool
     png_dir = out_dir / "png"
     pngs = sorted(png_dir.glob("*.png")) if png_dir.is_dir() else []
     problems += [f"{p}: damaged PNG (unreadable or a chunk CRC fails)" for p in pngs if png_settings(p) is None]
-    problems += [f"{p}: partial MP4 of a killed render (removed by the next render)"
-                 for p in sorted(out_dir.glob(".*.partial-*.mp4"))]
-    for folder in (store.dir, png_dir, out_dir):
+    problems += [f"{p}: partial {suffix[1:].upper()} of a killed render (removed by the next render)"
+                 for suffix in (".mp4", ".mov") for p in sorted(out_dir.glob(f".*.partial-*{suffix}"))]
+    for folder in (store.dir, png_dir, out_dir / "exr", out_dir):
         if folder.is_dir():
             problems += [f"{p}: temp file of a killed write (removed by the next run)"
                          for p in sorted(folder.iterdir()) if is_temp_name(p.name) and dead_writer(p)]

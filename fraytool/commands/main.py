@@ -1,4 +1,4 @@
-"""The `fraytool` command: simulate, render, check, bench, study.
+"""The `fraytool` command: simulate, render, export, check, bench, study, batch.
 
 Exit codes: 0 success, 1 failed run (unstable simulation, no GL context, I/O), 2 bad input
 (scene file or flags). Errors print one clear message, never a traceback.
@@ -95,16 +95,25 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--json", action="store_true")
     _set_flag(b)
 
-    r = sub.add_parser("render", help="simulate (or reuse frames) and render PNG / MP4")
+    r = sub.add_parser("render", help="simulate (or reuse frames) and render PNG / EXR / MP4 / ProRes")
     r.add_argument("scene")
     r.add_argument("-o", "--out", type=Path, help="output folder (default outputs/<scene name>/)")
     r.add_argument("--frames", metavar="START:END[:STEP]", help="frame range to render (END exclusive)")
-    r.add_argument("--resolution", metavar="WxH", help="image size, e.g. 1280x720 (even numbers)")
+    r.add_argument("--resolution", metavar="WxH", help="image size, e.g. 1280x720 (even numbers for H.264)")
     r.add_argument("--samples", type=int, help="MSAA samples (clamped to what the GL context supports)")
     r.add_argument("--png", action="store_true", help="also write a numbered PNG sequence in <out>/png/")
-    r.add_argument("--no-mp4", action="store_true", help="do not write the MP4")
+    r.add_argument("--depth", metavar="BITS", default="8",
+                   help="bits per channel of the PNGs: 8 (default) or 16 (drawn in float; RGB, or RGBA with --alpha)")
+    r.add_argument("--exr", action="store_true", help="also write an OpenEXR sequence in <out>/exr/: half-float "
+                   "R, G, B, A in linear light, premultiplied by alpha, and Z, the distance from the camera along "
+                   "its view axis in metres (+inf where nothing is drawn)")
+    r.add_argument("--no-mp4", action="store_true", help="do not write the video (the MP4, or the .mov of --codec prores)")
+    r.add_argument("--codec", choices=("h264", "prores"), default="h264",
+                   help="video codec: h264 (default; <scene>.mp4, no alpha) or prores (ProRes 4444 with alpha, "
+                        "10-bit, <scene>.mov, for compositing; implies --alpha)")
     r.add_argument("--alpha", action="store_true", help="transparent background: RGBA PNGs with straight alpha "
-                   "(the fading yarn ends as partial alpha); the MP4 is composited over the background")
+                   "in sRGB (the fading yarn ends as partial alpha), EXR alpha; the H.264 MP4 is composited over "
+                   "the background, ProRes keeps the alpha")
     r.add_argument("--wireframe", choices=("off", "only", "beside"), nargs="?", const="beside", default="off",
                    help="springs as lines, base model purple, yarn level blue (Fig. 8); default 'beside'")
     r.add_argument("--camera-position", metavar="X,Y,Z", help="override [camera] position_m")
@@ -114,6 +123,19 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--force", action="store_true", help="run even if the memory estimate exceeds what is available")
     _progress_flag(r)
     _set_flag(r)
+
+    e = sub.add_parser("export", help="simulate (or reuse frames) and write the yarns and bodies as USD")
+    e.add_argument("scene")
+    e.add_argument("--usd", required=True, type=Path, metavar="OUT.usd",
+                   help="USD file to write (.usd or .usdc binary, .usda text): yarns as BasisCurves (cubic "
+                        "Catmull-Rom through the yarn centre lines, widths, weft/warp displayColor, the fade of "
+                        "broken ends as displayOpacity), bodies as Sphere / Cube / Plane, a time sample per "
+                        "frame; needs the usd extra: pip install \"fraytool[usd]\"")
+    e.add_argument("-o", "--out", type=Path, help="folder of the frame records (default outputs/<scene name>/)")
+    e.add_argument("--frames", metavar="START:END[:STEP]", help="frame range to export (END exclusive)")
+    e.add_argument("--force", action="store_true", help="run even if the memory estimate exceeds what is available")
+    _progress_flag(e)
+    _set_flag(e)
 
     ba = sub.add_parser("batch", help="render many shots (scenes, job files, wedges) on Dask distributed")
     ba.add_argument("inputs", nargs="+", metavar="SCENE_OR_JOB", help="scene files, shipped scene names or job files (TOML)")
@@ -264,8 +286,14 @@ def cmd_batch(args) -> int:
     return batch_command(args)
 
 
+def cmd_export(args) -> int:
+    from fraytool.commands.export import export_command
+
+    return export_command(args)
+
+
 COMMANDS = {"batch": cmd_batch, "simulate": cmd_simulate, "check": cmd_check, "bench": cmd_bench, "render": cmd_render,
-            "study": cmd_study}
+            "study": cmd_study, "export": cmd_export}
 
 
 VECTOR_FLAGS = ("--camera-position", "--camera-target")

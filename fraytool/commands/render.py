@@ -10,7 +10,7 @@ import sys
 from pathlib import Path
 from typing import Optional, TextIO
 
-from fraytool.errors import SceneError
+from fraytool.errors import RunError, SceneError
 from fraytool.io.frame_store import FrameStore
 from fraytool.io.lock import OutputLock
 from fraytool.render.job import build_job
@@ -43,7 +43,7 @@ def ensure_frames(spec: SceneSpec, out_dir: Path, needed: int, stream: TextIO = 
 
 class _Terminated(SystemExit):
     """SIGTERM (a farm scheduler pre-empting the job) turned into an exception, so the same clean-up
-    as for Ctrl-C runs: ffmpeg stopped, the partial MP4 deleted, the GL context released."""
+    as for Ctrl-C runs: ffmpeg stopped, the partial video deleted, the GL context released."""
 
 
 def _on_sigterm(signum, frame):  # pragma: no cover - exercised through a subprocess
@@ -77,6 +77,15 @@ def _render(args, stream: Optional[TextIO]) -> int:
     from fraytool.sim.run import default_out_dir
 
     job = build_job(spec, args, Path(args.out) if getattr(args, "out", None) else default_out_dir(spec))
+    if job.exr:
+        try:
+            import OpenEXR  # noqa: F401  (a dependency of fraytool; missing only in a broken installation)
+        except ImportError:
+            raise RunError('--exr needs the OpenEXR package, which is not installed: pip install "openexr>=3.2" '
+                           '(or reinstall fraytool)') from None
+    if job.codec == "prores" and not getattr(args, "alpha", False):
+        print("fraytool: --codec prores: ProRes 4444 carries alpha, so the background is transparent (as with "
+              "--alpha, for the PNGs and EXRs too)", file=stream)
     from fraytool.render.context import create_context, describe
     from fraytool.render.renderer import clamp_samples
 
@@ -92,10 +101,9 @@ def _render(args, stream: Optional[TextIO]) -> int:
             result = render_job(job, ctx, store, stream=stream)
     finally:
         ctx.release()
-    wrote = []
-    if result.mp4:
-        wrote.append(result.mp4)
-    if result.png_dir:
-        wrote.append(f"{result.png_dir}/ ({result.rendered} rendered, {result.reused} kept from an earlier run)")
+    wrote = [result.video] if result.video else []
+    folders = [f"{d}/" for d in (result.png_dir, result.exr_dir) if d]
+    if folders:
+        wrote.append(f"{', '.join(folders)} ({result.rendered} rendered, {result.reused} kept from an earlier run)")
     print(f"fraytool: rendered {result.frames} frames: " + "; ".join(wrote), file=stream)
     return 0

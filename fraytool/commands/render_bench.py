@@ -20,7 +20,7 @@ from typing import Optional
 
 from fraytool.io.frame_store import FrameStore
 from fraytool.render.context import create_context
-from fraytool.render.encode import Mp4Writer
+from fraytool.render.encode import VideoWriter
 from fraytool.render.geometry import GeometryBuilder, YarnStyle
 from fraytool.render.renderer import Renderer
 from fraytool.scene import scene_hash
@@ -74,7 +74,7 @@ def render_stage_timings(spec: SceneSpec, out_dir: Optional[Path] = None, frames
         finally:
             ctx.release()
         t0 = time.perf_counter()
-        with Mp4Writer(Path(tmp) / "bench.mp4", (W, H), spec.time.fps, crf=spec.output.crf) as writer:
+        with VideoWriter(Path(tmp) / "bench.mp4", (W, H), spec.time.fps, crf=spec.output.crf) as writer:
             for image in images:
                 writer.write(image)
         encode_s = (time.perf_counter() - t0) / len(images)

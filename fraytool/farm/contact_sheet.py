@@ -39,7 +39,7 @@ def compose(images: list[np.ndarray], labels: list[str], tile: tuple[int, int], 
 
 def write_contact_sheet(shots: list[Shot], job_dir: Path, name: str) -> Path:
     from fraytool.farm.tasks import render_job_for
-    from fraytool.render.encode import Mp4Writer, read_png
+    from fraytool.render.encode import VideoWriter, read_png
     from fraytool.render.options import FrameRange
 
     jobs = [render_job_for(s, job_dir / s.name, FrameRange(0, 1))[0] for s in shots]
@@ -49,7 +49,7 @@ def write_contact_sheet(shots: list[Shot], job_dir: Path, name: str) -> Path:
     tile = (max(2, int(w * scale) // 2 * 2), max(2, int(h * scale) // 2 * 2))
     frames = min(len(j.frames) for j in jobs)
     path = job_dir / f"{name}_contact_sheet.mp4"
-    with Mp4Writer(path, (tile[0] * grid[0], tile[1] * grid[1]), jobs[0].spec.time.fps) as writer:
+    with VideoWriter(path, (tile[0] * grid[0], tile[1] * grid[1]), jobs[0].spec.time.fps) as writer:
         for i in range(frames):
             images = [read_png(j.png_path(j.frames.frames()[i])) for j in jobs]
             writer.write(compose(images, [s.label for s in shots], tile, grid))

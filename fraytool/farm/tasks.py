@@ -76,7 +76,7 @@ def render_chunk_task(shot: Shot, out_dir: str, start: int, end: int, step: int,
 
     t0 = time.time()
     _, job = render_job_for(shot, Path(out_dir), FrameRange(start, end, step))
-    job = replace(job, mp4=False, png=True)
+    job = replace(job, video=False, png=True)
     ctx = create_context()
     try:
         result = render_job(job, ctx, FrameStore(Path(out_dir)), progress=False)
@@ -88,13 +88,13 @@ def render_chunk_task(shot: Shot, out_dir: str, start: int, end: int, step: int,
 
 def join_task(shot: Shot, out_dir: str, _after=None) -> dict:
     """Encode the shot's MP4 from its PNG sequence (the same pixels `fraytool render` encodes)."""
-    from fraytool.render.encode import Mp4Writer, read_png
+    from fraytool.render.encode import VideoWriter, read_png
 
     t0 = time.time()
     job, _ = render_job_for(shot, Path(out_dir), FrameRange(0, 1))
-    with Mp4Writer(job.mp4_path, job.size, job.spec.time.fps, crf=job.spec.output.crf,
+    with VideoWriter(job.video_path, job.size, job.spec.time.fps, crf=job.spec.output.crf,
                    background_srgb=job.spec.render.background) as writer:
         for frame in job.frames.frames():
             writer.write(read_png(job.png_path(frame)))
-    return {"task": "join", "seconds": time.time() - t0, "worker": _where(), "mp4": str(job.mp4_path),
+    return {"task": "join", "seconds": time.time() - t0, "worker": _where(), "mp4": str(job.video_path),
             "png_dir": str(job.png_dir)}

@@ -79,6 +79,33 @@ def atomic_write_bytes(path: Path, writer) -> None:
         raise
 
 
+def atomic_write_file(path: Path, write_to) -> None:
+    """atomic_write_bytes for writers that open the file themselves: `write_to(name)` writes a temp
+    file (named as atomic_write_bytes names them) in the same folder, which is then given the usual
+    permissions, fsynced and renamed over `path`."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.{_writer_tag()}.", suffix=".tmp", dir=path.parent)
+    os.close(fd)
+    try:
+        write_to(tmp)
+        fd = os.open(tmp, os.O_RDONLY)
+        try:
+            os.fchmod(fd, 0o666 & ~_umask())
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+        os.replace(tmp, path)
+    except BaseException as exc:
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
+        if isinstance(exc, OSError) and exc.errno is not None and exc.filename in (None, tmp):
+            raise OSError(exc.errno, exc.strerror or str(exc), str(path)) from None  # the file, not its temp
+        raise
+
+
 def host_tag() -> str:
     """This machine's name as file names carry it (letters and digits, "_" for anything else)."""
     return "".join(c if c.isalnum() else "_" for c in socket.gethostname()) or "host"

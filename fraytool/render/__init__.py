@@ -7,7 +7,8 @@ Modules, each with one job (docs/rendering.md has the whole picture):
 - lod: level of detail from on-screen yarn size; geometry: the per-frame geometry stage
 - wireframe, bodies, camera, color: spring lines, rigid bodies, view matrices, sRGB
 - renderer: MSAA drawing, sorted transparency, resolve and read-back
-- encode: atomic PNG and H.264 MP4; imagecompare: golden-image comparison
+- encode: atomic PNG and video (H.264 MP4, ProRes 4444 .mov); png16: 16-bit PNG; exr: OpenEXR frames
+  (linear premultiplied RGBA + Z)
 - options, job, sequence, command: `fraytool render`; bench: `fraytool bench --render`
 Rendering reads only frame records and the saved topology; the simulation never imports it.
 """

@@ -50,6 +50,21 @@ def perspective(fov_y_deg: float, aspect: float, near: float, far: float) -> np.
     return m
 
 
+def window_depth_to_distance(depth: np.ndarray, near: float, far: float) -> np.ndarray:
+    """Window depth d in [0, 1] (the depth buffer, glDepthRange 0..1) of the `perspective` projection
+    -> distance along the view axis [m] (-z in view space), +inf where d = 1 (cleared: nothing drawn).
+
+    The projection maps view z (< 0 in front) to clip z_c = A z + B with w_c = -z, where
+    A = (f + n) / (n - f) and B = 2 f n / (n - f); so z_ndc = z_c / w_c = -A + B / D with D = -z,
+    and with z_ndc = 2 d - 1: D = B / (z_ndc + A). d = 0 gives D = n and d = 1 gives D = f."""
+    d = np.asarray(depth, dtype=np.float64)
+    a = (far + near) / (near - far)
+    b = 2.0 * far * near / (near - far)
+    with np.errstate(divide="ignore"):
+        distance = b / ((2.0 * d - 1.0) + a)
+    return np.where(d >= 1.0, np.inf, distance).astype(np.float32)
+
+
 class Camera:
     """A CameraSpec with its view matrix and clip planes (near/far scale with the target distance)."""
 
@@ -61,6 +76,10 @@ class Camera:
         distance = float(np.linalg.norm(self.target - self.eye))
         self.near = distance / 200.0
         self.far = distance * 200.0
+
+    def view_distance(self, window_depth: np.ndarray) -> np.ndarray:
+        """Depth-buffer values -> distance along the view axis [m], +inf where nothing was drawn."""
+        return window_depth_to_distance(window_depth, self.near, self.far)
 
     def view_proj(self, aspect: float) -> np.ndarray:
         return perspective(self.spec.fov_deg, aspect, self.near, self.far) @ self.view

@@ -37,9 +37,32 @@ def straight_alpha_srgb(premultiplied: np.ndarray) -> np.ndarray:
     return out
 
 
+def encode_premultiplied_linear(rgba: np.ndarray, bits: int, alpha: bool) -> np.ndarray:
+    """(H, W, 4) float linear colour premultiplied by linear alpha (the float framebuffer, an EXR) ->
+    straight (unassociated) alpha with sRGB colour, as PNG and video store it: (H, W, 4) with `alpha`,
+    else (H, W, 3) (the colour as it is: an opaque render has alpha 1); uint8 for `bits` 8, uint16
+    for 16. colour = encode(c / alpha); fully transparent pixels are black."""
+    if bits not in (8, 16):
+        raise ValueError(f"bits must be 8 or 16, got {bits}")
+    scale = float((1 << bits) - 1)
+    dtype = np.uint8 if bits == 8 else np.uint16
+    rgba = np.asarray(rgba, dtype=np.float32)
+    colour = rgba[..., :3]
+    if alpha:
+        a = np.clip(rgba[..., 3:4], 0.0, 1.0)
+        colour = np.where(a > 0.0, colour / np.maximum(a, 1e-12), 0.0)
+    out = np.empty(rgba.shape[:2] + (4 if alpha else 3,), dtype=dtype)
+    out[..., :3] = np.rint(linear_to_srgb(colour) * scale)
+    if alpha:
+        out[..., 3] = np.rint(a[..., 0] * scale)
+    return out
+
+
 def over_background(rgba: np.ndarray, background_srgb) -> np.ndarray:
-    """(H, W, 4) uint8 straight-alpha sRGB composited over an sRGB colour in linear light -> (H, W, 3)."""
-    f = rgba.astype(np.float32) / 255.0
+    """(H, W, 4) uint8 or uint16 straight-alpha sRGB composited over an sRGB colour in linear light ->
+    (H, W, 3) of the same type."""
+    scale = float(np.iinfo(rgba.dtype).max)
+    f = rgba.astype(np.float32) / scale
     a = f[..., 3:4]
     lin = srgb_to_linear(f[..., :3]) * a + srgb_to_linear(np.asarray(background_srgb, np.float32)) * (1.0 - a)
-    return np.clip(np.rint(linear_to_srgb(lin) * 255.0), 0, 255).astype(np.uint8)
+    return np.clip(np.rint(linear_to_srgb(lin) * scale), 0, scale).astype(rgba.dtype)

@@ -22,7 +22,7 @@ from fraytool.render.wireframe import SpringLines, spring_lines
 from fraytool.render.yarns import YarnPieces, yarn_pieces
 from fraytool.scene.spec import RenderSpec
 
-__all__ = ["VERTEX_FLOATS", "YarnStyle", "YarnMesh", "FrameGeometry", "GeometryBuilder"]
+__all__ = ["VERTEX_FLOATS", "YarnStyle", "YarnMesh", "YarnCurves", "FrameGeometry", "GeometryBuilder", "yarn_curves"]
 
 
 @dataclass(frozen=True)
@@ -65,6 +65,38 @@ class YarnMesh:
     """Centroid of each translucent triangle [m], shape (Ft, 3), float32 (for the depth sort)."""
     pieces: int
     detail: Detail
+
+
+@dataclass(frozen=True)
+class YarnCurves:
+    """The yarn centre lines of a frame as curves (what `fraytool export` writes): the control points
+    the renderer's splines pass through, with the renderer's fade at each of them."""
+
+    points: np.ndarray
+    """Control points of all pieces [m], shape (N, 3), float64; piece p owns offsets[p]:offsets[p+1]."""
+    offsets: np.ndarray
+    """Shape (K + 1,), int64."""
+    kind: np.ndarray
+    """WEFT (0) or WARP (1) per piece (fraytool.render.yarns), shape (K,), int8."""
+    yarn: np.ndarray
+    """Yarn index per piece (j for a weft, i for a warp), shape (K,), int32."""
+    opacity: np.ndarray
+    """The fade of broken ends at each control point (1 = opaque), shape (N,), float32."""
+
+
+def yarn_curves(topology: Mapping[str, np.ndarray], record: FrameRecord, style: YarnStyle) -> YarnCurves:
+    """The yarn pieces of a frame (fraytool.render.yarns) and the fade the renderer gives their control
+    points: the fade runs along the arc length of the Catmull-Rom samples at the style's full detail,
+    and sample k m of a piece is its control point k (fraytool.render.spline)."""
+    pieces = yarn_pieces(topology, record.particle_position_m, record.crossing_yarn_level, record.spring_alive)
+    m = style.samples_per_segment
+    curves = catmull_rom(pieces.points, pieces.offsets, m)
+    alpha = fade_alpha(curves.points, curves.offsets, pieces.broken_start, pieces.broken_end, style.fade_length_m)
+    counts = np.diff(pieces.offsets)
+    piece = np.repeat(np.arange(pieces.count), counts)
+    local = np.arange(len(pieces.points)) - pieces.offsets[:-1][piece]
+    opacity = alpha[curves.offsets[:-1][piece] + local * m] if len(pieces.points) else np.ones(0, np.float32)
+    return YarnCurves(pieces.points, pieces.offsets, pieces.kind, pieces.yarn, opacity.astype(np.float32))
 
 
 @dataclass(frozen=True)

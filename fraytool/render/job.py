@@ -1,18 +1,20 @@
 """RenderJob: one render request resolved from a scene and the `fraytool render` flags.
 
 It fixes everything that decides the pixels (scene with camera and render overrides applied, image
-size, samples, wireframe mode) and where files go:
+size, samples, wireframe mode, alpha, the colour target) and where files go:
 
-    <out>/<scene><PASS>.mp4                      whole scene (no --frames)
+    <out>/<scene><PASS>.mp4                      whole scene (no --frames); .mov with --codec prores
     <out>/<scene><PASS>_START-END[_stepS].mp4    a --frames range (END exclusive), e.g. for farm shards
     <out>/png<PASS>/frame_000000.png ...         --png: numbered by scene frame, so shards share one sequence
+    <out>/exr<PASS>/frame_000000.exr ...         --exr: the same numbering
 
 PASS (PASS_SUFFIX) is "" for the yarns (beauty), "_wireframe" for --wireframe only and "_beside" for
 --wireframe beside, so no pass or range ever overwrites another's files.
 
 `digest()` names the pixels: it hashes the simulation (scene_hash), camera, render settings, size,
-samples, wireframe mode, the shader sources and RENDER_REVISION. A PNG carries the digest of the job
-that drew it; a resumed render keeps only PNGs with its own digest.
+samples, wireframe mode, alpha, the colour target and PNG bit depth, the shader sources and
+RENDER_REVISION. A PNG or EXR carries the digest of the job that drew it; a resumed render keeps only
+files with its own digest.
 """
 from __future__ import annotations
 
@@ -23,6 +25,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from fraytool.errors import InputError
+from fraytool.render.encode import VIDEO_SUFFIX
 from fraytool.render.options import (
     FrameRange,
     check_fov,
@@ -52,9 +55,23 @@ class RenderJob:
     """True when a --frames range was given (the MP4 name then carries the range)."""
     wireframe: str = "off"
     png: bool = False
-    mp4: bool = True
+    video: bool = True
+    """Write the video (the MP4, or the .mov of --codec prores)."""
     alpha: bool = False
-    """Transparent background: RGBA PNGs (straight alpha); the MP4 is composited over the background."""
+    """Transparent background: RGBA PNGs (straight alpha), EXR alpha; the H.264 MP4 is composited
+    over the background, ProRes keeps the alpha."""
+    png_bits: int = 8
+    """Bits per channel of the PNGs: 8, or 16 (--depth 16)."""
+    exr: bool = False
+    """Also write an EXR sequence (linear premultiplied RGBA + Z)."""
+    codec: str = "h264"
+    """Video codec: "h264" (MP4) or "prores" (ProRes 4444 with alpha, .mov)."""
+
+    @property
+    def target(self) -> str:
+        """The renderer's colour target: "float" when an output needs more than 8 bits (16-bit PNGs,
+        EXR, 10-bit ProRes), else "srgb8" (fraytool.render.renderer)."""
+        return "float" if self.png_bits == 16 or self.exr or self.codec == "prores" else "srgb8"
 
     @property
     def size(self) -> tuple[int, int]:
@@ -72,11 +89,11 @@ class RenderJob:
         return PASS_SUFFIX[self.wireframe]
 
     @property
-    def mp4_path(self) -> Path:
+    def video_path(self) -> Path:
         name = self.spec.name + self.pass_suffix
         if self.ranged:
             name += f"_{self.frames.label()}"
-        return self.out_dir / f"{name}.mp4"
+        return self.out_dir / f"{name}{VIDEO_SUFFIX[self.codec]}"
 
     @property
     def png_dir(self) -> Path:
@@ -85,13 +102,20 @@ class RenderJob:
     def png_path(self, frame: int) -> Path:
         return self.png_dir / f"frame_{frame:06d}.png"
 
+    @property
+    def exr_dir(self) -> Path:
+        return self.out_dir / f"exr{self.pass_suffix}"
+
+    def exr_path(self, frame: int) -> Path:
+        return self.exr_dir / f"frame_{frame:06d}.exr"
+
     def digest(self, effective_samples: int | None = None) -> str:
         """Digest of the pixels; `effective_samples` is the MSAA count after clamping to the context."""
         shaders = hashlib.sha256()
         for p in sorted(shader_dir().glob("*.*")):
             if p.suffix in (".vert", ".frag", ".geom"):
                 shaders.update(p.name.encode() + b"\0" + p.read_bytes())
-        blob = json.dumps({
+        settings = {
             "scene_hash": scene_hash(self.spec),
             "camera": dataclasses.asdict(self.spec.camera),
             "render": dataclasses.asdict(self.spec.render),
@@ -100,7 +124,10 @@ class RenderJob:
             "effective_samples": effective_samples,
             "revision": RENDER_REVISION,
             "shaders": shaders.hexdigest(),
-        }, sort_keys=True, default=list).encode()
+        }
+        if self.target != "srgb8":  # only when not the default, so the default digest stays as it was
+            settings.update(target=self.target, png_bits=self.png_bits)
+        blob = json.dumps(settings, sort_keys=True, default=list).encode()
         return hashlib.sha256(blob).hexdigest()[:16]
 
 
@@ -123,16 +150,35 @@ def with_overrides(spec: SceneSpec, *, resolution=None, samples=None, camera_pos
     return dataclasses.replace(spec, camera=cam, render=render)
 
 
+def parse_depth(value) -> int:
+    """--depth: 8 or 16 (bits per channel of the PNGs)."""
+    if str(value).strip() in ("8", "16"):
+        return int(value)
+    raise InputError(f"--depth {value!r}: expected 8 or 16 (bits per channel of the PNGs)")
+
+
 def build_job(spec: SceneSpec, args, out: Path) -> RenderJob:
     """Validate the `fraytool render` flags (an argparse namespace: png, no_mp4, resolution, samples,
-    camera_position, camera_target, fov, frames, wireframe) against the scene and resolve them into a
-    RenderJob writing to `out`."""
+    camera_position, camera_target, fov, frames, wireframe, alpha, depth, exr, codec; missing ones take
+    their defaults) against the scene and resolve them into a RenderJob writing to `out`."""
     png = bool(getattr(args, "png", False)) or spec.output.png
-    mp4 = spec.output.mp4 and not getattr(args, "no_mp4", False)
-    if not png and not mp4:
-        raise InputError("--no-mp4 without --png (and the scene's [output] png = false): nothing to write")
-    resolution = parse_resolution(args.resolution, need_even=mp4) if args.resolution else None
-    if resolution is None and mp4:
+    video = spec.output.mp4 and not getattr(args, "no_mp4", False)
+    exr = bool(getattr(args, "exr", False))
+    codec = getattr(args, "codec", None) or "h264"
+    if codec not in VIDEO_SUFFIX:
+        raise InputError(f"--codec {codec!r}: expected one of {', '.join(VIDEO_SUFFIX)}")
+    png_bits = parse_depth(getattr(args, "depth", None) or 8)
+    if not png and not video and not exr:
+        raise InputError("--no-mp4 without --png or --exr (and the scene's [output] png = false): nothing to write")
+    if codec == "prores" and not video:
+        raise InputError("--codec prores chooses the video codec, but no video is written (--no-mp4, or the "
+                         "scene's [output] mp4 = false): drop one of them")
+    if png_bits == 16 and not png:
+        raise InputError("--depth 16 sets the bit depth of the PNG sequence, and no PNGs are written: add --png "
+                         "(or use --exr for float frames)")
+    h264 = video and codec == "h264"
+    resolution = parse_resolution(args.resolution, need_even=h264) if args.resolution else None
+    if resolution is None and h264:
         w, h = spec.render.resolution
         if w % 2 or h % 2:
             raise InputError(f"{spec.source}: [render] resolution = [{w}, {h}]: the MP4 (H.264, yuv420p) needs "
@@ -152,6 +198,8 @@ def build_job(spec: SceneSpec, args, out: Path) -> RenderJob:
     except InputError as exc:
         where = ", ".join(f for f, v in (("--camera-position", position), ("--camera-target", target)) if v)
         raise InputError(f"{where or spec.source + ': [camera]'}: {exc}") from None
+    # ProRes 4444 carries alpha, which is what it is for: --codec prores renders a transparent background
+    alpha = bool(getattr(args, "alpha", False)) or codec == "prores"
     return RenderJob(spec=spec, out_dir=out, frames=frames, ranged=ranged,
-                     wireframe=getattr(args, "wireframe", None) or "off", png=png, mp4=mp4,
-                     alpha=bool(getattr(args, "alpha", False)))
+                     wireframe=getattr(args, "wireframe", None) or "off", png=png, video=video, alpha=alpha,
+                     png_bits=png_bits, exr=exr, codec=codec)

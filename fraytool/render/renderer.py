@@ -1,4 +1,4 @@
-"""The GL renderer: FrameGeometry -> 8-bit sRGB image (H, W, 3), top row first.
+"""The GL renderer: FrameGeometry -> 8-bit sRGB image (H, W, 3), top row first (or linear float RGBA and depth).
 
 Pipeline per frame
 1. Draw into a multisampled SRGB8_ALPHA8 colour + depth framebuffer (samples clamped to
@@ -10,7 +10,16 @@ Pipeline per frame
    linear light as GL_FRAMEBUFFER_SRGB is on).
 3. Read back and flip vertically (GL's first row is the bottom one).
 An RGBA16F target plus a separate linear -> sRGB pass gives the same image but costs about three
-times as much fill and resolve time on llvmpipe; 8-bit sRGB storage has no visible banding.
+times as much fill and resolve time on llvmpipe; 8-bit sRGB storage has no visible banding, so it is
+the default target ("srgb8").
+
+The "float" target (16-bit PNGs, EXR, ProRes: `fraytool render --depth 16 / --exr / --codec prores`)
+draws the same way into RGBA32F colour instead: GL_FRAMEBUFFER_SRGB does not encode float
+attachments, so the buffer holds linear colour premultiplied by alpha, unclamped, averaged in linear
+light by the resolve, and the CPU encodes it (fraytool.render.color.encode_premultiplied_linear). With
+`depth`, the resolve also copies the depth buffer into a depth texture, read as the distance along
+the view axis (`read_depth_m`; the resolve of depth keeps one of each pixel's samples, which one is
+up to the GL implementation).
 
 Transparency: broken yarn ends fade out over a few yarn spacings, so the translucent surface is a
 small share of the mesh (only triangles touching a fading stretch). Those triangles are depth-sorted
@@ -36,7 +45,13 @@ import numpy as np
 
 from fraytool.render.bodies import BodySet, rotation_from_y, unit_cube, unit_quad, unit_sphere
 from fraytool.render.camera import Camera
-from fraytool.render.color import straight_alpha_srgb, WIREFRAME_BASE_SRGB, WIREFRAME_YARN_SRGB, srgb_to_linear
+from fraytool.render.color import (
+    WIREFRAME_BASE_SRGB,
+    WIREFRAME_YARN_SRGB,
+    encode_premultiplied_linear,
+    srgb_to_linear,
+    straight_alpha_srgb,
+)
 from fraytool.errors import RunError
 from fraytool.render.context import check_gl_error
 from fraytool.render.geometry import FrameGeometry
@@ -47,6 +62,8 @@ KAJIYA_WEIGHT = 0.35
 """Share of Kajiya-Kay's sin(T, L) in the yarn diffuse term (the rest is Lambert on the tube)."""
 
 WIREFRAME_MODES = ("off", "only", "beside")
+TARGETS = ("srgb8", "float")
+"""Colour targets: 8-bit sRGB-encoded (the default) or 32-bit float linear (see the module docstring)."""
 
 GL_SRGB8_ALPHA8 = 0x8C43
 GL_FRAMEBUFFER_SRGB = 0x8DB9
@@ -123,12 +140,16 @@ class Renderer:
 
     def __init__(self, ctx: moderngl.Context, size: tuple[int, int], samples: int, render: RenderSpec,
                  camera: CameraSpec, topology: Mapping[str, np.ndarray], wireframe: str = "off",
-                 alpha: bool = False):
-        """`alpha`: a transparent background; `read()` then gives (H, W, 4) straight alpha (docs/rendering.md)."""
+                 alpha: bool = False, target: str = "srgb8", depth: bool = False):
+        """`alpha`: a transparent background; `read()` then gives (H, W, 4) straight alpha (docs/rendering.md).
+        `target`: "srgb8" or "float" (`read_linear()`); `depth`: keep the depth for `read_depth_m()`."""
         if wireframe not in WIREFRAME_MODES:
             raise ValueError(f"wireframe must be one of {WIREFRAME_MODES}, got {wireframe!r}")
+        if target not in TARGETS:
+            raise ValueError(f"target must be one of {TARGETS}, got {target!r}")
         self.ctx = ctx
         self.alpha = bool(alpha)
+        self.target = target
         self.size = (int(size[0]), int(size[1]))
         self.samples = clamp_samples(ctx, samples)
         self.render_spec = render
@@ -137,11 +158,17 @@ class Renderer:
         self.panels = panels(self.size[0], wireframe)
 
         W, H = self.size
-        self._color_ms = ctx.texture((W, H), 4, samples=self.samples, internal_format=GL_SRGB8_ALPHA8)
+        if target == "float":
+            self._color_ms = ctx.texture((W, H), 4, samples=self.samples, dtype="f4")
+            self._resolved = ctx.texture((W, H), 4, dtype="f4")
+        else:
+            self._color_ms = ctx.texture((W, H), 4, samples=self.samples, internal_format=GL_SRGB8_ALPHA8)
+            self._resolved = ctx.texture((W, H), 4, internal_format=GL_SRGB8_ALPHA8)
         self._depth_ms = ctx.depth_renderbuffer((W, H), samples=self.samples)
         self._fbo_ms = ctx.framebuffer(color_attachments=[self._color_ms], depth_attachment=self._depth_ms)
-        self._resolved = ctx.texture((W, H), 4, internal_format=GL_SRGB8_ALPHA8)
-        self._fbo_out = ctx.framebuffer(color_attachments=[self._resolved])
+        # with a depth attachment here, the resolve blit copies depth too
+        self._depth_out = ctx.depth_texture((W, H)) if depth else None
+        self._fbo_out = ctx.framebuffer(color_attachments=[self._resolved], depth_attachment=self._depth_out)
 
         self._yarn_prog = load_program(ctx, "yarn.vert", "yarn.frag")
         self._body_prog = load_program(ctx, "body.vert", "body.frag")
@@ -338,12 +365,34 @@ class Renderer:
     def read(self) -> np.ndarray:
         """The presented image, top row first: (H, W, 3) uint8 sRGB, or with `alpha` (H, W, 4) uint8
         straight (unassociated) alpha with sRGB colour, as PNG stores it."""
+        if self.target == "float":
+            return encode_premultiplied_linear(self.read_linear(), 8, self.alpha)
         W, H = self.size
         n = 4 if self.alpha else 3
         raw = self._fbo_out.read(components=n, alignment=1)
         check_gl_error(self.ctx, "drawing a frame")
         image = np.frombuffer(raw, dtype=np.uint8).reshape(H, W, n)[::-1]
         return straight_alpha_srgb(image) if self.alpha else image
+
+    def read_linear(self) -> np.ndarray:
+        """The float target's image, top row first: (H, W, 4) float32 linear RGB premultiplied by
+        alpha, and alpha (1 everywhere without `alpha`)."""
+        if self.target != "float":
+            raise ValueError("read_linear() needs a renderer made with target='float'")
+        W, H = self.size
+        raw = self._fbo_out.read(components=4, dtype="f4", alignment=1)
+        check_gl_error(self.ctx, "drawing a frame")
+        return np.frombuffer(raw, dtype=np.float32).reshape(H, W, 4)[::-1]
+
+    def read_depth_m(self) -> np.ndarray:
+        """Distance along the view axis [m] of what each pixel shows, top row first, (H, W) float32;
+        +inf where nothing was drawn."""
+        if self._depth_out is None:
+            raise ValueError("read_depth_m() needs a renderer made with depth=True")
+        W, H = self.size
+        raw = self._depth_out.read(alignment=1)
+        check_gl_error(self.ctx, "reading the depth")
+        return self.camera.view_distance(np.frombuffer(raw, dtype=np.float32).reshape(H, W)[::-1])
 
     def render(self, geom: FrameGeometry) -> np.ndarray:
         """Draw, resolve, present and read back one frame: (H, W, 3) uint8, top row first."""
@@ -366,6 +415,8 @@ class Renderer:
         for obj in (*self._static, self._fbo_ms, self._color_ms, self._depth_ms, self._fbo_out,
                     self._resolved, self._yarn_prog, self._body_prog, self._ground_prog, self._line_prog):
             obj.release()
+        if self._depth_out is not None:
+            self._depth_out.release()
 
 
 def clamp_samples(ctx: moderngl.Context, samples: int) -> int:

@@ -1,28 +1,33 @@
-"""Rendering a range of frames to PNG and/or MP4, resuming what an interrupted run finished.
+"""Rendering a range of frames to PNG, EXR and/or a video, resuming what an interrupted run finished.
 
-Resume rule: a PNG at its final name is complete (written atomically); if its embedded settings
-digest and size match the job, the frame is not rendered again. The MP4 cannot be appended to, so
-it is rebuilt in the same pass: each frame is fed to ffmpeg either from its kept PNG (decoded) or
-freshly rendered. Without --png there is nothing to keep, and an interrupted MP4-only render starts
-over. The MP4 is encoded into a temp file and renamed only once complete (fraytool.render.encode).
+Resume rule: a PNG or EXR at its final name is complete (written atomically); if its embedded settings
+digest and size match the job, it is not written again, and a frame whose files are all kept is not
+drawn again. The video cannot be appended to, so it is rebuilt in the same pass: each frame is fed to
+ffmpeg either from a kept file (a PNG, decoded; an EXR, encoded as a PNG would be; ProRes takes 16-bit
+frames, which an 8-bit PNG is too coarse for: then the EXR serves, or the frame is drawn again) or
+freshly drawn. Without files there is nothing to keep, and an interrupted video-only render starts
+over. The video is encoded into a temp file and renamed only once complete (fraytool.render.encode).
 """
 from __future__ import annotations
 
 import hashlib
-
 import sys
 import time
 from dataclasses import dataclass, field
 from typing import Optional, TextIO
 
 import moderngl
+import numpy as np
 
 from fraytool.io.frame_record import sweep_temp_files
 from fraytool.io.frame_store import FrameStore
 from fraytool.progress import Progress
-from fraytool.render.encode import Mp4Writer, png_settings, read_png, write_png
+from fraytool.render.color import encode_premultiplied_linear
+from fraytool.render.encode import PNG_SETTINGS_KEY, VideoWriter, png_settings, read_png, write_png
+from fraytool.render.exr import exr_settings, read_exr_rgba, write_exr
 from fraytool.render.geometry import GeometryBuilder, YarnStyle
 from fraytool.render.job import RenderJob
+from fraytool.render.png16 import read_png16, write_png16
 from fraytool.render.renderer import Renderer
 
 
@@ -31,13 +36,14 @@ class RenderResult:
     frames: int = 0
     rendered: int = 0
     reused: int = 0
-    mp4: Optional[str] = None
+    video: Optional[str] = None
     png_dir: Optional[str] = None
+    exr_dir: Optional[str] = None
     stage_s: dict = field(default_factory=lambda: {"geometry": 0.0, "draw_readback": 0.0, "encode": 0.0})
 
 
 def frame_digest(job_digest: str, store: FrameStore, frame: int) -> str:
-    """Digest of one PNG's pixels: the job's settings and the bytes of the frame record it draws,
+    """Digest of one frame's pixels: the job's settings and the bytes of the frame record it draws,
     so a re-simulated frame (same scene, another fraytool) is drawn again, never reused stale."""
     h = hashlib.sha256(job_digest.encode())
     h.update(store.frame_path(frame).read_bytes())
@@ -50,44 +56,130 @@ def reusable_png(job: RenderJob, frame: int, digest: str) -> bool:
     return info is not None and info == (digest, job.size)
 
 
+class _Drawn:
+    """One drawn frame, read back once: the float target's linear RGBA (or the 8-bit image), the
+    depth for EXR, and the straight-alpha sRGB images at 8 or 16 bits made from them on demand."""
+
+    def __init__(self, renderer: Renderer, depth: bool):
+        self.alpha = renderer.alpha
+        self.linear: Optional[np.ndarray] = None
+        self._images: dict[int, np.ndarray] = {}
+        if renderer.target == "float":
+            self.linear = renderer.read_linear()
+        else:
+            self._images[8] = renderer.read()
+        self.depth_m = renderer.read_depth_m() if depth else None
+
+    def image(self, bits: int) -> np.ndarray:
+        if bits not in self._images:
+            self._images[bits] = encode_premultiplied_linear(self.linear, bits, self.alpha)
+        return self._images[bits]
+
+
+class _PngFiles:
+    """The PNG sequence of a job, 8 or 16 bits per channel."""
+
+    def __init__(self, job: RenderJob):
+        self.job = job
+
+    def reusable(self, frame: int, digest: str) -> bool:
+        return reusable_png(self.job, frame, digest)
+
+    def write(self, frame: int, drawn: _Drawn, digest: str) -> None:
+        path = self.job.png_path(frame)
+        if self.job.png_bits == 16:
+            write_png16(path, drawn.image(16), {PNG_SETTINGS_KEY: digest})
+        else:
+            write_png(path, drawn.image(8), digest)
+
+    def video_image(self, frame: int, bits: int) -> Optional[np.ndarray]:
+        """The kept PNG as video input, or None if it has fewer bits than the video needs."""
+        if self.job.png_bits < bits:
+            return None
+        path = self.job.png_path(frame)
+        return read_png16(path) if self.job.png_bits == 16 else read_png(path)
+
+
+class _ExrFiles:
+    """The EXR sequence of a job (fraytool.render.exr)."""
+
+    def __init__(self, job: RenderJob):
+        self.job = job
+
+    def reusable(self, frame: int, digest: str) -> bool:
+        return exr_settings(self.job.exr_path(frame)) == (digest, self.job.size)
+
+    def write(self, frame: int, drawn: _Drawn, digest: str) -> None:
+        write_exr(self.job.exr_path(frame), drawn.linear, drawn.depth_m, digest)
+
+    def video_image(self, frame: int, bits: int) -> Optional[np.ndarray]:
+        return encode_premultiplied_linear(read_exr_rgba(self.job.exr_path(frame)), bits, self.job.alpha)
+
+
+def _kept_video_image(files: list, frame: int, bits: int) -> Optional[np.ndarray]:
+    """The video input for a frame whose files are all kept: from the first file that has enough bits."""
+    for f in files:
+        try:
+            image = f.video_image(frame, bits)
+        except (OSError, ValueError):  # unreadable after all: the frame is drawn again
+            image = None
+        if image is not None:
+            return image
+    return None
+
+
 def render_job(job: RenderJob, ctx: moderngl.Context, store: FrameStore, stream: TextIO = sys.stderr,
                progress: Optional[bool] = None) -> RenderResult:
     """Render job.frames from the frame records in `store`; returns counts and stage times."""
     topology = store.load_topology()
+    files: list = []
     if job.png:
         sweep_temp_files(job.png_dir)  # PNGs of a killed render (the caller holds the folder's lock)
+        files.append(_PngFiles(job))
+    if job.exr:
+        sweep_temp_files(job.exr_dir)
+        files.append(_ExrFiles(job))
     W, H = job.size
     renderer = Renderer(ctx, job.size, job.samples, job.spec.render, job.spec.camera, topology, job.wireframe,
-                        alpha=job.alpha)
+                        alpha=job.alpha, target=job.target, depth=job.exr)
     digest = job.digest(renderer.samples)
     builder = GeometryBuilder(topology, YarnStyle.from_spec(job.spec.render, topology), renderer.camera, H)
     want_yarns = job.wireframe != "only"
     want_lines = job.wireframe != "off"
-    result = RenderResult(png_dir=str(job.png_dir) if job.png else None)
-    writer: Optional[Mp4Writer] = None
+    video_bits = 16 if job.codec == "prores" else 8
+    result = RenderResult(png_dir=str(job.png_dir) if job.png else None,
+                          exr_dir=str(job.exr_dir) if job.exr else None)
+    writer: Optional[VideoWriter] = None
     frames = job.frames.frames()
     bar = Progress(len(frames), job.spec.name, stream=stream, enabled=progress, stage="render")
     try:
-        if job.mp4:
-            writer = Mp4Writer(job.mp4_path, job.size, job.spec.time.fps, crf=job.spec.output.crf,
-                               background_srgb=job.spec.render.background)
+        if job.video:
+            writer = VideoWriter(job.video_path, job.size, job.spec.time.fps, crf=job.spec.output.crf,
+                                 background_srgb=job.spec.render.background, codec=job.codec)
         for i, frame in enumerate(frames):
             t0 = time.perf_counter()
-            png_digest = frame_digest(digest, store, frame) if job.png else ""
-            if job.png and reusable_png(job, frame, png_digest):
-                image = read_png(job.png_path(frame)) if writer is not None else None
+            file_digest = frame_digest(digest, store, frame) if files else ""
+            stale = [f for f in files if not f.reusable(frame, file_digest)]
+            image = None
+            kept = bool(files) and not stale
+            if kept and writer is not None:
+                image = _kept_video_image(files, frame, video_bits)
+                kept = image is not None
+            if kept:
                 result.reused += 1
                 t2 = time.perf_counter()
             else:
                 record = store.load_frame(frame)
                 geom = builder.build(record, yarns=want_yarns, lines=want_lines)
                 t1 = time.perf_counter()
-                image = renderer.render(geom)
+                renderer.draw(geom)
+                drawn = _Drawn(renderer, depth=job.exr)
+                image = drawn.image(video_bits) if writer is not None else None
                 t2 = time.perf_counter()
                 result.stage_s["geometry"] += t1 - t0
                 result.stage_s["draw_readback"] += t2 - t1
-                if job.png:
-                    write_png(job.png_path(frame), image, png_digest)
+                for f in stale:
+                    f.write(frame, drawn, file_digest)
                 result.rendered += 1
             if writer is not None:
                 writer.write(image)
@@ -96,7 +188,7 @@ def render_job(job: RenderJob, ctx: moderngl.Context, store: FrameStore, stream:
             bar.update(i + 1, f"frame {frame}")
         if writer is not None:
             t3 = time.perf_counter()
-            result.mp4 = str(writer.close())
+            result.video = str(writer.close())
             result.stage_s["encode"] += time.perf_counter() - t3
             writer = None
     finally:

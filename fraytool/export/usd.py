@@ -1,0 +1,262 @@
+"""USD export (`fraytool export SCENE --usd OUT.usd`): the yarns and bodies of a shot, a time sample per frame.
+
+Stage layout (the default prim is named after the scene, made a valid USD identifier):
+
+    /<scene>                 Xform
+    /<scene>/Yarns/Weft      BasisCurves: every weft piece of the frame
+    /<scene>/Yarns/Warp      BasisCurves: every warp piece
+    /<scene>/Bodies/<name>   Sphere (radius), Cube (size 2, scaled by the half extents) or Plane
+
+Yarns: `type` cubic, `basis` catmullRom, `wrap` pinned (the curve runs through its first and last
+point too). The points are the centre-line points the renderer's splines pass through
+(fraytool.render.yarns: a crossing's weft and warp points, the masses of a yarn-level couple), one curve
+per unbroken piece, so `curveVertexCounts` changes as the cloth tears and is time-sampled with the
+points. USD's catmullRom is the uniform spline and the renderer's the centripetal one: both pass
+through the same points. Per vertex: `widths`, the drawn yarn diameter (2 x [render] yarn_radius_m,
+by default the cloth thickness), and `primvars:displayOpacity`, the renderer's fade towards broken ends
+(1 elsewhere). Constant `primvars:displayColor`: [render] weft_color / warp_color, decoded from sRGB
+to linear (as USD renderers expect). Per curve (uniform) `primvars:fraytool:yarn`: the yarn index
+(j of a weft, i of a warp).
+
+Bodies: xformOps translate (double3) and orient (quatf) sampled per frame from the frame record, plus
+a constant scale for boxes; planes are squares of 20 x the cloth's size, their normal along the
+plane's own axis. displayColor: [render] body_color, linear.
+
+Stage: metersPerUnit 1, upAxis Y or Z (whichever of the two the scene camera's up leans to; the
+shipped scenes have Y), timeCodesPerSecond = framesPerSecond = [time] fps, a time code per scene
+frame (frame k at time code k), start and end time codes the first and last exported frame. The
+file is written to a hidden temp file beside OUT and renamed when complete.
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Callable, Iterable, Mapping, Optional
+
+import numpy as np
+
+from fraytool import __version__
+from fraytool.errors import InputError, RunError
+from fraytool.io.frame_record import FrameRecord
+from fraytool.kinds import SHAPE_BOX, SHAPE_PLANE, SHAPE_SPHERE
+from fraytool.render.bodies import rotation_from_y
+from fraytool.render.color import srgb_to_linear
+from fraytool.render.encode import partial_path, remove_stale_partials
+from fraytool.render.geometry import YarnStyle, yarn_curves
+from fraytool.render.yarns import WARP, WEFT
+from fraytool.scene import scene_hash
+from fraytool.scene.spec import SceneSpec
+
+USD_SUFFIXES = (".usd", ".usda", ".usdc")
+"""File name endings USD picks its format by: .usd and .usdc binary (crate), .usda text."""
+INSTALL_HINT = 'pip install "fraytool[usd]"'
+PLANE_SCALE = 20.0
+"""A plane body is drawn as a square this many times the cloth's size."""
+
+
+def require_usd() -> None:
+    """InputError (exit 2) naming the install command when the USD library is missing."""
+    try:
+        from pxr import Usd  # noqa: F401
+    except ImportError:
+        raise InputError(f"--usd needs the USD Python library (pxr, from usd-core), which is not installed: "
+                         f"{INSTALL_HINT}") from None
+
+
+def check_usd_path(path: Path) -> Path:
+    """The --usd file name, which must end in .usd, .usda or .usdc."""
+    path = Path(path)
+    if path.suffix.lower() not in USD_SUFFIXES or not path.stem:
+        raise InputError(f"--usd {str(path)!r}: expected a file name ending in {', '.join(USD_SUFFIXES)} "
+                         "(.usd and .usdc binary, .usda text), e.g. shot.usd")
+    return path
+
+
+def up_axis(camera_up) -> str:
+    """"Y" or "Z" (the two axes USD allows), whichever the camera's up vector leans to more."""
+    up = np.abs(np.asarray(camera_up, dtype=np.float64))
+    return "Y" if up[1] >= up[2] else "Z"
+
+
+def quaternion_wxyz(rotation: np.ndarray) -> np.ndarray:
+    """Unit quaternion (w, x, y, z) of a rotation matrix R (x_world = R x_local), by Shepperd's method."""
+    R = np.asarray(rotation, dtype=np.float64)
+    t = np.trace(R)
+    if t > 0.0:
+        s = 2.0 * np.sqrt(t + 1.0)
+        q = [0.25 * s, (R[2, 1] - R[1, 2]) / s, (R[0, 2] - R[2, 0]) / s, (R[1, 0] - R[0, 1]) / s]
+    elif R[0, 0] > R[1, 1] and R[0, 0] > R[2, 2]:
+        s = 2.0 * np.sqrt(1.0 + R[0, 0] - R[1, 1] - R[2, 2])
+        q = [(R[2, 1] - R[1, 2]) / s, 0.25 * s, (R[0, 1] + R[1, 0]) / s, (R[0, 2] + R[2, 0]) / s]
+    elif R[1, 1] > R[2, 2]:
+        s = 2.0 * np.sqrt(1.0 + R[1, 1] - R[0, 0] - R[2, 2])
+        q = [(R[0, 2] - R[2, 0]) / s, (R[0, 1] + R[1, 0]) / s, 0.25 * s, (R[1, 2] + R[2, 1]) / s]
+    else:
+        s = 2.0 * np.sqrt(1.0 + R[2, 2] - R[0, 0] - R[1, 1])
+        q = [(R[1, 0] - R[0, 1]) / s, (R[0, 2] + R[2, 0]) / s, (R[1, 2] + R[2, 1]) / s, 0.25 * s]
+    q = np.asarray(q)
+    return q / np.linalg.norm(q)
+
+
+class _YarnPrim:
+    """One BasisCurves prim (all weft or all warp pieces) and its time-sampled attributes."""
+
+    def __init__(self, stage, path: str, color_srgb, width_m: float):
+        from pxr import Gf, Sdf, UsdGeom
+
+        self.width_m = width_m
+        c = UsdGeom.BasisCurves.Define(stage, path)
+        c.CreateTypeAttr(UsdGeom.Tokens.cubic)
+        c.CreateBasisAttr(UsdGeom.Tokens.catmullRom)
+        c.CreateWrapAttr(UsdGeom.Tokens.pinned)
+        c.CreateDisplayColorPrimvar(UsdGeom.Tokens.constant).Set([Gf.Vec3f(*map(float, srgb_to_linear(color_srgb)))])
+        self.counts = c.CreateCurveVertexCountsAttr()
+        self.points = c.CreatePointsAttr()
+        self.widths = c.CreateWidthsAttr()
+        c.SetWidthsInterpolation(UsdGeom.Tokens.vertex)
+        self.opacity = c.CreateDisplayOpacityPrimvar(UsdGeom.Tokens.vertex)
+        self.yarn = UsdGeom.PrimvarsAPI(c).CreatePrimvar("fraytool:yarn", Sdf.ValueTypeNames.IntArray,
+                                                         UsdGeom.Tokens.uniform)
+        self.extent = c.CreateExtentAttr()
+
+    def set(self, time: float, points: np.ndarray, offsets: np.ndarray, opacity: np.ndarray, yarn: np.ndarray) -> None:
+        from pxr import Vt
+
+        p = np.ascontiguousarray(points, dtype=np.float32).reshape(-1, 3)
+        self.counts.Set(Vt.IntArray.FromNumpy(np.diff(offsets).astype(np.int32)), time)
+        self.points.Set(Vt.Vec3fArray.FromNumpy(p), time)
+        self.widths.Set(Vt.FloatArray.FromNumpy(np.full(len(p), self.width_m, np.float32)), time)
+        self.opacity.Set(Vt.FloatArray.FromNumpy(np.ascontiguousarray(opacity, dtype=np.float32)), time)
+        self.yarn.Set(Vt.IntArray.FromNumpy(np.ascontiguousarray(yarn, dtype=np.int32)), time)
+        if len(p):
+            half = 0.5 * self.width_m
+            lo, hi = p.min(axis=0) - half, p.max(axis=0) + half
+            self.extent.Set(Vt.Vec3fArray.FromNumpy(np.stack([lo, hi]).astype(np.float32)), time)
+
+
+def _pieces_of(curves, kind: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(points, offsets, opacity, yarn) of the pieces of one kind."""
+    sel = np.nonzero(curves.kind == kind)[0]
+    counts = np.diff(curves.offsets)[sel]
+    starts = curves.offsets[:-1][sel]
+    idx = np.repeat(starts - np.concatenate([[0], np.cumsum(counts)[:-1]]), counts) + np.arange(counts.sum())
+    offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+    return curves.points[idx], offsets, curves.opacity[idx], curves.yarn[sel]
+
+
+def _define_bodies(stage, root: str, spec: SceneSpec, topology: Mapping[str, np.ndarray]) -> list:
+    """One prim per body with its xformOps; returns (translate op, orient op, extra rotation) per body
+    (None for a body that cannot be drawn)."""
+    from pxr import Gf, Tf, UsdGeom
+
+    shapes = np.asarray(topology.get("body_shape", np.zeros(0, np.int8)))
+    radius = np.asarray(topology.get("body_radius_m", np.zeros(len(shapes))))
+    half = np.asarray(topology.get("body_half_extents_m", np.zeros((len(shapes), 3))))
+    normal = np.asarray(topology.get("body_normal", np.tile([0.0, 1.0, 0.0], (len(shapes), 1))))
+    rest = np.asarray(topology.get("crossing_rest_position_m", np.zeros((1, 3))))
+    cloth_size = float(np.linalg.norm(rest.max(axis=0) - rest.min(axis=0))) if len(rest) else 0.0
+    names = [b.name for b in spec.bodies] if len(spec.bodies) == len(shapes) else [f"body_{i}" for i in range(len(shapes))]
+    colour = [Gf.Vec3f(*map(float, srgb_to_linear(spec.render.body_color)))]
+    UsdGeom.Xform.Define(stage, f"{root}/Bodies")
+    used: set[str] = set()
+    ops = []
+    for b, shape in enumerate(shapes):
+        name = Tf.MakeValidIdentifier(names[b])
+        while name in used:
+            name += "_"
+        used.add(name)
+        path = f"{root}/Bodies/{name}"
+        extra = np.eye(3)
+        if shape == SHAPE_SPHERE:
+            prim = UsdGeom.Sphere.Define(stage, path)
+            prim.CreateRadiusAttr(float(radius[b]))
+        elif shape == SHAPE_BOX:
+            prim = UsdGeom.Cube.Define(stage, path)
+            prim.CreateSizeAttr(2.0)
+        elif shape == SHAPE_PLANE:
+            prim = UsdGeom.Plane.Define(stage, path)
+            prim.CreateAxisAttr(UsdGeom.Tokens.y)
+            prim.CreateWidthAttr(PLANE_SCALE * max(cloth_size, 1e-3))
+            prim.CreateLengthAttr(PLANE_SCALE * max(cloth_size, 1e-3))
+            prim.CreateDoubleSidedAttr(True)
+            extra = rotation_from_y(normal[b])  # the plane's +y axis onto its normal (in the body's frame)
+        else:
+            ops.append(None)
+            continue
+        prim.CreateDisplayColorPrimvar(UsdGeom.Tokens.constant).Set(colour)
+        translate = prim.AddTranslateOp(UsdGeom.XformOp.PrecisionDouble)
+        orient = prim.AddOrientOp(UsdGeom.XformOp.PrecisionFloat)
+        if shape == SHAPE_BOX:
+            prim.AddScaleOp(UsdGeom.XformOp.PrecisionFloat).Set(Gf.Vec3f(*map(float, half[b])))
+        ops.append((translate, orient, extra))
+    return ops
+
+
+def write_usd(path: Path, spec: SceneSpec, topology: Mapping[str, np.ndarray], records: Iterable[FrameRecord],
+              on_frame: Optional[Callable[[int], None]] = None) -> Path:
+    """Write the frame records (in time order) as a USD stage at `path` (see the module docstring);
+    `on_frame(n)` is called after each of them (n = records done). Returns the path."""
+    from pxr import Gf, Tf, Usd, UsdGeom
+
+    path = check_usd_path(path)
+    stage = Usd.Stage.CreateInMemory()
+    UsdGeom.SetStageMetersPerUnit(stage, 1.0)
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y if up_axis(spec.camera.up) == "Y" else UsdGeom.Tokens.z)
+    fps = float(spec.time.fps)
+    stage.SetTimeCodesPerSecond(fps)
+    stage.SetFramesPerSecond(fps)
+    root_name = Tf.MakeValidIdentifier(spec.name)
+    root = f"/{root_name}"
+    stage.SetDefaultPrim(UsdGeom.Xform.Define(stage, root).GetPrim())
+    stage.GetRootLayer().customLayerData = {"fraytool:version": __version__, "fraytool:scene_hash": scene_hash(spec),
+                                            "fraytool:scene": spec.name}
+    style = YarnStyle.from_spec(spec.render, topology)
+    UsdGeom.Scope.Define(stage, f"{root}/Yarns")
+    width = 2.0 * style.radius_m
+    prims = {WEFT: _YarnPrim(stage, f"{root}/Yarns/Weft", spec.render.weft_color, width),
+             WARP: _YarnPrim(stage, f"{root}/Yarns/Warp", spec.render.warp_color, width)}
+    bodies = _define_bodies(stage, root, spec, topology)
+
+    first = last = None
+    for n, record in enumerate(records, start=1):
+        t = float(record.frame)
+        first = t if first is None else first
+        last = t
+        curves = yarn_curves(topology, record, style)
+        for kind, prim in prims.items():
+            prim.set(t, *_pieces_of(curves, kind))
+        for b, body in enumerate(bodies):
+            if body is None:
+                continue
+            translate, orient, extra = body
+            translate.Set(Gf.Vec3d(*map(float, record.body_position_m[b])), t)
+            w, x, y, z = quaternion_wxyz(np.asarray(record.body_rotation[b], np.float64) @ extra)
+            orient.Set(Gf.Quatf(float(w), float(x), float(y), float(z)), t)
+        if on_frame is not None:
+            on_frame(n)
+    if first is None:
+        raise ValueError("no frames to export")
+    stage.SetStartTimeCode(first)
+    stage.SetEndTimeCode(last)
+
+    remove_stale_partials(path)
+    tmp = partial_path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        try:
+            written, why = stage.GetRootLayer().Export(str(tmp)), "no reason given"
+        except Tf.ErrorException as exc:  # USD reports failed writes (a read-only folder, ...) this way
+            written, why = False, " ".join(str(exc).split())
+        if not written:
+            raise RunError(f"{path}: USD could not write the file ({why}): check that the folder is writable "
+                           "and has space, or choose another --usd path")
+        fd = os.open(tmp, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    return path
