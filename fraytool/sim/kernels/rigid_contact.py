@@ -123,6 +123,7 @@ def collide_rigid(
         reach = bounding_radius(body_shape[k], body_radius_m[k], body_half_extents_m[k], margin_m)
         reach2 = reach * reach
         plane = body_shape[k] == SHAPE_PLANE
+        sphere = body_shape[k] == SHAPE_SPHERE
         rotation = body_rotation[k]
         normal = body_normal[k]
         pnx = rotation[0, 0] * normal[0] + rotation[0, 1] * normal[1] + rotation[0, 2] * normal[2]
@@ -146,10 +147,23 @@ def collide_rigid(
             x0 = x[0]
             x1 = x[1]
             x2 = x[2]
-            d, nx, ny, nz = project_out_of_body(k, body_shape, body_rotation, body_radius_m, body_half_extents_m,
-                                                body_normal, body_position_m, margin_m, x)
+            if plane:  # `surface_contact` for a plane, inlined: the same expressions
+                d = ex * pnx + ey * pny + ez * pnz - margin_m
+                nx, ny, nz = pnx, pny, pnz
+            elif sphere:  # likewise for a sphere
+                r = math.sqrt(ex * ex + ey * ey + ez * ez)
+                if r < 1e-15:
+                    d, nx, ny, nz = -(body_radius_m[k] + margin_m), 0.0, 1.0, 0.0
+                else:
+                    d, nx, ny, nz = r - body_radius_m[k] - margin_m, ex / r, ey / r, ez / r
+            else:
+                d, nx, ny, nz = surface_contact(body_shape[k], body_position_m[k], rotation, body_radius_m[k],
+                                                body_half_extents_m[k], normal, x, margin_m)
             if d >= 0.0:
                 continue
+            x[0] -= d * nx  # out along the normal (`project_out_of_body`)
+            x[1] -= d * ny
+            x[2] -= d * nz
             contacts += 1
             # friction on the displacement relative to the body over the step
             rx = x[0] - prev_position_m[p, 0] - dt_s * body_velocity_m_s[k, 0]
