@@ -113,7 +113,7 @@ class RenderJob:
         """Digest of the pixels; `effective_samples` is the MSAA count after clamping to the context."""
         shaders = hashlib.sha256()
         for p in sorted(shader_dir().glob("*.*")):
-            if p.suffix in (".vert", ".frag", ".geom"):
+            if p.suffix in (".vert", ".frag", ".geom", ".glsl"):
                 shaders.update(p.name.encode() + b"\0" + p.read_bytes())
         settings = {
             "scene_hash": scene_hash(self.spec),
