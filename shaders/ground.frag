@@ -13,6 +13,13 @@ uniform vec3 u_axis_v;
 uniform float u_cell;            // checker cell size [m]
 uniform float u_fade_radius;     // distance where the plane has faded out [m]
 uniform float u_alpha_out;       // 1: fade into transparency (premultiplied), 0: into the background
+#ifdef FILL
+uniform float u_fill_intensity;  // soft fill: hemisphere light around u_fill_dir
+uniform vec3 u_fill_dir;
+#endif
+#ifdef SHADOWS
+#include "shadow.glsl"
+#endif
 
 in vec3 v_position;
 in vec3 v_normal;
@@ -26,7 +33,15 @@ void main() {
     vec3 N = normalize(v_normal);
     float diffuse = abs(dot(N, u_light_dir));
     vec3 albedo = u_color * mix(0.85, 1.0, checker);
-    vec3 color = albedo * (u_ambient + u_light_intensity * diffuse);
+    float key = u_light_intensity;
+#ifdef SHADOWS
+    key *= key_light_visibility(v_position, N);
+#endif
+    float ambient = u_ambient;
+#ifdef FILL
+    ambient += u_fill_intensity * (0.5 + 0.5 * dot(N, u_fill_dir));
+#endif
+    vec3 color = albedo * (ambient + key * diffuse);
     float fade = smoothstep(0.35 * u_fade_radius, u_fade_radius, length(d));
     if (u_alpha_out > 0.5) {
         f_color = vec4(color * (1.0 - fade), 1.0 - fade);

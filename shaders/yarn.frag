@@ -17,10 +17,20 @@ uniform float u_light_intensity;
 uniform float u_ambient;
 uniform float u_specular;
 uniform float u_kajiya_weight;   // 0: Lambert only, 1: Kajiya-Kay diffuse only
+#ifdef FILL
+uniform float u_fill_intensity;  // soft fill: hemisphere light around u_fill_dir
+uniform vec3 u_fill_dir;
+#endif
+#ifdef SHADOWS
+#include "shadow.glsl"
+#endif
 
 in vec3 v_normal;
 in vec2 v_kajiya;
 in vec4 v_albedo;
+#ifdef SHADOWS
+in vec3 v_position;
+#endif
 
 out vec4 f_color;
 
@@ -29,7 +39,15 @@ void main() {
     float n_l = dot(N, u_light_dir);
     float diffuse = mix(max(n_l, 0.0), v_kajiya.x, u_kajiya_weight);
     float highlight = u_specular * v_kajiya.y * smoothstep(-0.2, 0.3, n_l);
-    vec3 color = v_albedo.rgb * (u_ambient + u_light_intensity * diffuse) + vec3(u_light_intensity * highlight);
+    float key = u_light_intensity;
+#ifdef SHADOWS
+    key *= key_light_visibility(v_position, N);
+#endif
+    float ambient = u_ambient;
+#ifdef FILL
+    ambient += u_fill_intensity * (0.5 + 0.5 * dot(N, u_fill_dir));
+#endif
+    vec3 color = v_albedo.rgb * (ambient + key * diffuse) + vec3(key * highlight);
     // Clamped as a fixed-point target clamps before blending, so a float target blends the same:
     // with MSAA, attributes are evaluated at the pixel centre, which may lie outside the triangle,
     // and the fade alpha extrapolated there can leave [0, 1].

@@ -21,6 +21,9 @@ in float in_warp;
 out vec3 v_normal;
 out vec2 v_kajiya;               // (diffuse sin(T, L), specular cos(thetaL - thetaE)^p)
 out vec4 v_albedo;               // linear RGB and alpha
+#ifdef SHADOWS
+out vec3 v_position;             // world position [m], for the shadow lookup
+#endif
 
 void main() {
     vec3 T = normalize(in_tangent);
@@ -35,5 +38,8 @@ void main() {
     v_kajiya = vec2(sin_tl, pow(cos_cone, u_shininess));
     v_normal = in_normal;
     v_albedo = vec4(mix(u_weft_color, u_warp_color, in_warp), in_alpha);
+#ifdef SHADOWS
+    v_position = in_position;
+#endif
     gl_Position = u_view_proj * vec4(in_position, 1.0);
 }

@@ -2,7 +2,9 @@
 
 Scene: tests/scenes/golden_small.toml (12 x 12 plain weave over a ball, 160 x 120, 4x MSAA), posed
 analytically by tests/conftest.py at three frames: flat (0), draped (1), draped and torn with
-yarn-level crossings and fading cut ends (2), plus frame 2 with the wireframe beside it.
+yarn-level crossings and fading cut ends (2), plus frame 2 with the wireframe beside it, and frame 2
+lit with key-light shadows, the ground plane and a fill light (LIT). Regenerate one golden with
+`pytest tests/test_render_golden.py -k NAME --update-goldens` (all with no -k) and review the image.
 
 Tolerance (fraytool.render.imagecompare): RMS over 8-bit values <= 1.0, and at most 0.2 % of pixels
 with a channel differing by more than 16. Repeated renders on one machine are bit-identical; the
@@ -34,12 +36,17 @@ CASES = {
     "golden_small_f1_draped": ("draped", "off"),
     "golden_small_f2_torn": ("torn", "off"),
     "golden_small_f2_torn_beside": ("torn", "beside"),
+    "golden_small_f2_torn_lit": ("torn", "off"),
 }
+LIT = {"golden_small_f2_torn_lit": dict(shadows=True, shadow_map_size=1024, fill_intensity=0.3,
+                                        light_direction=(0.6, 1.0, 0.2))}
+"""Render keys a case turns on over the scene's (which already has the ground plane): the torn frame
+with key-light shadows, the ground and a fill light."""
 
 
 def render_case(ctx, pc, name: str, render=None, camera=None) -> np.ndarray:
     pose, wireframe = CASES[name]
-    render = render or pc.spec.render
+    render = render or dataclasses.replace(pc.spec.render, **LIT.get(name, {}))
     size = tuple(render.resolution)
     record = getattr(pc, pose)()
     renderer = Renderer(ctx, size, render.samples, render, camera or pc.spec.camera, pc.topology, wireframe)
@@ -128,3 +135,10 @@ def test_failure_writes_expected_actual_and_diff(tmp_path):
         assert (folder / f).is_file()
     diff = np.asarray(Image.open(folder / "diff.png"))
     assert diff[3, 3].tolist() == [255, 255, 255] and diff[0, 0].tolist() == [0, 0, 0]   # amplified x8
+
+
+def test_comparison_catches_the_shadows_turned_off(gl_ctx, posed_cloth):
+    name = "golden_small_f2_torn_lit"
+    render = dataclasses.replace(posed_cloth.spec.render, **{**LIT[name], "shadows": False})
+    diff = compare_images(_golden(name), render_case(gl_ctx, posed_cloth, name, render=render))
+    assert not diff.ok, diff.describe()

@@ -119,6 +119,10 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--camera-position", metavar="X,Y,Z", help="override [camera] position_m")
     r.add_argument("--camera-target", metavar="X,Y,Z", help="override [camera] target_m")
     r.add_argument("--fov", type=float, help="override [camera] fov_deg")
+    r.add_argument("--fit", action="store_true",
+                   help="frame the cloth (as [camera] fit = true): keep the view direction and fov, aim at the centre "
+                        "of every yarn point and body over the whole shot and move the camera along its view axis "
+                        "until they all fit, with [camera] fit_margin free; simulates the whole shot first")
     r.add_argument("-v", "--verbose", action="store_true", help="print the GL renderer and version")
     r.add_argument("--force", action="store_true", help="run even if the memory estimate exceeds what is available")
     _progress_flag(r)

@@ -41,6 +41,23 @@ def ensure_frames(spec: SceneSpec, out_dir: Path, needed: int, stream: TextIO = 
     return store
 
 
+def fitted_job(job, store: FrameStore):
+    """The job with its camera fitted to every frame record of the scene (fraytool.render.fit)."""
+    import dataclasses
+
+    from fraytool.render.fit import fit_camera, shot_points
+
+    topology = store.load_topology()
+    records = (store.load_frame(f) for f in range(job.spec.time.frames))
+    w, h = job.spec.render.resolution
+    camera = fit_camera(job.spec.camera, shot_points(topology, records), w / h)
+    return dataclasses.replace(job, spec=dataclasses.replace(job.spec, camera=camera))
+
+
+def _fmt(v) -> str:
+    return "(" + ", ".join(f"{x:.4f}" for x in v) + ")"
+
+
 class _Terminated(SystemExit):
     """SIGTERM (a farm scheduler pre-empting the job) turned into an exception, so the same clean-up
     as for Ctrl-C runs: ffmpeg stopped, the partial video deleted, the GL context released."""
@@ -97,7 +114,15 @@ def _render(args, stream: Optional[TextIO]) -> int:
         from fraytool.render.sequence import render_job
 
         with OutputLock(job.out_dir, "render", wait_stream=stream):
-            store = ensure_frames(job.spec, job.out_dir, job.frames.end, stream)
+            if job.spec.camera.fit:
+                # the fit covers the whole shot, so farm shards of one scene agree on the camera
+                store = ensure_frames(job.spec, job.out_dir, job.spec.time.frames, stream)
+                job = fitted_job(job, store)
+                cam = job.spec.camera
+                print(f"fraytool: --fit: camera at {_fmt(cam.position_m)} looking at {_fmt(cam.target_m)}",
+                      file=stream)
+            else:
+                store = ensure_frames(job.spec, job.out_dir, job.frames.end, stream)
             result = render_job(job, ctx, store, stream=stream)
     finally:
         ctx.release()

@@ -113,7 +113,7 @@ class RenderJob:
         """Digest of the pixels; `effective_samples` is the MSAA count after clamping to the context."""
         shaders = hashlib.sha256()
         for p in sorted(shader_dir().glob("*.*")):
-            if p.suffix in (".vert", ".frag", ".geom"):
+            if p.suffix in (".vert", ".frag", ".geom", ".glsl"):
                 shaders.update(p.name.encode() + b"\0" + p.read_bytes())
         settings = {
             "scene_hash": scene_hash(self.spec),
@@ -132,7 +132,7 @@ class RenderJob:
 
 
 def with_overrides(spec: SceneSpec, *, resolution=None, samples=None, camera_position=None, camera_target=None,
-                   fov=None) -> SceneSpec:
+                   fov=None, fit=False) -> SceneSpec:
     """The scene with command-line overrides applied (None keeps the scene's value)."""
     cam = spec.camera
     cam = dataclasses.replace(
@@ -140,6 +140,7 @@ def with_overrides(spec: SceneSpec, *, resolution=None, samples=None, camera_pos
         position_m=tuple(camera_position) if camera_position is not None else cam.position_m,
         target_m=tuple(camera_target) if camera_target is not None else cam.target_m,
         fov_deg=float(fov) if fov is not None else cam.fov_deg,
+        fit=cam.fit or bool(fit),
     )
     render = spec.render
     render = dataclasses.replace(
@@ -186,7 +187,8 @@ def build_job(spec: SceneSpec, args, out: Path) -> RenderJob:
     position = parse_vec3("--camera-position", args.camera_position) if args.camera_position else None
     target = parse_vec3("--camera-target", args.camera_target) if args.camera_target else None
     spec = with_overrides(spec, resolution=resolution, samples=check_samples(args.samples),
-                          camera_position=position, camera_target=target, fov=check_fov(args.fov))
+                          camera_position=position, camera_target=target, fov=check_fov(args.fov),
+                          fit=bool(getattr(args, "fit", False)))
     if args.frames:
         frames, ranged = parse_frame_range(args.frames, spec.time.frames), True
     else:

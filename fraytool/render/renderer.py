@@ -55,6 +55,7 @@ from fraytool.render.color import (
 from fraytool.errors import RunError
 from fraytool.render.context import check_gl_error
 from fraytool.render.geometry import FrameGeometry
+from fraytool.render.shadow_pass import ShadowPass
 from fraytool.resources import shader_source
 from fraytool.scene.spec import CameraSpec, RenderSpec
 
@@ -87,11 +88,29 @@ def panels(width: int, wireframe: str) -> list[Panel]:
     return [Panel("shaded", 0, half), Panel("wireframe", half, width - half)]
 
 
-def load_program(ctx: moderngl.Context, vertex: str, fragment: str) -> moderngl.Program:
-    """Compile a program from shader files in shaders/ (see fraytool.resources); a missing file or a
-    compile error is a RunError naming the files (a broken installation, not a user mistake)."""
+def _preprocess(source: str, defines: tuple[str, ...]) -> str:
+    """`#define NAME 1` for each of `defines` after the #version line, and each `#include "file"`
+    line replaced by that file of shaders/ (GLSL 330 has no include). Without defines and includes
+    the source is returned unchanged."""
+    lines = source.splitlines(keepends=True)
+    out = []
+    for line in lines:
+        stripped = line.strip()
+        if stripped.startswith("#include"):
+            out.append(shader_source(stripped.split('"')[1]) + "\n")
+        else:
+            out.append(line)
+            if stripped.startswith("#version"):
+                out += [f"#define {d} 1\n" for d in defines]
+    return "".join(out)
+
+
+def load_program(ctx: moderngl.Context, vertex: str, fragment: str, defines: tuple[str, ...] = ()) -> moderngl.Program:
+    """Compile a program from shader files in shaders/ (see fraytool.resources), with the optional
+    features named in `defines` (SHADOWS, FILL) switched on; a missing file or a compile error is a
+    RunError naming the files (a broken installation, not a user mistake)."""
     try:
-        sources = shader_source(vertex), shader_source(fragment)
+        sources = _preprocess(shader_source(vertex), defines), _preprocess(shader_source(fragment), defines)
     except OSError as exc:
         raise RunError(f"cannot read shader {exc.filename}: {exc.strerror} (is fraytool installed completely?)") from None
     try:
@@ -170,10 +189,13 @@ class Renderer:
         self._depth_out = ctx.depth_texture((W, H)) if depth else None
         self._fbo_out = ctx.framebuffer(color_attachments=[self._resolved], depth_attachment=self._depth_out)
 
-        self._yarn_prog = load_program(ctx, "yarn.vert", "yarn.frag")
-        self._body_prog = load_program(ctx, "body.vert", "body.frag")
-        self._ground_prog = load_program(ctx, "body.vert", "ground.frag")
+        features = (("SHADOWS",) if render.shadows else ()) + (("FILL",) if render.fill_intensity > 0 else ())
+        self._yarn_prog = load_program(ctx, "yarn.vert", "yarn.frag", features)
+        self._body_prog = load_program(ctx, "body.vert", "body.frag", features)
+        self._ground_prog = load_program(ctx, "body.vert", "ground.frag", features)
         self._line_prog = load_program(ctx, "line.vert", "line.frag")
+        self.shadow = (ShadowPass(ctx, render.shadow_map_size, topology, load_program(ctx, "depth.vert", "depth.frag"))
+                       if render.shadows else None)
 
         self._body_vaos = {}
         self._static = []
@@ -185,6 +207,8 @@ class Renderer:
                 ctx.vertex_array(self._body_prog, [(vbo, "3f 3f", "in_position", "in_normal")], ibo, 4),
                 ctx.vertex_array(self._ground_prog, [(vbo, "3f 3f", "in_position", "in_normal")], ibo, 4),
             )
+            if self.shadow is not None:
+                self.shadow.add_body_mesh(name, vbo, ibo)
 
         self._yarn_vbo = _Stream(ctx)
         self._opaque_ibo = _Stream(ctx)
@@ -214,9 +238,13 @@ class Renderer:
     def _set_uniforms(self, r: RenderSpec) -> None:
         light = np.asarray(r.light_direction, dtype=np.float64)
         light = light / (np.linalg.norm(light) or 1.0)
+        self._light_dir = light
         eye = self.camera.eye
         common = {"u_eye": eye, "u_light_dir": light, "u_light_intensity": r.light_intensity,
                   "u_ambient": r.ambient}
+        if r.fill_intensity > 0:
+            fill = np.asarray(r.fill_direction, dtype=np.float64)
+            common.update(u_fill_intensity=r.fill_intensity, u_fill_dir=fill / np.linalg.norm(fill))
         for prog in (self._yarn_prog, self._body_prog, self._ground_prog):
             for k, v in common.items():
                 if k in prog:
@@ -333,6 +361,17 @@ class Renderer:
         self._line_prog["u_view_proj"].write(view_proj)
         self._line_vao[1].render(moderngl.LINES, vertices=2 * lines.count)
 
+    def _draw_shadow_map(self, geom: FrameGeometry) -> None:
+        """Render the key light's depth map of this frame and hand it to the shaded programs."""
+        mesh = geom.yarns
+        have_yarns = mesh is not None and len(mesh.opaque) > 0
+        yarn_vao = self._yarn_vbo if have_yarns else None
+        light = self.shadow.draw(self._light_dir, mesh.vertices[:, :3] if have_yarns else None,
+                                 yarn_vao, self._opaque_ibo if have_yarns else None,
+                                 mesh.opaque.size if have_yarns else 0, self.bodies, geom)
+        for prog in (self._yarn_prog, self._body_prog, self._ground_prog):
+            self.shadow.bind(prog, light)
+
     def draw(self, geom: FrameGeometry) -> None:
         """Draw one frame into the multisampled framebuffer and resolve it (no read-back)."""
         W, H = self.size
@@ -340,6 +379,9 @@ class Renderer:
         self._fbo_ms.use()
         if geom.yarns is not None:
             self._upload_yarns(geom)
+        if self.shadow is not None:
+            self._draw_shadow_map(geom)
+            self._fbo_ms.use()
         if len(self.panels) == 1:
             self._fbo_ms.clear(*self._clear, depth=1.0)
         # Panels are cleared and drawn one at a time inside their scissor box, wireframe first:
@@ -412,6 +454,8 @@ class Renderer:
                 vao.release()
         for s in (self._yarn_vbo, self._opaque_ibo, self._translucent_ibo, self._line_vbo):
             s.release()
+        if self.shadow is not None:
+            self.shadow.release()
         for obj in (*self._static, self._fbo_ms, self._color_ms, self._depth_ms, self._fbo_out,
                     self._resolved, self._yarn_prog, self._body_prog, self._ground_prog, self._line_prog):
             obj.release()

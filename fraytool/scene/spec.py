@@ -188,6 +188,11 @@ class CameraSpec:
     target_m: Vec3 = key("vec3", (0.0, 0.0, 0.0), lo=-WORLD_M, hi=WORLD_M, doc="point looked at [m]")
     up: Vec3 = key("vec3", (0.0, 1.0, 0.0), doc="up direction")
     fov_deg: float = key("float", 40.0, lo=1, hi=170, doc="vertical field of view [degrees]")
+    fit: bool = key("bool", False, doc="frame the cloth: keep the view direction and fov, re-target at the centre "
+                                       "of the yarns and bodies over the rendered shot and move the eye along the "
+                                       "view axis until they fit (fraytool render --fit)")
+    fit_margin: float = key("float", 0.05, lo=0, hi=1,
+                            doc="with fit: free border around the fitted bounds, as a fraction of the frame")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -212,6 +217,13 @@ class RenderSpec:
     ground_plane: bool = key("bool", False, doc="draw a ground plane at ground_height_m")
     ground_height_m: float = key("float", 0.0, doc="height of the drawn ground plane [m]")
     body_color: Vec3 = key("color", (0.55, 0.6, 0.7), doc="sRGB colour of rigid bodies")
+    shadows: bool = key("bool", False, doc="shadows from the key light (a PCF-filtered shadow map): yarns on yarns, "
+                                           "bodies and the ground, bodies on everything")
+    shadow_map_size: int = key("int", 2048, lo=256, hi=8192, doc="side of the square shadow map [pixels]")
+    fill_intensity: float = key("float", 0.0, lo=0, hi=100,
+                                doc="soft fill light: a hemisphere light around fill_direction, N.F mapped "
+                                    "from [-1, 1] to [0, 1]; 0: none")
+    fill_direction: Vec3 = key("vec3", (0.0, 1.0, 0.0), doc="direction towards the fill light's brightest side")
 
 
 @dataclass(frozen=True, kw_only=True)

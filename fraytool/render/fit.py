@@ -1,0 +1,67 @@
+"""`fraytool render --fit` / `[camera] fit = true`: frame the cloth over a whole shot.
+
+The camera keeps its view direction (from `position_m` towards `target_m`), its up vector and its
+field of view. The points to frame are every particle of every frame record of the shot plus the
+bounding spheres of the spheres and boxes (planes are unbounded and left out). In the camera's
+basis (s right, u up, f forward) the new target is the centre of those points' bounding box; a
+point at offsets (x, y, z) from it is seen at depth D + z when the eye is D behind the target, and
+lies inside the frame when |x| <= (D + z) tx and |y| <= (D + z) ty, with tx, ty the tangents of the
+half fields of view shrunk by the margin. So the smallest distance that shows every point is
+
+    D = max over points of (max(|x| / tx, |y| / ty) - z)
+
+exactly (no bounding-sphere slack): the eye goes to target - D f.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Iterable, Mapping
+
+import numpy as np
+
+from fraytool.kinds import SHAPE_BOX, SHAPE_SPHERE
+from fraytool.render.camera import Camera
+from fraytool.scene.spec import CameraSpec
+
+
+def shot_points(topology: Mapping[str, np.ndarray], records: Iterable) -> np.ndarray:
+    """Every particle of every record, and for every sphere and box the 6 points of its bounding
+    sphere along the world axes, as (N, 3) float64."""
+    shape = np.asarray(topology.get("body_shape", np.zeros(0, np.int8)))
+    radius = np.asarray(topology.get("body_radius_m", np.zeros(len(shape))))
+    half = np.asarray(topology.get("body_half_extents_m", np.zeros((len(shape), 3))))
+    r = np.where(shape == SHAPE_SPHERE, radius, np.where(shape == SHAPE_BOX, np.linalg.norm(half, axis=-1), -1.0))
+    offsets = np.concatenate([np.eye(3), -np.eye(3)])
+    out = []
+    for record in records:
+        out.append(np.asarray(record.particle_position_m, dtype=np.float64))
+        body = np.asarray(record.body_position_m, dtype=np.float64)
+        for b in np.nonzero(r >= 0)[0]:
+            out.append(body[b] + r[b] * offsets)
+    return np.concatenate(out) if out else np.zeros((0, 3))
+
+
+def fit_camera(camera: CameraSpec, points: np.ndarray, aspect: float, margin: float | None = None) -> CameraSpec:
+    """The camera moved along its view axis and re-targeted so that every point is in frame with
+    `margin` (default the camera's fit_margin) of the half-frame free; fit is False in the result."""
+    points = np.asarray(points, dtype=np.float64)
+    if len(points) == 0:
+        return dataclasses.replace(camera, fit=False)
+    margin = camera.fit_margin if margin is None else margin
+    view = Camera(camera).view
+    s, u, f = view[0, :3], view[1, :3], -view[2, :3]
+    basis = np.stack([s, u, f])
+    local = points @ basis.T
+    lo, hi = local.min(axis=0), local.max(axis=0)
+    centre_local = 0.5 * (lo + hi)
+    target = centre_local @ basis
+    rel = local - centre_local
+    ty = math.tan(math.radians(camera.fov_deg) / 2.0) * (1.0 - margin)
+    tx = ty * aspect
+    need = np.maximum(np.abs(rel[:, 0]) / tx, np.abs(rel[:, 1]) / ty) - rel[:, 2]
+    need = np.maximum(need, -rel[:, 2] / 0.99)   # every point beyond the near plane (distance / 200)
+    distance = max(float(need.max()), 1e-3 * max(float(np.linalg.norm(hi - lo)), 1e-3))
+    eye = target - distance * f
+    return dataclasses.replace(camera, position_m=tuple(float(x) for x in eye),
+                               target_m=tuple(float(x) for x in target), fit=False)

@@ -1,0 +1,109 @@
+"""The GL side of key-light shadows: the depth map, its framebuffer and the depth-only draw of the
+casters (opaque yarn triangles, spheres and boxes) into it. The light box is fitted per frame by
+fraytool.render.shadow; the yarn, body and ground shaders sample the map (shaders/shadow.glsl).
+
+Translucent (fading) yarn ends cast no shadow: a shadow cannot fade with them in a depth map.
+"""
+from __future__ import annotations
+
+from typing import Mapping, Optional
+
+import moderngl
+import numpy as np
+
+from fraytool.render.bodies import BodySet
+from fraytool.render.shadow import NORMAL_OFFSET_TEXELS, LightFrame, caster_points, fit_light
+
+SHADOW_UNIT = 0
+"""Texture unit of the shadow map (the only texture the shaded programs use)."""
+POLYGON_OFFSET = (2.0, 4.0)
+"""glPolygonOffset(factor, units) of the depth pass: slope-scaled bias against acne."""
+
+
+def _mat4(m: np.ndarray) -> bytes:
+    return np.ascontiguousarray(np.asarray(m, dtype=np.float32).T).tobytes()
+
+
+class ShadowPass:
+    """One shadow map of `size` x `size` texels, redrawn every frame."""
+
+    def __init__(self, ctx: moderngl.Context, size: int, topology: Mapping[str, np.ndarray],
+                 program: moderngl.Program):
+        self.ctx = ctx
+        self.size = int(size)
+        self.program = program
+        self.texture = ctx.depth_texture((self.size, self.size))
+        self.texture.compare_func = "<="
+        self.texture.filter = (moderngl.LINEAR, moderngl.LINEAR)
+        self.texture.repeat_x = False
+        self.texture.repeat_y = False
+        self.fbo = ctx.framebuffer(depth_attachment=self.texture)
+        self.body_shape = np.asarray(topology.get("body_shape", np.zeros(0, np.int8)))
+        self.body_radius = np.asarray(topology.get("body_radius_m", np.zeros(len(self.body_shape))))
+        self.body_half = np.asarray(topology.get("body_half_extents_m", np.zeros((len(self.body_shape), 3))))
+        self._body_vaos: dict[str, moderngl.VertexArray] = {}
+        self._yarn_vao: Optional[tuple[tuple, moderngl.VertexArray]] = None
+
+    def add_body_mesh(self, name: str, vbo: moderngl.Buffer, ibo: moderngl.Buffer) -> None:
+        self._body_vaos[name] = self.ctx.vertex_array(self.program, [(vbo, "3f 12x", "in_position")], ibo, 4)
+
+    def _yarns(self, vbo_stream, ibo_stream) -> moderngl.VertexArray:
+        key = (vbo_stream.generation, ibo_stream.generation)
+        if self._yarn_vao is None or self._yarn_vao[0] != key:
+            if self._yarn_vao is not None:
+                self._yarn_vao[1].release()
+            vao = self.ctx.vertex_array(self.program, [(vbo_stream.buffer, "3f 32x", "in_position")],
+                                        ibo_stream.buffer, 4)
+            self._yarn_vao = (key, vao)
+        return self._yarn_vao[1]
+
+    def draw(self, light_dir: np.ndarray, yarn_positions: Optional[np.ndarray], yarn_vbo, opaque_ibo,
+             opaque_count: int, bodies: BodySet, geom) -> Optional[LightFrame]:
+        """Fit the light to this frame's casters and draw them; None when nothing casts."""
+        points, radii = caster_points(yarn_positions, self.body_shape, geom.body_position_m,
+                                      self.body_radius, self.body_half)
+        light = fit_light(light_dir, points, radii, self.size)
+        ctx = self.ctx
+        self.fbo.use()
+        self.fbo.clear(depth=1.0)
+        if light is None:
+            return None
+        ctx.enable(moderngl.DEPTH_TEST)
+        ctx.disable(moderngl.CULL_FACE)
+        ctx.polygon_offset = POLYGON_OFFSET
+        prog = self.program
+        prog["u_light_view_proj"].write(_mat4(light.view_proj))
+        for d in bodies.draws(geom.body_position_m, geom.body_rotation):
+            if d.mesh == "quad":   # planes receive, never cast
+                continue
+            prog["u_model"].write(_mat4(d.model))
+            self._body_vaos[d.mesh].render(moderngl.TRIANGLES)
+        if yarn_vbo is not None and opaque_count:
+            prog["u_model"].write(_mat4(np.eye(4)))
+            self._yarns(yarn_vbo, opaque_ibo).render(moderngl.TRIANGLES, vertices=opaque_count)
+        ctx.polygon_offset = (0.0, 0.0)
+        return light
+
+    def bind(self, prog: moderngl.Program, light: Optional[LightFrame]) -> None:
+        """Hand the map and the light's matrix to a shaded program (a frame with no casters gets a
+        matrix that maps everything to the far plane: all lit)."""
+        self.texture.use(location=SHADOW_UNIT)
+        prog["u_shadow_map"].value = SHADOW_UNIT
+        if light is None:
+            m = np.zeros((4, 4))
+            m[3, 3] = 1.0
+            m[2, 3] = 1.0
+            prog["u_light_view_proj"].write(_mat4(m))
+            prog["u_shadow_offset_m"].value = 0.0
+        else:
+            prog["u_light_view_proj"].write(_mat4(light.view_proj))
+            prog["u_shadow_offset_m"].value = NORMAL_OFFSET_TEXELS * light.texel_m
+        prog["u_shadow_texel"].value = 1.0 / self.size
+
+    def release(self) -> None:
+        for vao in self._body_vaos.values():
+            vao.release()
+        if self._yarn_vao is not None:
+            self._yarn_vao[1].release()
+        for obj in (self.fbo, self.texture, self.program):
+            obj.release()
