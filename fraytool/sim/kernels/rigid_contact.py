@@ -132,6 +132,11 @@ def collide_rigid(
         cx = body_position_m[k, 0]
         cy = body_position_m[k, 1]
         cz = body_position_m[k, 2]
+        step_x = dt_s * body_velocity_m_s[k, 0]  # the body's displacement over the step
+        step_y = dt_s * body_velocity_m_s[k, 1]
+        step_z = dt_s * body_velocity_m_s[k, 2]
+        friction = body_friction[k]
+        dynamic = body_dynamic[k]
         for p in range(particle_position_m.shape[0]):
             if particle_inv_mass[p] == 0.0:
                 continue  # inactive or held: held particles follow their body, not contacts
@@ -143,10 +148,9 @@ def collide_rigid(
                     continue  # above the plane: the signed distance `surface_contact` computes
             elif ex * ex + ey * ey + ez * ez > reach2:
                 continue  # beyond the body's bounding sphere: no contact (the test below would say so)
-            x = particle_position_m[p]
-            x0 = x[0]
-            x1 = x[1]
-            x2 = x[2]
+            x0 = particle_position_m[p, 0]
+            x1 = particle_position_m[p, 1]
+            x2 = particle_position_m[p, 2]
             if plane:  # `surface_contact` for a plane, inlined: the same expressions
                 d = ex * pnx + ey * pny + ez * pnz - margin_m
                 nx, ny, nz = pnx, pny, pnz
@@ -158,33 +162,37 @@ def collide_rigid(
                     d, nx, ny, nz = r - body_radius_m[k] - margin_m, ex / r, ey / r, ez / r
             else:
                 d, nx, ny, nz = surface_contact(body_shape[k], body_position_m[k], rotation, body_radius_m[k],
-                                                body_half_extents_m[k], normal, x, margin_m)
+                                                body_half_extents_m[k], normal, particle_position_m[p], margin_m)
             if d >= 0.0:
                 continue
-            x[0] -= d * nx  # out along the normal (`project_out_of_body`)
-            x[1] -= d * ny
-            x[2] -= d * nz
+            # out along the normal (`project_out_of_body`), in registers until written back
+            px = x0 - d * nx
+            py = x1 - d * ny
+            pz = x2 - d * nz
             contacts += 1
             # friction on the displacement relative to the body over the step
-            rx = x[0] - prev_position_m[p, 0] - dt_s * body_velocity_m_s[k, 0]
-            ry = x[1] - prev_position_m[p, 1] - dt_s * body_velocity_m_s[k, 1]
-            rz = x[2] - prev_position_m[p, 2] - dt_s * body_velocity_m_s[k, 2]
+            rx = px - prev_position_m[p, 0] - step_x
+            ry = py - prev_position_m[p, 1] - step_y
+            rz = pz - prev_position_m[p, 2] - step_z
             rn = rx * nx + ry * ny + rz * nz
             tx = rx - rn * nx
             ty = ry - rn * ny
             tz = rz - rn * nz
             tl = math.sqrt(tx * tx + ty * ty + tz * tz)
-            limit = body_friction[k] * (-d)
+            limit = friction * (-d)
             if tl > 0.0:
                 scale = 1.0 if tl <= limit else limit / tl
-                x[0] -= scale * tx
-                x[1] -= scale * ty
-                x[2] -= scale * tz
-            if body_dynamic[k]:
+                px -= scale * tx
+                py -= scale * ty
+                pz -= scale * tz
+            particle_position_m[p, 0] = px
+            particle_position_m[p, 1] = py
+            particle_position_m[p, 2] = pz
+            if dynamic:
                 m = particle_mass_kg[p] / dt_s
-                body_impulse_out[k, 0] += m * (x[0] - x0)
-                body_impulse_out[k, 1] += m * (x[1] - x1)
-                body_impulse_out[k, 2] += m * (x[2] - x2)
+                body_impulse_out[k, 0] += m * (px - x0)
+                body_impulse_out[k, 1] += m * (py - x1)
+                body_impulse_out[k, 2] += m * (pz - x2)
     return contacts
 
 
