@@ -319,16 +319,22 @@ class Renderer:
     def _draw_shaded(self, geom: FrameGeometry, view_proj: bytes) -> None:
         ctx = self.ctx
         ctx.enable(moderngl.DEPTH_TEST)
-        ctx.disable(moderngl.CULL_FACE)
-        self._draw_ground(view_proj)
-        self._draw_bodies(geom, view_proj)
+        # Opaque yarns first, then bodies, then the ground: the same pixels in any order (depth test,
+        # no blending), but the ground and bodies behind the cloth then fail the depth test before
+        # their shading (shadow lookups included) instead of being shaded and overdrawn.
         mesh = geom.yarns
-        if mesh is None or len(mesh.vertices) == 0:
+        have_yarns = mesh is not None and len(mesh.vertices) > 0
+        if have_yarns:
+            self._yarn_prog["u_view_proj"].write(view_proj)
+        if have_yarns and len(mesh.opaque):
+            ctx.enable(moderngl.CULL_FACE)
+            self._yarn_vao("opaque", self._opaque_ibo).render(moderngl.TRIANGLES, vertices=mesh.opaque.size)
+        ctx.disable(moderngl.CULL_FACE)
+        self._draw_bodies(geom, view_proj)
+        self._draw_ground(view_proj)
+        if not have_yarns:
             return
         ctx.enable(moderngl.CULL_FACE)
-        self._yarn_prog["u_view_proj"].write(view_proj)
-        if len(mesh.opaque):
-            self._yarn_vao("opaque", self._opaque_ibo).render(moderngl.TRIANGLES, vertices=mesh.opaque.size)
         if len(mesh.translucent):
             order = np.argsort(self.camera.view_depth(mesh.centroid), kind="stable")  # far first
             self._translucent_ibo.write(mesh.translucent[order])
