@@ -28,10 +28,13 @@ def test_export_without_usd_exits_2_naming_the_extra(tmp_path, capsys, monkeypat
 @pytest.mark.parametrize("flags,needle", [
     (["--usd", "shot.abc"], "--usd 'shot.abc': expected a file name ending in .usd, .usda, .usdc"),
     (["--usd", "shot.usd", "--frames", "2:9"], "--frames '2:9': expected START:END[:STEP]"),
+    (["--usd", "shot_dir/no/such/out.usd"], "does not exist; create it first"),
+    (["--usd", "shot_dir"], "is a folder: give a file name"),
 ])
 def test_export_bad_flags_exit_2(tmp_path, capsys, flags, needle):
     pytest.importorskip("pxr")
     flags = [str(tmp_path / f) if f.startswith("shot") else f for f in flags]
+    (tmp_path / "shot_dir").mkdir()
     assert main(["export", str(SCENE), "-o", str(tmp_path), *flags]) == 2
     err = capsys.readouterr().err
     assert needle.replace("'shot", f"'{tmp_path}/shot") in err and "Traceback" not in err

@@ -64,11 +64,20 @@ def require_usd() -> None:
 
 
 def check_usd_path(path: Path) -> Path:
-    """The --usd file name, which must end in .usd, .usda or .usdc."""
+    """The --usd file name, which must end in .usd, .usda or .usdc, in a folder that exists (a typo in
+    the folder must not quietly make a new tree of folders), and not be a folder itself."""
+    text = str(path)
     path = Path(path)
+    if text.endswith(("/", "\\")) or path.is_dir():
+        raise InputError(f"--usd {text!r} is a folder: give a file name ending in {', '.join(USD_SUFFIXES)}, "
+                         f"e.g. {path / 'shot.usd'}")
     if path.suffix.lower() not in USD_SUFFIXES or not path.stem:
-        raise InputError(f"--usd {str(path)!r}: expected a file name ending in {', '.join(USD_SUFFIXES)} "
+        raise InputError(f"--usd {text!r}: expected a file name ending in {', '.join(USD_SUFFIXES)} "
                          "(.usd and .usdc binary, .usda text), e.g. shot.usd")
+    parent = path.parent if str(path.parent) else Path(".")
+    if not parent.is_dir():
+        raise InputError(f"--usd {text!r}: the folder {str(parent)!r} does not exist; create it first or "
+                         "choose another path")
     return path
 
 
