@@ -9,9 +9,25 @@ cache file (``*.nbi``, ``*.nbc``) under the package is deleted before any kernel
 from __future__ import annotations
 
 import hashlib
+import os
 from pathlib import Path
 
 _STAMP = "numba_sources.sha256"
+
+
+COLD = False
+"""True when this process found no compiled kernels of the simulation on disk (first run after an
+install or an update): the first steps then compile them, about a minute (see `cold_start_note`)."""
+
+
+def cold_start_note() -> str | None:
+    """One line to print before a simulation that will compile its kernels (once per process), else None."""
+    global COLD
+    if not COLD:
+        return None
+    COLD = False
+    return ("fraytool: compiling the simulation kernels (the first run after installing or updating "
+            "fraytool; about a minute, cached for later runs)")
 
 
 def invalidate_stale_numba_cache(package_dir: Path) -> None:
@@ -19,6 +35,9 @@ def invalidate_stale_numba_cache(package_dir: Path) -> None:
 
     Best effort: an unwritable cache directory is left alone (numba then caches elsewhere).
     """
+    global COLD
+    # (a package folder we cannot write to caches elsewhere: nothing to tell then)
+    COLD = os.access(package_dir, os.W_OK) and not any((package_dir / "sim").rglob("*.nbi"))
     digest = hashlib.sha256()
     for path in sorted(package_dir.rglob("*.py")):
         digest.update(str(path.relative_to(package_dir)).encode())
@@ -30,6 +49,7 @@ def invalidate_stale_numba_cache(package_dir: Path) -> None:
             return
     except OSError:
         pass
+    COLD = os.access(package_dir, os.W_OK)
     try:
         for cache in package_dir.rglob("__pycache__"):
             for path in list(cache.glob("*.nbi")) + list(cache.glob("*.nbc")):

@@ -112,3 +112,20 @@ def test_a_negative_camera_position_needs_no_equals_sign(tmp_path):
                                    "--camera-target", "-1,-2,-3", "--fov", "40"])
     args = build_parser().parse_args(argv)
     assert args.camera_position == "-0.02,0.26,0.16" and args.camera_target == "-1,-2,-3" and args.fov == 40.0
+
+
+def test_a_cold_kernel_cache_is_announced_once(tmp_path, monkeypatch):
+    """The first simulation after an install or update compiles its kernels (about a minute): one line
+    says so before it starts; the next simulation in the same process says nothing."""
+    import io
+
+    import fraytool._numba_cache as cache
+    from fraytool.sim.run import simulate_to_disk
+    from helpers import small_scene
+
+    monkeypatch.setattr(cache, "COLD", True)
+    first, second = io.StringIO(), io.StringIO()
+    simulate_to_disk(small_scene(), tmp_path / "a", frames=2, progress=False, stream=first)
+    simulate_to_disk(small_scene(), tmp_path / "b", frames=2, progress=False, stream=second)
+    assert first.getvalue().count("compiling the simulation kernels") == 1
+    assert "compiling" not in second.getvalue()

@@ -130,6 +130,11 @@ def _simulate_locked(spec: SceneSpec, store: FrameStore, frames: Optional[int], 
 
 def _advance(spec: SceneSpec, sim: Simulation, store: FrameStore, total: int, first_write: int,
              progress, stream) -> dict:
+    from fraytool._numba_cache import cold_start_note
+
+    note = cold_start_note()
+    if note and sim.frame < total:
+        print(note, file=stream)
     bar = Progress(total, spec.name, stream=stream, enabled=progress, stage="simulate")
     t_last = time.perf_counter()
     try:
