@@ -186,3 +186,12 @@ def test_memory_estimate_grows_with_the_grid_and_with_tearing():
     torn = estimate_bytes(parse_scene(small_scene_text(nx=100, ny=100) + "[cloth.tearing]\nenabled = true\n", "c.toml"))
     assert BASE_BYTES < small < big < torn
     assert (big - BASE_BYTES) == 100 * (small - BASE_BYTES)  # linear in the crossings
+
+
+def test_an_unknown_key_in_a_table_with_sub_tables_lists_them(tmp_path, capsys):
+    """A misspelled sub-table ([cloth.sprngs] via --set) names the real ones, so the user sees what was meant."""
+    scene = tmp_path / "s.toml"
+    scene.write_text(small_scene_text())
+    assert main(["check", str(scene), "--set", "cloth.sprngs.bend_n_per_m=1"]) == 2
+    err = capsys.readouterr().err
+    assert "[cloth] sprngs" in err and "sub-tables: [cloth.springs], [cloth.strain], [cloth.tearing]" in err

@@ -199,3 +199,24 @@ def test_batch_log_reports_frames_per_stage(scene, tmp_path, capsys, monkeypatch
     assert len(lines) >= 4
     assert re.search(r"simulate 6/6 frames \([0-9.]+/s\); render 6/6 frames \([0-9.]+/s\); join 1/1 shots", lines[-1])
     assert any(re.search(r"render 3/6 frames \([0-9.]+/s, ETA [0-9]+ s\)", ln) for ln in lines), lines
+
+
+@pytest.mark.parametrize("flags,needle", [
+    (["--set", "cloth.nope=1"], "[cloth] nope = 1: unknown key"),
+    (["--frames", "0:1000"], "--frames '0:1000': expected START:END"),
+    (["--wedge", "scene.sed=1,2"], "[scene] sed = 1: unknown key"),
+])
+def test_a_batch_where_no_shot_can_run_exits_2_before_starting_a_cluster(tmp_path, capsys, monkeypatch, flags, needle):
+    """Bad input that spoils every shot is bad input (exit 2, each reason named), found before any
+    cluster starts and before anything is written."""
+    import fraytool.farm.runner as runner
+
+    def no_cluster(*a, **k):
+        raise AssertionError("a cluster was started")
+
+    monkeypatch.setattr(runner, "local_client", no_cluster)
+    out = tmp_path / "job"
+    assert main(["batch", "fig6_thrown_ball_plain", "-o", str(out), *flags]) == 2
+    err = capsys.readouterr().err
+    assert needle in err and "none of the" in err and "Traceback" not in err
+    assert not out.exists()

@@ -1,6 +1,7 @@
 """`fraytool batch SCENE_OR_JOB... [-o DIR] [--workers N | --scheduler ADDR] [--set K=V] [--wedge K=V1,V2]`:
 many shots on Dask distributed (fraytool.farm, docs/farm.md). Exit 0 when every shot is done, 1 when
-any failed or was invalid (job.json says which and why), 2 for bad flags or job files."""
+any failed or was invalid (job.json says which and why), 2 for bad flags or job files, or when no
+shot can run at all (checked before a cluster starts)."""
 from __future__ import annotations
 
 import os
@@ -41,6 +42,7 @@ def batch_command(args) -> int:
     job = Job(name=name, shots=shots, chunk_frames=args.chunk_frames or (job.chunk_frames if job else 24))
     unique_names(job.shots)
     job_dir = (Path(args.out) if args.out else Path("outputs") / name).absolute()  # workers may run elsewhere
+    job = _checked(job, job_dir, stream)
     if args.scheduler:
         if not re.fullmatch(r"(tcp|tls|inproc|ucx)://[^\s:/]+(:\d{1,5})?", args.scheduler):
             raise InputError(f"--scheduler {args.scheduler[:200]!r}: expected an address like tcp://HOST:8786")
@@ -67,6 +69,31 @@ def batch_command(args) -> int:
     print(f"fraytool: batch: {len(job.shots) - len(bad)} of {len(job.shots)} shot(s) done; {job_dir / 'job.json'}",
           file=stream)
     return 0 if not bad else 1
+
+
+def _checked(job, job_dir: Path, stream):
+    """The job with every shot's scene, overrides and frame range checked here, before a cluster
+    starts: a bad shot is marked invalid (reported in job.json, the others run); when no shot can
+    run at all (a bad --set, --frames or --wedge applies to every shot, or no scene exists) this is
+    bad input: each reason on one line, then exit 2 without starting a cluster or writing anything."""
+    from dataclasses import replace
+
+    from fraytool.errors import FraytoolError
+    from fraytool.farm import tasks
+
+    shots = []
+    for shot in job.shots:
+        if shot.error is None:
+            try:
+                tasks.shot_frames(shot, job_dir / shot.name)
+            except FraytoolError as exc:
+                shot = replace(shot, error=str(exc))
+        shots.append(shot)
+    if all(s.error for s in shots):
+        for s in shots:
+            print(f"fraytool: batch: {s.name}: {str(s.error).splitlines()[0]}", file=stream)
+        raise InputError(f"batch: none of the {len(shots)} shot(s) can run (the reasons are above)")
+    return replace(job, shots=shots)
 
 
 def _is_job_file(path: Path, item: str) -> bool:

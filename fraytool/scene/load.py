@@ -62,7 +62,12 @@ def _read_table(doc: dict, where: str, keys: dict[str, Key], problems: _Problems
         if name not in keys:
             if isinstance(value, dict) and f"{where}.{name}" in schema.TOP:
                 continue  # a sub-table, read on its own
-            problems.add(where, name, value, "unknown key; allowed keys: " + ", ".join(sorted(keys)))
+            tables = sorted(t.split(".")[-1] for t in schema.TOP if t.startswith(where + ".") and
+                            t.count(".") == where.count(".") + 1)
+            allowed = "unknown key; allowed keys: " + ", ".join(sorted(keys))
+            if tables:
+                allowed += "; sub-tables: " + ", ".join(f"[{where}.{t}]" for t in tables)
+            problems.add(where, name, value, allowed)
             continue
         key = keys[name]
         ok, converted = key.convert(value)
