@@ -487,3 +487,23 @@ def test_resume_over_another_scenes_frames_exits_1_saying_why(reference, tmp_pat
     line = _one_failure_line(capsys.readouterr().err)
     assert "different scene" in line and "cannot be continued" in line and "without --resume" in line
     _assert_same_store(good, out)  # nothing was touched
+
+
+def test_check_outputs_names_damaged_passes_exrs_and_videos(reference, tmp_path, capsys):
+    """Every pass folder (png/, png_beside/ ...), the EXRs and the finished videos are checked, not
+    only png/: a truncated beside-PNG, EXR or MOV is named (exit 1); intact ones pass (exit 0)."""
+    scene, good = reference
+    out = _copy(good, tmp_path / "out")
+    assert main(["render", str(scene), "-o", str(out), "--frames", "4:6", "--resolution", "64x48", "--png",
+                 "--exr", "--codec", "prores", "--wireframe", "beside", "--progress", "none"]) == 0
+    capsys.readouterr()
+    assert main(["check", "--outputs", str(out), str(scene)]) == 0
+    assert "2 PNGs, 2 EXRs, 1 videos checked: intact" in capsys.readouterr().out
+    movie = next(out.glob("*.mov"))
+    for path in (out / "png_beside" / "frame_000004.png", out / "exr_beside" / "frame_000005.exr", movie):
+        _truncate(path)
+    assert main(["check", "--outputs", str(out), str(scene)]) == 1
+    err = capsys.readouterr().err
+    assert "png_beside/frame_000004.png: damaged PNG" in err
+    assert "exr_beside/frame_000005.exr: damaged EXR" in err
+    assert f"{movie.name}: damaged video (truncated" in err
