@@ -77,7 +77,7 @@ scene = "missing_scene_name"
     assert j.shots[2].render.frames is None and j.shots[2].render.resolution == (64, 48)
     assert j.shots[3].error and "missing_scene_name" in j.shots[3].error
     job.write_text(job.read_text().replace("chunk_frames = 5", "chunk_frames = 5\nspeed = 2"))
-    with pytest.raises(InputError, match=r"\[job\] allows the keys"):
+    with pytest.raises(InputError, match=r"\[job\] speed: unknown key; allowed keys: chunk_frames, name"):
         load_job(job)
 
 

@@ -21,7 +21,8 @@ def batch_command(args) -> int:
     stream = sys.stderr
     sets = [parse_assignment(a) for a in args.sets]
     wedges = [parse_wedge(w) for w in args.wedges]
-    render = RenderOptions(resolution=parse_resolution(args.resolution, need_even=True) if args.resolution else None,
+    render = RenderOptions(resolution=parse_resolution(args.resolution, need_even=True, no_mp4_hint=False)
+                           if args.resolution else None,
                            samples=args.samples, wireframe=args.wireframe, frames=args.frames)
     if args.scheduler and args.workers:
         raise InputError("--workers starts a local cluster; with --scheduler the cluster's own workers run the job")

@@ -189,8 +189,11 @@ def load_job(path: Path, sets: Sequence[tuple[str, Any]] = (), wedges: Sequence[
     if unknown:
         raise InputError(f"{path}: unknown table [{sorted(unknown)[0]}]; allowed: [job], [render], [[shots]]")
     head = doc.get("job", {})
-    if not isinstance(head, dict) or set(head) - _JOB_KEYS:
-        raise InputError(f"{path}: [job] allows the keys {', '.join(sorted(_JOB_KEYS))}")
+    if not isinstance(head, dict):
+        raise InputError(f"{path}: [job] must be a table with the keys {', '.join(sorted(_JOB_KEYS))}")
+    if set(head) - _JOB_KEYS:
+        raise InputError(f"{path}: [job] {sorted(set(head) - _JOB_KEYS)[0]}: unknown key; allowed keys: "
+                         f"{', '.join(sorted(_JOB_KEYS))}")
     name = head.get("name", path.stem)
     check_job_name(name, f"{path}: [job] name")
     chunk = chunk_frames or head.get("chunk_frames", DEFAULT_CHUNK_FRAMES)

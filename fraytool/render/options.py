@@ -50,8 +50,9 @@ def parse_frame_range(text: str, scene_frames: int) -> FrameRange:
     return FrameRange(start, end, step)
 
 
-def parse_resolution(text: str, need_even: bool) -> tuple[int, int]:
-    """WxH with both sides in [2, MAX_SIDE]; even sides when an MP4 is written."""
+def parse_resolution(text: str, need_even: bool, no_mp4_hint: bool = True) -> tuple[int, int]:
+    """WxH with both sides in [2, MAX_SIDE]; even sides when an MP4 is written (`no_mp4_hint`: the
+    command has --no-mp4 to offer)."""
     m = re.fullmatch(r"\s*(\d{1,9})\s*[xX]\s*(\d{1,9})\s*", text)
     allowed = f"expected WIDTHxHEIGHT with whole numbers from 2 to {MAX_SIDE}, e.g. 1280x720"
     if not m:
@@ -61,7 +62,7 @@ def parse_resolution(text: str, need_even: bool) -> tuple[int, int]:
         raise InputError(f"--resolution {text!r}: {allowed}")
     if need_even and (w % 2 or h % 2):
         raise InputError(f"--resolution {text!r}: the MP4 (H.264, yuv420p) needs an even width and height; "
-                         f"use e.g. {w + w % 2}x{h + h % 2}, or --no-mp4 for PNGs only")
+                         f"use e.g. {w + w % 2}x{h + h % 2}" + (", or --no-mp4 for PNGs only" if no_mp4_hint else ""))
     return w, h
 
 
