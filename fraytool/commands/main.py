@@ -82,21 +82,21 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--outputs", type=Path, metavar="DIR", help="check the frames (checksums, scene) and PNGs in an "
                    "output folder instead; exit 1 if any file is damaged")
     c.add_argument("--run", action="store_true", help="also run the scene's own [checks]")
-    c.add_argument("--json", action="store_true")
+    c.add_argument("--json", action="store_true", help="print the report as JSON on stdout")
     c.add_argument("--force", action="store_true", help="build the model even if the memory estimate exceeds "
                    "what is available")
     _set_flag(c)
 
     b = sub.add_parser("bench", help="time the simulation (and rendering) per stage")
-    b.add_argument("scene")
+    b.add_argument("scene", help="scene file (TOML), or the name of a shipped scene (e.g. fig7_square_grab)")
     b.add_argument("--frames", type=_positive_int, default=None, help="frames to time (default 20)")
     b.add_argument("--render", action="store_true", help="also time the render stages")
     b.add_argument("--self-collision", choices=("on", "off"), help="override the scene's [self_collision] enabled")
-    b.add_argument("--json", action="store_true")
+    b.add_argument("--json", action="store_true", help="print the figures as JSON on stdout")
     _set_flag(b)
 
     r = sub.add_parser("render", help="simulate (or reuse frames) and render PNG / EXR / MP4 / ProRes")
-    r.add_argument("scene")
+    r.add_argument("scene", help="scene file (TOML), or the name of a shipped scene (e.g. fig7_square_grab)")
     r.add_argument("-o", "--out", type=Path, help="output folder (default outputs/<scene name>/)")
     r.add_argument("--frames", metavar="START:END[:STEP]", help="frame range to render (END exclusive)")
     r.add_argument("--resolution", metavar="WxH", help="image size, e.g. 1280x720 (even numbers for H.264)")
@@ -129,7 +129,7 @@ def build_parser() -> argparse.ArgumentParser:
     _set_flag(r)
 
     e = sub.add_parser("export", help="simulate (or reuse frames) and write the yarns and bodies as USD")
-    e.add_argument("scene")
+    e.add_argument("scene", help="scene file (TOML), or the name of a shipped scene (e.g. fig7_square_grab)")
     e.add_argument("--usd", required=True, type=Path, metavar="OUT.usd",
                    help="USD file to write (.usd or .usdc binary, .usda text): yarns as BasisCurves (cubic "
                         "Catmull-Rom through the yarn centre lines, widths, weft/warp displayColor, the fade of "
@@ -149,16 +149,16 @@ def build_parser() -> argparse.ArgumentParser:
     ba.add_argument("--wedge", dest="wedges", action="append", default=[], metavar="KEY=V1,V2,...",
                     help="one shot per value (ranges: A..B, A..B:STEP), plus a contact sheet (repeatable)")
     ba.add_argument("--frames", metavar="START:END[:STEP]", help="frame range of every shot")
-    ba.add_argument("--resolution", metavar="WxH")
-    ba.add_argument("--samples", type=int)
-    ba.add_argument("--wireframe", choices=("off", "only", "beside"))
+    ba.add_argument("--resolution", metavar="WxH", help="image size of every shot, e.g. 1280x720 (even numbers)")
+    ba.add_argument("--samples", type=int, help="MSAA samples of every shot")
+    ba.add_argument("--wireframe", choices=("off", "only", "beside"), help="wireframe pass of every shot (as in render)")
     ba.add_argument("--chunk-frames", type=_positive_int, help="frames per render task (default 24)")
     ba.add_argument("--no-contact-sheet", action="store_true", help="no contact sheet for wedges")
     _progress_flag(ba)
     _set_flag(ba)
 
     st = sub.add_parser("study", help="error against run time, or stability sweeps")
-    st.add_argument("scene")
+    st.add_argument("scene", help="scene file (TOML), or the name of a shipped scene (e.g. fig7_square_grab)")
     st.add_argument("-o", "--out", type=Path, help="output folder (default outputs/<scene name>/)")
     st.add_argument("--stability", action="store_true", help="sweep stiff and extreme cases instead")
     st.add_argument("--quick", action="store_true", help="fewer settings, for a fast look")
