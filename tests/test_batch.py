@@ -220,3 +220,48 @@ def test_a_batch_where_no_shot_can_run_exits_2_before_starting_a_cluster(tmp_pat
     err = capsys.readouterr().err
     assert needle in err and "none of the" in err and "Traceback" not in err
     assert not out.exists()
+
+
+def test_farm_tasks_write_16bit_alpha_pngs_and_exrs_when_asked(scene, tmp_path):
+    """The batch's tasks (run here in-process, as a worker runs them) honour --alpha, --depth 16 and
+    --exr: RGBA 16-bit PNGs and EXRs with R, G, B, A, Z for every frame of the range, then the MP4."""
+    import subprocess
+
+    import imageio_ffmpeg
+    import numpy as np
+
+    from fraytool.farm import tasks
+    from fraytool.farm.runner import _outputs_complete
+    from fraytool.render.exr import read_exr
+
+    (shot,) = expand(str(scene), [], [], RenderOptions(resolution=(64, 48), frames="0:3", alpha=True, depth=16,
+                                                        exr=True))
+    out = tmp_path / "shot"
+    frames = tasks.shot_frames(shot, out)
+    tasks.simulate_task(shot, str(out), frames.end)
+    tasks.render_chunk_task(shot, str(out), 0, 3, 1)
+    result = tasks.join_task(shot, str(out))
+    assert _outputs_complete({"outputs": {"mp4": result["mp4"], "png": result["png_dir"], "exr": result["exr_dir"]}},
+                             frames)
+    for k in range(3):
+        png = out / "png" / f"frame_{k:06d}.png"
+        raw = subprocess.run([imageio_ffmpeg.get_ffmpeg_exe(), "-v", "error", "-i", str(png), "-f", "rawvideo",
+                              "-pix_fmt", "rgba64le", "-"], capture_output=True, check=True).stdout
+        rgba = np.frombuffer(raw, "<u2").reshape(48, 64, 4)
+        assert rgba[..., 3].min() == 0 and rgba[..., 3].max() > 40000   # transparent background, the cloth covers
+        assert np.any(rgba[..., :3] % 257 != 0)                           # real 16-bit values, not 8-bit ones
+        channels = read_exr(out / "exr" / f"frame_{k:06d}.exr")
+        assert set(channels) == {"R", "G", "B", "A", "Z"}
+    (out / "exr" / "frame_000001.exr").unlink()
+    assert not _outputs_complete({"outputs": {"mp4": result["mp4"], "png": result["png_dir"],
+                                              "exr": result["exr_dir"]}}, frames)
+
+
+def test_job_file_render_flags(tmp_path, scene):
+    job = tmp_path / "job.toml"
+    job.write_text(f'[render]\nalpha = true\ndepth = 16\nexr = true\n[[shots]]\nscene = "{scene}"\n')
+    (shot,) = load_job(job).shots
+    assert (shot.render.alpha, shot.render.depth, shot.render.exr) == (True, 16, True)
+    job.write_text(f'[render]\ndepth = 12\n[[shots]]\nscene = "{scene}"\n')
+    with pytest.raises(InputError, match=r"depth = 12: 8 or 16"):
+        load_job(job)

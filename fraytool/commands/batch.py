@@ -23,7 +23,8 @@ def batch_command(args) -> int:
     wedges = [parse_wedge(w) for w in args.wedges]
     render = RenderOptions(resolution=parse_resolution(args.resolution, need_even=True, no_mp4_hint=False)
                            if args.resolution else None,
-                           samples=args.samples, wireframe=args.wireframe, frames=args.frames)
+                           samples=args.samples, wireframe=args.wireframe, frames=args.frames,
+                           alpha=True if args.alpha else None, depth=args.depth, exr=True if args.exr else None)
     if args.scheduler and args.workers:
         raise InputError("--workers starts a local cluster; with --scheduler the cluster's own workers run the job")
     job = None

@@ -37,12 +37,14 @@ def settings_digest(shot: Shot) -> str:
 
 
 def _outputs_complete(entry: dict, frames) -> bool:
-    """The MP4 and every PNG of the shot's frame range are there."""
+    """The MP4 and every PNG (and EXR, when asked for) of the shot's frame range are there."""
     outs = entry.get("outputs", {})
     if not outs or not Path(outs.get("mp4", "")).is_file():
         return False
     png = Path(outs.get("png", ""))
-    return all((png / f"frame_{k:06d}.png").is_file() for k in frames.frames())
+    exr = Path(outs["exr"]) if outs.get("exr") else None
+    return all((png / f"frame_{k:06d}.png").is_file() and (exr is None or (exr / f"frame_{k:06d}.exr").is_file())
+               for k in frames.frames())
 
 
 class JobRecord:
@@ -146,6 +148,8 @@ def run_job(job: Job, job_dir: Path, client, stream: TextIO = sys.stderr, progre
         if task == "join" and status["status"] == "done":
             entry["status"] = "done"
             entry["outputs"] = {"mp4": result["mp4"], "png": result["png_dir"]}
+            if "exr_dir" in result:
+                entry["outputs"]["exr"] = result["exr_dir"]
         if task == "contact sheet" and status["status"] == "done":
             entry.update({"status": "done", "outputs": {"mp4": result["mp4"]}})
         done += 1

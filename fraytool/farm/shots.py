@@ -37,7 +37,7 @@ from fraytool.scene.overrides import parse_assignment, parse_value
 DEFAULT_CHUNK_FRAMES = 24
 MAX_WEDGE_VALUES = 1000
 _JOB_KEYS = {"name", "chunk_frames"}
-_RENDER_KEYS = {"resolution", "samples", "wireframe", "frames"}
+_RENDER_KEYS = {"resolution", "samples", "wireframe", "frames", "alpha", "depth", "exr"}
 _SHOT_KEYS = {"scene", "set", "wedge", "render", "name"}
 
 
@@ -49,6 +49,12 @@ class RenderOptions:
     """"off", "only", "beside"; None: not given (off)."""
     frames: Optional[str] = None
     """START:END[:STEP] or None for the whole scene."""
+    alpha: Optional[bool] = None
+    """Transparent background (as `fraytool render --alpha`); None: not given (off)."""
+    depth: Optional[int] = None
+    """PNG bits, 8 or 16 (as `--depth`); None: not given (8)."""
+    exr: Optional[bool] = None
+    """Also an EXR sequence (as `--exr`); None: not given (off)."""
 
 
 @dataclass(frozen=True)
@@ -172,7 +178,16 @@ def _render_options(table: dict, where: str, base: RenderOptions) -> RenderOptio
     frames = table.get("frames", base.frames)
     if frames is not None and not isinstance(frames, str):
         raise InputError(f'{where} frames = {frames!r}: a string "START:END[:STEP]"')
-    return RenderOptions(res, samples, wire, frames)
+    flags = {}
+    for key in ("alpha", "exr"):
+        value = table.get(key, getattr(base, key))
+        if value is not None and not isinstance(value, bool):
+            raise InputError(f"{where} {key} = {value!r}: true or false")
+        flags[key] = value
+    depth = table.get("depth", base.depth)
+    if depth is not None and (isinstance(depth, bool) or depth not in (8, 16)):
+        raise InputError(f"{where} depth = {depth!r}: 8 or 16 (bits per PNG channel)")
+    return RenderOptions(res, samples, wire, frames, flags["alpha"], depth, flags["exr"])
 
 
 def load_job(path: Path, sets: Sequence[tuple[str, Any]] = (), wedges: Sequence[tuple[str, list[Any]]] = (),
@@ -244,8 +259,12 @@ def _flatten(table: dict, prefix: str = ""):
 
 def _merge(base: RenderOptions, cli: RenderOptions) -> RenderOptions:
     """Command-line render options win over the job file's."""
-    return RenderOptions(cli.resolution or base.resolution, cli.samples if cli.samples is not None else base.samples,
-                         cli.wireframe if cli.wireframe is not None else base.wireframe, cli.frames or base.frames)
+    def pick(key):
+        value = getattr(cli, key)
+        return value if value is not None else getattr(base, key)
+
+    return RenderOptions(cli.resolution or base.resolution, pick("samples"), pick("wireframe"), cli.frames or base.frames,
+                         pick("alpha"), pick("depth"), pick("exr"))
 
 
 def check_job_name(name: Any, where: str) -> None:

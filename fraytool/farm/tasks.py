@@ -41,7 +41,7 @@ def render_job_for(shot: Shot, out_dir: Path, frames: FrameRange):
     args = SimpleNamespace(png=True, no_mp4=False, out=str(out_dir), frames=r.frames,
                            resolution=f"{r.resolution[0]}x{r.resolution[1]}" if r.resolution else None,
                            samples=r.samples, camera_position=None, camera_target=None, fov=None,
-                           wireframe=r.wireframe)
+                           wireframe=r.wireframe, alpha=bool(r.alpha), depth=r.depth, exr=bool(r.exr))
     job = build_job(spec, args, out_dir)
     return job, replace(job, frames=frames)
 
@@ -69,7 +69,7 @@ def simulate_task(shot: Shot, out_dir: str, frames_needed: int) -> dict:
 
 
 def render_chunk_task(shot: Shot, out_dir: str, start: int, end: int, step: int, _after=None) -> dict:
-    """Render frames start..end-1 (every step) of the shot to its PNG sequence."""
+    """Render frames start..end-1 (every step) of the shot to its PNG sequence (and EXRs with exr)."""
     from fraytool.io.frame_store import FrameStore
     from fraytool.render.context import create_context
     from fraytool.render.sequence import render_job
@@ -96,5 +96,8 @@ def join_task(shot: Shot, out_dir: str, _after=None) -> dict:
                    background_srgb=job.spec.render.background) as writer:
         for frame in job.frames.frames():
             writer.write(read_png(job.png_path(frame)))
-    return {"task": "join", "seconds": time.time() - t0, "worker": _where(), "mp4": str(job.video_path),
-            "png_dir": str(job.png_dir)}
+    out = {"task": "join", "seconds": time.time() - t0, "worker": _where(), "mp4": str(job.video_path),
+           "png_dir": str(job.png_dir)}
+    if job.exr:
+        out["exr_dir"] = str(job.exr_dir)
+    return out
