@@ -129,3 +129,12 @@ def test_a_cold_kernel_cache_is_announced_once(tmp_path, monkeypatch):
     simulate_to_disk(small_scene(), tmp_path / "b", frames=2, progress=False, stream=second)
     assert first.getvalue().count("compiling the simulation kernels") == 1
     assert "compiling" not in second.getvalue()
+
+
+def test_a_misspelled_flag_gets_one_line_and_a_suggestion(capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main(["render", "fig6_thrown_ball_plain", "--frmaes", "0:2"])
+    assert exit_info.value.code == 2
+    err = capsys.readouterr().err
+    assert "unrecognized arguments: --frmaes" in err and "did you mean --frames?" in err
+    assert len(err.strip().splitlines()) == 1 and "usage:" not in err

@@ -20,9 +20,30 @@ class _Parser(argparse.ArgumentParser):
     """argparse that exits 2 through our error path (usage errors are bad input)."""
 
     def error(self, message: str):  # noqa: D102
-        self.print_usage(sys.stderr)
-        print(f"{self.prog}: error: {_cut(message)}", file=sys.stderr)
+        """One line: what was wrong, a guess at a misspelled flag, and where the options are listed."""
+        hint = ""
+        if message.startswith("unrecognized arguments:"):
+            import difflib
+
+            options = sorted(self._every_option())
+            for word in message.split(":", 1)[1].split():
+                close = difflib.get_close_matches(word.split("=")[0], options, n=1, cutoff=0.6)
+                if word.startswith("-") and close:
+                    hint += f"; did you mean {close[0]}?"
+        print(f"{self.prog}: error: {_cut(message)}{hint} (`{self.prog} --help` lists what is allowed)",
+              file=sys.stderr)
         raise SystemExit(2)
+
+    def _every_option(self) -> set[str]:
+        """Option strings of this parser and of its subcommands' parsers."""
+        found: set[str] = set()
+        for action in self._actions:
+            found.update(o for o in action.option_strings if o.startswith("--"))
+            for sub in getattr(action, "choices", None) or ():
+                parser = action.choices[sub] if isinstance(action.choices, dict) else None
+                if isinstance(parser, _Parser):
+                    found |= parser._every_option()
+        return found
 
 
 MAX_LINE_CHARS = 1000
