@@ -168,4 +168,7 @@ class Simulation:
         return (f"strain limiting did not hold where the cloth is woven: strain {shot.max_woven_strain:.4f} "
                 f"(limit {m.strain_limit:g} + {tolerance:g}) at frame {shot.max_woven_strain_frame} on spring {s} "
                 f"({yarn}, crossings ({ca % w},{ca // w})-({cb % w},{cb // w})); "
-                f"strain-limiting cap hits: {shot.strain_cap_hits_before + self.solver.strain_cap_hits}")
+                f"strain-limiting cap hits: {shot.strain_cap_hits_before + self.solver.strain_cap_hits}"
+                + ("; expected where a grip or a ball pulls harder than the limit holds: the compliant limit "
+                   "([cloth.strain] stiffness_n_per_m) lets a woven yarn stretch past it until it breaks "
+                   "(docs/tearing.md, \"Strain limiting\")" if m.strain_stiffness_n_per_m > 0.0 else ""))
