@@ -122,7 +122,7 @@ def test_bench_render_stage_timings(tmp_path):
     from fraytool.scene import load_scene
 
     t = render_stage_timings(load_scene(SCENE), tmp_path, frames=3, resolution=(64, 48), samples=4)
-    assert set(t) == {"geometry", "draw_readback", "encode"}
+    assert set(t) == {"geometry", "draw", "readback", "encode"}
     assert all(v > 0 for v in t.values())
     assert (tmp_path / "frames" / "frame_000002.npz").is_file()     # simulated where asked
 
