@@ -70,7 +70,7 @@ def test_compliant_limit_converges_to_the_implicit_step_of_a_stiff_yarn():
     one implicit Euler step of a yarn that stiffens past the limit (every spring stays past it here,
     so the minimiser solves a tridiagonal linear system: the independent reference). The hard
     projection instead stops at its cap with an uneven residual."""
-    from fraytool.sim.kernels.strain_limit import limit_strain_compliant
+    from strain_reference import limit_strain_compliant
 
     n, rest, limit, k_limit, h, mass = 12, 0.004, 0.10, 400.0, 2e-4, 5e-6
     x, w, a, b = _chain(n, rest, 1.15)
@@ -105,7 +105,8 @@ def test_compliant_limit_converges_to_the_implicit_step_of_a_stiff_yarn():
 
 
 def test_compliant_limit_with_infinite_stiffness_is_the_hard_projection():
-    from fraytool.sim.kernels.strain_limit import limit_strain, limit_strain_compliant
+    from fraytool.sim.kernels.strain_limit import limit_strain
+    from strain_reference import limit_strain_compliant
 
     n, rest = 8, 0.004
     x, w, a, b = _chain(n, rest, 1.3)
@@ -124,7 +125,8 @@ def _stretch_history(c_n_s_per_m, k_limit=400.0, mass=5e-6, rest=0.004, limit=0.
     """Two free masses joined by one spring, starting exactly at the limit and moving apart at v0:
     each step x += v dt, then the dashpot past the limit, then the compliant limit (as the solver's
     strain-limiting stage does), v = (x - x_prev) / dt. Returns times and stretch past the limit."""
-    from fraytool.sim.kernels.strain_limit import damp_overstretched, limit_strain_compliant
+    from fraytool.sim.kernels.strain_limit import damp_overstretched
+    from strain_reference import limit_strain_compliant
 
     x = np.array([[0.0, 0.0, 0.0], [(1 + limit) * rest, 0.0, 0.0]])
     v = np.array([[-v0 / 2, 0.0, 0.0], [v0 / 2, 0.0, 0.0]])
@@ -209,7 +211,8 @@ def test_yarn_line_solve_reaches_the_point_solve_fixed_point_in_far_fewer_sweeps
     `limit_strain_compliant` (point Gauss-Seidel, the slow reference) solve the same XPBD
     system: converged tightly, they give the same positions. On a cloth pulled apart by its held
     edges the line solve gets there in a small fraction of the point solve's sweeps."""
-    from fraytool.sim.kernels.strain_limit import limit_strain_compliant, limit_strain_lines
+    from fraytool.sim.kernels.strain_limit import limit_strain_lines
+    from strain_reference import limit_strain_compliant
     from fraytool.sim.stages.core import colour_ordered_structural_springs, yarn_line_springs
 
     model, state, x, inv = _grid_pulled_apart()
@@ -242,7 +245,8 @@ def test_yarn_line_solve_matches_the_implicit_chain_step():
     """One straight yarn held at both ends 15 % apart (directions fixed, so the implicit step is
     the exact fixed point): the line solve converges to it, as the point solve does (tested against
     the tridiagonal reference above), in a few sweeps."""
-    from fraytool.sim.kernels.strain_limit import limit_strain_compliant, limit_strain_lines
+    from fraytool.sim.kernels.strain_limit import limit_strain_lines
+    from strain_reference import limit_strain_compliant
 
     n, rest, limit, k_limit, h, mass = 12, 0.004, 0.10, 400.0, 2e-4, 5e-6
     x, w, a, b = _chain(n, rest, 1.15)

@@ -59,30 +59,18 @@ def atomic_write_bytes(path: Path, writer) -> None:
     """Write a file atomically: `writer(fileobj)` fills a temp file in the same folder, which gets
     the usual permissions (0666 minus the umask; mkstemp makes 0600), is fsynced and renamed over
     `path`. A killed process leaves either the old file or the new one, never a truncated one."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.{_writer_tag()}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
+    def write_to(name: str) -> None:
+        with open(name, "wb") as f:
             writer(f)
-            f.flush()
-            os.fchmod(f.fileno(), 0o666 & ~_umask())
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException as exc:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        if isinstance(exc, OSError) and exc.errno is not None and exc.filename in (None, tmp):
-            raise OSError(exc.errno, exc.strerror or str(exc), str(path)) from None  # the file, not its temp
-        raise
+
+    atomic_write_file(path, write_to)
 
 
 def atomic_write_file(path: Path, write_to) -> None:
-    """atomic_write_bytes for writers that open the file themselves: `write_to(name)` writes a temp
-    file (named as atomic_write_bytes names them) in the same folder, which is then given the usual
-    permissions, fsynced and renamed over `path`."""
+    """Write a file atomically through a writer that opens the file itself: `write_to(name)` writes a
+    temp file (.NAME.HOST-PID.XXXX.tmp) in the same folder, which is then given the usual permissions
+    (0666 minus the umask; mkstemp makes 0600), fsynced and renamed over `path`. An OSError names
+    `path`, not the temp file."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.{_writer_tag()}.", suffix=".tmp", dir=path.parent)

@@ -34,6 +34,12 @@ def look_at(eye: np.ndarray, target: np.ndarray, up: np.ndarray) -> np.ndarray:
     return m
 
 
+def gl_matrix_bytes(m: np.ndarray) -> bytes:
+    """A row-major matrix (3 x 3 or 4 x 4) as the float32 column-major bytes a GLSL mat3 / mat4
+    uniform takes (the transpose, module docstring)."""
+    return np.ascontiguousarray(np.asarray(m, dtype=np.float32).T).tobytes()
+
+
 def _fmt(v: np.ndarray) -> str:
     return "(" + ", ".join(f"{float(x):g}" for x in v) + ")"
 

@@ -44,7 +44,7 @@ import moderngl
 import numpy as np
 
 from fraytool.render.bodies import BodySet, rotation_from_y, unit_cube, unit_quad, unit_sphere
-from fraytool.render.camera import Camera
+from fraytool.render.camera import Camera, gl_matrix_bytes
 from fraytool.render.color import (
     WIREFRAME_BASE_SRGB,
     WIREFRAME_YARN_SRGB,
@@ -117,14 +117,6 @@ def load_program(ctx: moderngl.Context, vertex: str, fragment: str, defines: tup
         return ctx.program(vertex_shader=sources[0], fragment_shader=sources[1])
     except moderngl.Error as exc:
         raise RunError(f"shaders {vertex} + {fragment} do not compile on this GL: {exc}") from None
-
-
-def _mat4(m: np.ndarray) -> bytes:
-    return np.ascontiguousarray(np.asarray(m, dtype=np.float32).T).tobytes()
-
-
-def _mat3(m: np.ndarray) -> bytes:
-    return np.ascontiguousarray(np.asarray(m, dtype=np.float32).T).tobytes()
 
 
 class _Stream:
@@ -286,8 +278,8 @@ class Renderer:
     def _draw_bodies(self, geom: FrameGeometry, view_proj: bytes) -> None:
         self._body_prog["u_view_proj"].write(view_proj)
         for d in self.bodies.draws(geom.body_position_m, geom.body_rotation):
-            self._body_prog["u_model"].write(_mat4(d.model))
-            self._body_prog["u_normal_matrix"].write(_mat3(d.normal_matrix))
+            self._body_prog["u_model"].write(gl_matrix_bytes(d.model))
+            self._body_prog["u_normal_matrix"].write(gl_matrix_bytes(d.normal_matrix))
             self._body_vaos[d.mesh][0].render(moderngl.TRIANGLES)
 
     def _draw_ground(self, view_proj: bytes) -> None:
@@ -303,8 +295,8 @@ class Renderer:
         model[:3, 3] = centre
         g = self._ground_prog
         g["u_view_proj"].write(view_proj)
-        g["u_model"].write(_mat4(model))
-        g["u_normal_matrix"].write(_mat3(np.linalg.inv(model[:3, :3]).T))
+        g["u_model"].write(gl_matrix_bytes(model))
+        g["u_normal_matrix"].write(gl_matrix_bytes(np.linalg.inv(model[:3, :3]).T))
         g["u_color"].value = tuple(srgb_to_linear(self.render_spec.body_color) * 0.8)
         g["u_background"].value = self._background
         g["u_alpha_out"].value = 1.0 if self.alpha else 0.0
@@ -400,7 +392,7 @@ class Renderer:
             self._fbo_ms.viewport = box
             self._fbo_ms.scissor = box
             self._fbo_ms.use()                             # applies viewport and scissor
-            vp = _mat4(self.camera.view_proj(p.width / H))
+            vp = gl_matrix_bytes(self.camera.view_proj(p.width / H))
             if p.view == "shaded":
                 self._draw_shaded(geom, vp)
             else:

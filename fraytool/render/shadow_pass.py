@@ -12,16 +12,13 @@ import moderngl
 import numpy as np
 
 from fraytool.render.bodies import BodySet
+from fraytool.render.camera import gl_matrix_bytes
 from fraytool.render.shadow import NORMAL_OFFSET_TEXELS, LightFrame, caster_points, fit_light
 
 SHADOW_UNIT = 0
 """Texture unit of the shadow map (the only texture the shaded programs use)."""
 POLYGON_OFFSET = (2.0, 4.0)
 """glPolygonOffset(factor, units) of the depth pass: slope-scaled bias against acne."""
-
-
-def _mat4(m: np.ndarray) -> bytes:
-    return np.ascontiguousarray(np.asarray(m, dtype=np.float32).T).tobytes()
 
 
 class ShadowPass:
@@ -72,14 +69,14 @@ class ShadowPass:
         ctx.disable(moderngl.CULL_FACE)
         ctx.polygon_offset = POLYGON_OFFSET
         prog = self.program
-        prog["u_light_view_proj"].write(_mat4(light.view_proj))
+        prog["u_light_view_proj"].write(gl_matrix_bytes(light.view_proj))
         for d in bodies.draws(geom.body_position_m, geom.body_rotation):
             if d.mesh == "quad":   # planes receive, never cast
                 continue
-            prog["u_model"].write(_mat4(d.model))
+            prog["u_model"].write(gl_matrix_bytes(d.model))
             self._body_vaos[d.mesh].render(moderngl.TRIANGLES)
         if yarn_vbo is not None and opaque_count:
-            prog["u_model"].write(_mat4(np.eye(4)))
+            prog["u_model"].write(gl_matrix_bytes(np.eye(4)))
             self._yarns(yarn_vbo, opaque_ibo).render(moderngl.TRIANGLES, vertices=opaque_count)
         ctx.polygon_offset = (0.0, 0.0)
         return light
@@ -93,10 +90,10 @@ class ShadowPass:
             m = np.zeros((4, 4))
             m[3, 3] = 1.0
             m[2, 3] = 1.0
-            prog["u_light_view_proj"].write(_mat4(m))
+            prog["u_light_view_proj"].write(gl_matrix_bytes(m))
             prog["u_shadow_offset_m"].value = 0.0
         else:
-            prog["u_light_view_proj"].write(_mat4(light.view_proj))
+            prog["u_light_view_proj"].write(gl_matrix_bytes(light.view_proj))
             prog["u_shadow_offset_m"].value = NORMAL_OFFSET_TEXELS * light.texel_m
         prog["u_shadow_texel"].value = 1.0 / self.size
 
