@@ -263,17 +263,20 @@ TEAR_DURATION_S = 0.08
 
 @pytest.fixture(scope="module")
 def tearing_study_files(tmp_path_factory):
-    """`fraytool study STRIP --duration 0.08` on the yarn-level pulled strip (about 10 s)."""
+    """`fraytool study STRIP --duration 0.08 --seeds 1-2` on the yarn-level pulled strip (about 20 s)."""
     folder = tmp_path_factory.mktemp("tear")
     scene = folder / "strip.toml"
     scene.write_text(pulled_strip_text("strip", yarn_level=True))
     err = io.StringIO()
     with contextlib.redirect_stderr(err):
-        rc = main(["study", str(scene), "-o", str(folder / "out"), "--duration", str(TEAR_DURATION_S)])
+        rc = main(["study", str(scene), "-o", str(folder / "out"), "--duration", str(TEAR_DURATION_S),
+                   "--seeds", "1-2"])
     assert rc == 0, err.getvalue()
     out = folder / "out" / "study"
-    rows = list(csv.DictReader((out / "runs.csv").open()))
-    return parse_scene(scene.read_text(), "strip.toml"), out, rows, err.getvalue()
+    every = list(csv.DictReader((out / "runs.csv").open()))
+    rows = [r for r in every if r["role"] != "seed"]
+    seed_rows = [r for r in every if r["role"] == "seed"]
+    return parse_scene(scene.read_text(), "strip.toml"), out, rows, err.getvalue(), seed_rows
 
 
 def _num(text):
@@ -281,7 +284,7 @@ def _num(text):
 
 
 def test_tearing_study_has_one_row_per_step_with_the_tear_figures(tearing_study_files):
-    spec, _, rows, err = tearing_study_files
+    spec, _, rows, err, _ = tearing_study_files
     h0, spf = spec.time.step_s, spec.time.steps_per_frame
     assert [r["run"] for r in rows] == [f"step {n}, tearing on" for n in ("h0", "h0/2", "h0/4", "h0/8", "h0/16")]
     assert {r["varied"] for r in rows} == {"step, tearing on"}  # no trajectory rows by default
@@ -296,19 +299,61 @@ def test_tearing_study_has_one_row_per_step_with_the_tear_figures(tearing_study_
         assert int(r["frames"]) == frames and float(r["simulated_s"]) == pytest.approx(TEAR_DURATION_S)
         assert int(r["steps"]) == frames * spf * factor  # every run reaches the same simulated time
         assert float(r["wall_s"]) > 0
-        assert int(r["yarn_level_crossings"]) >= 0 and int(r["broken_springs"]) >= int(r["broken_structural_springs"])
+        assert r["seeds"] == "1,2"
+        assert float(r["yarn_level_crossings"]) >= 0
+        assert float(r["broken_springs"]) >= float(r["broken_structural_springs"])
         assert float(r["fray_mean_free_end_m"]) >= 0.0
         # the strip tears within the duration: a first break, and cuts whose centroid lies in the cloth
-        assert int(r["broken_structural_springs"]) > 0, r
+        assert float(r["broken_structural_springs"]) > 0, r
         assert 0.0 < float(r["first_break_s"]) <= TEAR_DURATION_S + 1e-12
         c = np.array([float(r[f"centroid_{a}_m"]) for a in "xyz"])
         assert np.all(c >= lo - 1e-12) and np.all(c <= hi + 1e-12), (c, lo, hi)
-        assert float(r["torn_length_m"]) == pytest.approx(int(r["broken_structural_springs"]) * spec.cloth.spacing_m)
-    assert "tear at t = 0.08 s" in err
+        assert float(r["torn_length_m"]) == pytest.approx(float(r["broken_structural_springs"]) * spec.cloth.spacing_m)
+    assert "tear at t = 0.08 s" in err and "means over seeds 1, 2" in err
+
+
+def test_tearing_study_compares_the_means_over_the_seeds(tearing_study_files):
+    """Each step runs at seeds 1 and 2: its row is the mean of the two seed rows, and the seeds differ
+    (the break limits are drawn from the seed), so the mean is not one run's figures."""
+    _, _, rows, _, seed_rows = tearing_study_files
+    assert len(seed_rows) == 2 * len(rows)
+    differ = False
+    for r in rows:
+        step = r["run"].split(",")[0]
+        mine = [s for s in seed_rows if s["run"].startswith(step + ",")]
+        assert [s["seeds"] for s in mine] == ["1", "2"] and all(s["compared_with"] == "" for s in mine)
+        assert float(r["wall_s"]) == pytest.approx(sum(float(s["wall_s"]) for s in mine))
+        for key in ("broken_springs", "first_break_s", "yarn_level_crossings", "fray_mean_free_end_m",
+                    "centroid_x_m", "centroid_y_m", "torn_length_m"):
+            values = [float(s[key]) for s in mine]
+            assert float(r[key]) == pytest.approx(sum(values) / 2, rel=1e-12), (step, key)
+            differ |= values[0] != values[1]
+    assert differ
+
+
+def test_seeds_flag_is_checked(tmp_path):
+    from fraytool.commands.study import parse_seeds
+
+    assert parse_seeds("1-4") == (1, 2, 3, 4) and parse_seeds("3,7,9") == (3, 7, 9)
+    assert parse_seeds("1-2,8") == (1, 2, 8)
+    for bad in ("x", "4-1", "-1", "1,1", ""):
+        with pytest.raises(InputError, match="--seeds"):
+            parse_seeds(bad)
+    spec = parse_scene(pulled_strip_text("strip", yarn_level=True), "strip.toml")
+    first = spec.scene.seed
+    assert plan_study(spec).tearing_seeds == (first, first + 1, first + 2, first + 3)  # full: 4 from the scene's
+    assert plan_study(spec, quick=True).tearing_seeds == (first,)
+    assert plan_study(spec, seeds=(5, 9)).tearing_seeds == (5, 9)
+    scene = tmp_path / "hanging.toml"
+    scene.write_text(HANGING)
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err):
+        assert main(["study", str(scene), "--seeds", "1-2"]) == 2
+    assert "does not tear" in err.getvalue()
 
 
 def test_tearing_study_relative_differences_follow_from_the_rows(tearing_study_files):
-    spec, _, rows, _ = tearing_study_files
+    spec, _, rows, _, _ = tearing_study_files
     by_name = {r["run"].split()[1].rstrip(","): r for r in rows}
     for r in rows:
         other = by_name[r["compared_with"]]
@@ -323,7 +368,7 @@ def test_tearing_study_relative_differences_follow_from_the_rows(tearing_study_f
 
 
 def test_tearing_study_report_states_the_criterion_per_quantity(tearing_study_files):
-    _, folder, rows, _ = tearing_study_files
+    _, folder, rows, _, _ = tearing_study_files
     report = (folder / "report.md").read_text()
     assert "# Convergence of the tear in the step" in report and "Observed order" not in report
     for header in ("broken springs", "first break [s]", "torn crossings", "mean free end [m]", "centroid [m]"):

@@ -82,6 +82,11 @@ def _progress_flag(p: argparse.ArgumentParser) -> None:
                         "auto (default): bar on a terminal, log otherwise")
 
 
+def _threads_flag(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--threads", type=int, metavar="N", help="threads for the simulation kernels (default: all "
+                   "that NUMBA_NUM_THREADS allows, the machine's cores); the frames are the same on any number")
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="fraytool", description="Woven cloth tearing with frayed edges: simulate and render.")
     p.add_argument("--version", action="version", version=f"fraytool {__version__}")
@@ -97,6 +102,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--force", action="store_true", help="run even if the memory estimate exceeds what is available")
     _progress_flag(s)
     _set_flag(s)
+    _threads_flag(s)
 
     c = sub.add_parser("check", help="validate a scene and print derived figures; or check an output folder")
     c.add_argument("scene", nargs="?", help="scene file or shipped scene name (optional with --outputs)")
@@ -115,6 +121,7 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--self-collision", choices=("on", "off"), help="override the scene's [self_collision] enabled")
     b.add_argument("--json", action="store_true", help="print the figures as JSON on stdout")
     _set_flag(b)
+    _threads_flag(b)
 
     r = sub.add_parser("render", help="simulate (or reuse frames) and render PNG / EXR / MP4 / ProRes")
     r.add_argument("scene", help="scene file (TOML), or the name of a shipped scene (e.g. fig7_square_grab)")
@@ -148,6 +155,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--force", action="store_true", help="run even if the memory estimate exceeds what is available")
     _progress_flag(r)
     _set_flag(r)
+    _threads_flag(r)
 
     e = sub.add_parser("export", help="simulate (or reuse frames) and write the yarns and bodies as USD")
     e.add_argument("scene", help="scene file (TOML), or the name of a shipped scene (e.g. fig7_square_grab)")
@@ -161,6 +169,7 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--force", action="store_true", help="run even if the memory estimate exceeds what is available")
     _progress_flag(e)
     _set_flag(e)
+    _threads_flag(e)
 
     ba = sub.add_parser("batch", help="render many shots (scenes, job files, wedges) on Dask distributed")
     ba.add_argument("inputs", nargs="+", metavar="SCENE_OR_JOB", help="scene files, shipped scene names or job files (TOML)")
@@ -190,6 +199,9 @@ def build_parser() -> argparse.ArgumentParser:
                     "scene's shot; at most 48 frames for trajectories)")
     st.add_argument("--trajectories", action="store_true", help="tearing scene: also compare trajectories with "
                     "tearing off")
+    _threads_flag(st)
+    st.add_argument("--seeds", metavar="LIST", help="tearing scene: seeds every step runs at, compared by their means, "
+                    "e.g. 1-4 or 1,3,7 (default: 4 seeds from the scene's; one with --quick)")
     return p
 
 
@@ -350,6 +362,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
 
     set_default_mode(getattr(args, "progress", "auto"))
     try:
+        if getattr(args, "threads", None) is not None:
+            from fraytool.threads import use_threads
+
+            use_threads(args.threads)
         return COMMANDS[args.command](args)
     except FraytoolError as exc:
         kind = "error" if isinstance(exc, InputError) else "run failed"

@@ -1,9 +1,10 @@
-"""`fraytool study SCENE [-o DIR] [--stability] [--quick] [--duration S] [--trajectories]`: run a study
+"""`fraytool study SCENE [-o DIR] [--stability] [--quick] [--duration S] [--trajectories] [--seeds LIST]`: run a study
 and write its files.
 
 Accuracy (default): DIR/study/runs.csv, report.md, error_vs_time.png, convergence.png. A tearing scene:
 the convergence of the tear (steps h0 to h0/16, tearing on, compared at one simulated time: the scene's
-shot or --duration S), tearing_convergence.png instead of the trajectory plots; --trajectories adds the
+shot or --duration S; every step at 4 seeds, compared by their means, one seed with --quick, or --seeds
+LIST), tearing_convergence.png instead of the trajectory plots; --trajectories adds the
 trajectory study with tearing off. --duration S sets the simulated time of the accuracy study (whole frames).
 Stability (--stability): DIR/study/stability.csv, stability.md, stability.png.
 DIR defaults to outputs/<scene name>/. Without matplotlib the tables and reports are still written
@@ -29,13 +30,31 @@ def study_dir(spec: SceneSpec, out: Optional[Path]) -> Path:
     return base / STUDY_DIR
 
 
+def parse_seeds(text: str) -> tuple[int, ...]:
+    """--seeds: "1-4", "3,7,9" or a mix ("1-3,8"); whole numbers >= 0, at least one, none twice."""
+    seeds: list[int] = []
+    try:
+        for part in text.split(","):
+            lo, _, hi = part.strip().partition("-")
+            first, last = int(lo), int(hi) if hi else int(lo)
+            if first < 0 or last < first:
+                raise ValueError
+            seeds += range(first, last + 1)
+    except ValueError:
+        raise InputError(f"--seeds {text!r}: expected seeds >= 0 as a range or a list, e.g. 1-4 or 1,3,7") from None
+    if len(set(seeds)) != len(seeds):
+        raise InputError(f"--seeds {text!r}: a seed is listed twice")
+    return tuple(seeds)
+
+
 def write_accuracy_study(spec: SceneSpec, folder: Path, quick: bool = False, stream: Optional[TextIO] = sys.stderr,
-                         plan=None, duration_s: Optional[float] = None, trajectories: Optional[bool] = None):
+                         plan=None, duration_s: Optional[float] = None, trajectories: Optional[bool] = None,
+                         seeds: Optional[tuple[int, ...]] = None):
     """Run the accuracy study and write its files into `folder`; returns (StudyResult, written paths)."""
     from fraytool.study.accuracy import run_accuracy_study
 
     result = run_accuracy_study(spec, quick=quick, plan=plan, stream=stream, duration_s=duration_s,
-                                trajectories=trajectories)
+                                trajectories=trajectories, seeds=seeds)
     folder.mkdir(parents=True, exist_ok=True)
     written = [folder / "runs.csv"]
     report.write_runs_csv(result, written[0])
@@ -93,8 +112,12 @@ def _study(spec: SceneSpec, folder: Path, args) -> int:
     err = sys.stderr
     duration = getattr(args, "duration", None)
     trajectories = getattr(args, "trajectories", False)
-    if args.stability and (duration is not None or trajectories):
-        raise InputError("--duration and --trajectories apply to the accuracy study, not to --stability")
+    seeds_text = getattr(args, "seeds", None)
+    seeds = parse_seeds(seeds_text) if seeds_text is not None else None
+    if args.stability and (duration is not None or trajectories or seeds):
+        raise InputError("--duration, --trajectories and --seeds apply to the accuracy study, not to --stability")
+    if seeds and not spec.cloth.tearing.enabled:
+        raise InputError(f"--seeds: {spec.name} does not tear (the seeds are those of the tearing study)")
     if args.stability:
         result, written = write_stability_sweep(spec, folder, quick=args.quick, stream=err)
         counts = {}
@@ -104,7 +127,7 @@ def _study(spec: SceneSpec, folder: Path, args) -> int:
               + ", ".join(f"{v} {k}" for k, v in sorted(counts.items())) + f"); wrote {folder}", file=err)
     else:
         result, written = write_accuracy_study(spec, folder, quick=args.quick, stream=err, duration_s=duration,
-                                               trajectories=True if trajectories else None)
+                                               trajectories=True if trajectories else None, seeds=seeds)
         if result.trajectories:
             o = result.order
             print(f"study of {spec.name}: observed order in the step {o['observed_order']:.2f} (expected "
@@ -112,7 +135,8 @@ def _study(spec: SceneSpec, folder: Path, args) -> int:
                   f"wrote {folder}", file=err)
         if result.tearing is not None:
             tear = result.tearing
-            print(f"study of {spec.name}: tear at t = {tear.duration_s:.4g} s against the reference {tear.reference}: "
+            over = f" (means over seeds {', '.join(map(str, tear.seeds))})" if len(tear.seeds) > 1 else ""
+            print(f"study of {spec.name}: tear at t = {tear.duration_s:.4g} s against the reference {tear.reference}{over}: "
                   + ", ".join(f"{v.label} {'PASS' if v.passed else 'FAIL'}" for v in tear.verdicts)
                   + f"; wrote {folder}", file=err)
     if not plot.have_matplotlib():

@@ -80,6 +80,8 @@ class StudyPlan:
     tearing_step_factors: tuple[float, ...] = TEAR_STEP_FACTORS
     """Steps of the tearing study as multiples of the scene's step; empty: no tearing study."""
     tearing_reference_factor: float = TEAR_REFERENCE_FACTOR
+    tearing_seeds: tuple[int, ...] = ()
+    """Seeds every step of the tearing study runs at (compared by their means); empty: the scene's seed."""
     trajectories: bool = True
     """Run the trajectory study (tearing off). plan_study leaves it out for a tearing scene unless asked."""
 
@@ -151,12 +153,17 @@ def frames_for(spec: SceneSpec, duration_s: float) -> int:
     return max(1, math.ceil(duration_s / frame_s - 1e-9))
 
 
+TEAR_SEEDS = 4
+"""The full tearing study runs every step at this many seeds (the scene's and the next ones); --quick at one."""
+
+
 def plan_study(spec: SceneSpec, quick: bool = False, duration_s: Optional[float] = None,
-               trajectories: Optional[bool] = None) -> StudyPlan:
+               trajectories: Optional[bool] = None, seeds: Optional[tuple[int, ...]] = None) -> StudyPlan:
     """The default sweep: steps h0 (2 h0 if stable) down to h0/8 (h0/4 with --quick), over at most
     FULL_FRAMES (QUICK_FRAMES) frames. A tearing scene: the tearing study over the scene's shot (at most
     QUICK_FRAMES with --quick), and the trajectories only if `trajectories`. `duration_s` [simulated s]
-    sets the frames of both (rounded up to whole frames)."""
+    sets the frames of both (rounded up to whole frames). `seeds`: the tearing study's seeds (default
+    TEAR_SEEDS seeds from the scene's, one with --quick)."""
     tears = spec.cloth.tearing.enabled
     trajectories = (not tears) if trajectories is None else (trajectories or not tears)
     shot = max(spec.time.frames - 1, 1)
@@ -182,7 +189,9 @@ def plan_study(spec: SceneSpec, quick: bool = False, duration_s: Optional[float]
                      reference_strain_iterations=4 * max(strain + [1]),
                      reference_collision_iterations=4 * max(collision + [1]),
                      tearing_frames=tear_frames if tears else None,
-                     tearing_step_factors=TEAR_STEP_FACTORS if tears else (), trajectories=trajectories)
+                     tearing_step_factors=TEAR_STEP_FACTORS if tears else (), trajectories=trajectories,
+                     tearing_seeds=tuple(seeds) if seeds else
+                     tuple(spec.scene.seed + i for i in range(1 if quick else TEAR_SEEDS)))
 
 
 # --- error measures and orders --------------------------------------------------------------------
@@ -267,11 +276,11 @@ def _say(stream: Optional[TextIO], text: str) -> None:
 
 def run_accuracy_study(spec: SceneSpec, quick: bool = False, plan: Optional[StudyPlan] = None,
                        stream: Optional[TextIO] = sys.stderr, duration_s: Optional[float] = None,
-                       trajectories: Optional[bool] = None) -> StudyResult:
+                       trajectories: Optional[bool] = None, seeds: Optional[tuple[int, ...]] = None) -> StudyResult:
     """Run the study (nothing is written here): the trajectory sweep and its reference, with errors
     and orders (plan.trajectories), and for a tearing scene the convergence of the tear.
-    `duration_s` and `trajectories` go to plan_study when no plan is given."""
-    plan = plan or plan_study(spec, quick, duration_s=duration_s, trajectories=trajectories)
+    `duration_s`, `trajectories` and `seeds` go to plan_study when no plan is given."""
+    plan = plan or plan_study(spec, quick, duration_s=duration_s, trajectories=trajectories, seeds=seeds)
     tears = spec.cloth.tearing.enabled
     h0 = spec.time.step_s
     model = build_model(without_tearing(spec))
@@ -286,7 +295,7 @@ def run_accuracy_study(spec: SceneSpec, quick: bool = False, plan: Optional[Stud
 
         frames = plan.tearing_frames if plan.tearing_frames is not None else plan.frames
         result.tearing = run_tearing_study(spec, frames, plan.tearing_step_factors, plan.tearing_reference_factor,
-                                           stream=stream)
+                                           stream=stream, seeds=plan.tearing_seeds)
         result.notes += result.tearing.notes
     return result
 

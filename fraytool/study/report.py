@@ -18,7 +18,7 @@ if TYPE_CHECKING:
     from fraytool.study.stability_sweep import SweepResult
     from fraytool.study.tear_convergence import TearingStudy
 
-RUN_COLUMNS = ("run", "varied", "value", "role", "step_s", "steps_per_frame", "strain_max_iterations",
+RUN_COLUMNS = ("run", "varied", "value", "role", "seeds", "step_s", "steps_per_frame", "strain_max_iterations",
                "strain_tolerance", "collision_iterations", "damping", "frames", "simulated_s", "steps", "wall_s",
                "status", "rms_final_m", "rms_time_m", "max_m", "max_strain", "strain_cap_hits", "max_jitter",
                "compared_with", "broken_springs", "broken_springs_rel_diff", "first_break_s",
@@ -31,7 +31,9 @@ per step (varied = "step, tearing on"; role shipped / reference / check): the te
 (broken springs, first break [s], torn crossings = yarn_level_crossings, mean free-end length [m],
 centroid of the broken structural springs [m]) and each quantity's relative difference against the run
 named in compared_with (the reference h0/8; for the reference, h0/16); centroid_distance_spacings is
-the centroids' distance in yarn spacings."""
+the centroids' distance in yarn spacings. Run at several seeds, a step's row holds the means over the
+seeds (seeds lists them; wall_s is their sum) and is followed by one row per seed (role "seed", seeds
+the one seed), which is not compared."""
 
 
 def write_text(path: Path, text: str) -> None:
@@ -205,6 +207,15 @@ def tearing_section(tear: "TearingStudy") -> list[str]:
                  f"centroid of the broken structural springs within {CENTROID_TOLERANCE_SPACINGS:g} yarn spacings "
                  f"({tear.spacing_m:g} m). In brackets: the relative difference against the reference (for the "
                  f"reference, against {tear.check or '-'}); the centroid's distance in spacings.")
+    if len(tear.seeds) > 1:
+        out.append("")
+        out.append(f"Every step ran at seeds {', '.join(str(s) for s in tear.seeds)} (the break limits' draws): the "
+                   "figures are means over the seeds, and the criterion compares the means (which yarn breaks first "
+                   "decides a tear's details, so single runs scatter as much between seeds as between steps). "
+                   "runs.csv has each seed's figures; wall times are summed over the seeds.")
+        spread = _seed_spread(tear)
+        if spread:
+            out += ["", spread]
     out.append("")
     out.append("Torn crossings: crossings split into mass couples (`yarn_level_crossings`); mean free end: mean "
                "length of the yarn ends that stick out of the weave (`fray_mean_free_end_m`); centroid: mean rest "
@@ -213,8 +224,7 @@ def tearing_section(tear: "TearingStudy") -> list[str]:
     rows = []
     for r in tear.runs:
         fig = r.figures
-        cells = [r.name + (f" ({r.role})" if r.role else ""), r.step_s, r.result.steps, r.result.wall_s,
-                 r.result.status]
+        cells = [r.name + (f" ({r.role})" if r.role else ""), r.step_s, r.steps, r.wall_s, r.status]
         for key, _ in QUANTITIES:
             cells.append(f"{_g(fig.get(key), 4)} ({_pct(r.rel_diff.get(key))})")
         c = fig.get("centroid_m")
@@ -237,6 +247,22 @@ def tearing_section(tear: "TearingStudy") -> list[str]:
     out += ["", f"Tear converged on {n} of {len(tear.verdicts)} quantities"
                 + (": **PASS**." if tear.passed else ": **FAIL**.")]
     return out
+
+
+def _seed_spread(tear: "TearingStudy") -> str:
+    """One line: the scatter between seeds at the scene's step (the noise the means average out)."""
+    from fraytool.study.tear_convergence import QUANTITIES
+
+    run = next((r for r in tear.runs if r.name == tear.shipped), None)
+    if run is None:
+        return ""
+    figs = run.per_seed_figures
+    parts = []
+    for key, label in QUANTITIES:
+        values = [f.get(key) for f in figs if f.get(key) is not None]
+        if len(values) > 1:
+            parts.append(f"{label} {_g(float(min(values)), 4)}-{_g(float(max(values)), 4)}")
+    return f"Scatter between the seeds at {tear.shipped} (lowest-highest): " + "; ".join(parts) + "." if parts else ""
 
 
 # --- stability sweep -------------------------------------------------------------------------------

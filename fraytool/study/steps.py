@@ -29,6 +29,11 @@ def with_step_factor(spec: SceneSpec, factor: float) -> SceneSpec:
                       cloth=dc.replace(spec.cloth, springs=springs))
 
 
+def with_seed(spec: SceneSpec, seed: int) -> SceneSpec:
+    """The scene drawn from another seed (break limits)."""
+    return dc.replace(spec, scene=dc.replace(spec.scene, seed=int(seed)))
+
+
 def step_label(factor: float) -> str:
     if factor >= 1:
         return "h0" if factor == 1 else f"{factor:g} h0"

@@ -16,6 +16,13 @@ h0/8 is the reference and h0/16 checks it. Criterion, per quantity: the scene's 
 of the reference, and the reference within 15 % of h0/16, so the reference itself is converged
 (centroid: within 2 yarn spacings, both times).
 
+Over seeds: the break limits are random (drawn from the scene's seed), and which yarn goes first
+decides the details of a tear (which ends pull out how far, which way the tear wanders by a yarn or
+two). One run per step compares two draws of that scatter as much as two steps; the study therefore
+runs every step at the same few seeds and compares the means over the seeds (a weak-convergence
+criterion: the step must not change the distribution of the tear). Each seed's figures are kept
+(runs.csv rows with role "seed").
+
 Relative difference of a against b: |a - b| / |b|; 0 when both are 0 (or neither run broke anything,
 for the time of the first break and the centroid); infinite when only b is 0 or only one run broke.
 Each run is compared with the reference, and the reference with h0/16.
@@ -32,7 +39,7 @@ import numpy as np
 from fraytool.scene.spec import SceneSpec
 from fraytool.sim.builder import build_model
 from fraytool.study.steps import (TEAR_REFERENCE_FACTOR, TEAR_STEP_FACTORS, step_label, with_frames,
-                                  with_step_factor)
+                                  with_seed, with_step_factor)
 from fraytool.study.runner import RunResult, run_variant, warm_up
 
 TOLERANCE = 0.15
@@ -81,45 +88,118 @@ class TearRun:
     factor: float
     """Step / the scene's step."""
     result: RunResult
+    """The run at the first seed (its spec, steps and status stand for the step's)."""
     role: str = ""
     """"shipped" (the scene's step), "reference", "check" (the run that checks the reference) or ""."""
     compared_with: str = ""
     """The run the relative differences are taken against (the reference; for the reference, the check)."""
     rel_diff: dict = field(default_factory=dict)
     """Relative difference of each quantity against `compared_with`, and centroid_distance_spacings."""
+    more: list = field(default_factory=list)
+    """The runs at the further seeds (RunResult), when the study runs several."""
+
+    @property
+    def results(self) -> list[RunResult]:
+        """Every seed's run, the first seed first."""
+        return [self.result] + list(self.more)
+
+    @property
+    def seeds(self) -> list[int]:
+        return [r.spec.scene.seed for r in self.results]
+
+    @property
+    def ok(self) -> bool:
+        return all(r.ok for r in self.results)
+
+    @property
+    def status(self) -> str:
+        bad = [r.status for r in self.results if not r.ok]
+        return bad[0] if bad else self.result.status
+
+    @property
+    def steps(self) -> int:
+        """Steps of one seed's run."""
+        return self.result.steps
+
+    @property
+    def wall_s(self) -> float:
+        """Wall time of all seeds' runs."""
+        return float(sum(r.wall_s for r in self.results))
 
     @property
     def step_s(self) -> float:
         return self.result.spec.time.step_s
 
     @property
-    def figures(self) -> dict:
-        """first_break_s and the tear at the last frame (fraytool.study.runner.tear_figures)."""
-        t = self.result.tearing
-        return {"first_break_s": t.get("first_break_s"), **t.get("final", {})}
+    def per_seed_figures(self) -> list[dict]:
+        return [run_figures(r) for r in self.results]
 
-    def row(self) -> dict:
-        """The runs.csv row (fraytool.study.report.RUN_COLUMNS)."""
-        s = self.result.spec
-        fig = self.figures
+    @property
+    def figures(self) -> dict:
+        """The tear at the last frame (fraytool.study.runner.tear_figures) and first_break_s: one seed's, or
+        the mean over the seeds (ensemble_figures)."""
+        return ensemble_figures(self.per_seed_figures)
+
+    def _row(self, result: RunResult, fig: dict, role: str, seeds: str) -> dict:
+        s = result.spec
         centroid = fig.get("centroid_m") or [None, None, None]
-        row = {"run": f"step {self.name}, tearing on", "varied": "step, tearing on", "value": self.step_s,
-               "role": self.role, "step_s": self.step_s, "steps_per_frame": s.time.steps_per_frame,
-               "strain_max_iterations": s.cloth.strain.max_iterations, "strain_tolerance": s.cloth.strain.tolerance,
-               "collision_iterations": s.self_collision.iterations if s.self_collision.enabled else None,
-               "damping": s.cloth.springs.damping, "frames": self.result.frames,
-               "simulated_s": self.result.frames * s.time.step_s * s.time.steps_per_frame,
-               "steps": self.result.steps, "wall_s": self.result.wall_s, "status": self.result.status,
-               "max_strain": self.result.max_strain, "strain_cap_hits": self.result.strain_cap_hits,
-               "max_jitter": self.result.max_jitter, "compared_with": self.compared_with,
-               "centroid_x_m": centroid[0], "centroid_y_m": centroid[1], "centroid_z_m": centroid[2],
-               CENTROID_DISTANCE: self.rel_diff.get(CENTROID_DISTANCE),
-               "broken_structural_springs": fig.get("broken_structural_springs"),
-               "torn_length_m": fig.get("torn_length_m"), "pieces": fig.get("pieces")}
+        return {"varied": "step, tearing on", "value": self.step_s, "role": role, "seeds": seeds,
+                "step_s": self.step_s, "steps_per_frame": s.time.steps_per_frame,
+                "strain_max_iterations": s.cloth.strain.max_iterations, "strain_tolerance": s.cloth.strain.tolerance,
+                "collision_iterations": s.self_collision.iterations if s.self_collision.enabled else None,
+                "damping": s.cloth.springs.damping, "frames": result.frames,
+                "simulated_s": result.frames * s.time.step_s * s.time.steps_per_frame,
+                "steps": result.steps, "max_strain": result.max_strain, "max_jitter": result.max_jitter,
+                "centroid_x_m": centroid[0], "centroid_y_m": centroid[1], "centroid_z_m": centroid[2],
+                "broken_structural_springs": fig.get("broken_structural_springs"),
+                "torn_length_m": fig.get("torn_length_m"), "pieces": fig.get("pieces"),
+                **{key: fig.get(key) for key, _ in QUANTITIES}}
+
+    def rows(self) -> list[dict]:
+        """The runs.csv rows (fraytool.study.report.RUN_COLUMNS): the step's row (the mean over the seeds,
+        compared), then with several seeds one row per seed (role "seed", not compared)."""
+        seeds = self.seeds
+        row = self._row(self.result, self.figures, self.role, "-".join(str(s) for s in seeds) if len(seeds) > 1
+                        else str(seeds[0]))
+        row.update({"run": f"step {self.name}, tearing on", "wall_s": self.wall_s, "status": self.status,
+                    "strain_cap_hits": sum(r.strain_cap_hits for r in self.results),
+                    "max_strain": max(r.max_strain for r in self.results),
+                    "compared_with": self.compared_with, CENTROID_DISTANCE: self.rel_diff.get(CENTROID_DISTANCE)})
+        if len(seeds) > 1:
+            row["seeds"] = ",".join(str(s) for s in seeds)
         for key, _ in QUANTITIES:
-            row[key] = fig.get(key)
             row[f"{key}_rel_diff"] = self.rel_diff.get(key)
-        return row
+        out = [row]
+        if len(seeds) > 1:
+            for seed, result, fig in zip(seeds, self.results, self.per_seed_figures):
+                r = self._row(result, fig, "seed", str(seed))
+                r.update({"run": f"step {self.name}, tearing on, seed {seed}", "wall_s": result.wall_s,
+                          "status": result.status, "strain_cap_hits": result.strain_cap_hits})
+                out.append(r)
+        return out
+
+
+def run_figures(result: RunResult) -> dict:
+    """first_break_s and the tear at the last frame of one run."""
+    t = result.tearing
+    return {"first_break_s": t.get("first_break_s"), **t.get("final", {})}
+
+
+def ensemble_figures(figures: list[dict]) -> dict:
+    """The mean of each compared quantity over runs at different seeds (one run: its own figures).
+
+    Counts become means (floats). The time of the first break and the centroid are means over the runs
+    where something broke (None when nothing broke in any). Also averaged: broken structural springs and
+    torn length; pieces is the mean count."""
+    if len(figures) == 1:
+        return dict(figures[0])
+    out: dict = {}
+    for key in [k for k, _ in QUANTITIES] + ["broken_structural_springs", "torn_length_m", "pieces"]:
+        values = [f.get(key) for f in figures if f.get(key) is not None]
+        out[key] = float(np.mean(values)) if values else None
+    cents = [f["centroid_m"] for f in figures if f.get("centroid_m") is not None]
+    out["centroid_m"] = [float(c) for c in np.mean(cents, axis=0)] if cents else None
+    return out
 
 
 @dataclass
@@ -157,6 +237,8 @@ class TearingStudy:
     check: Optional[str]
     verdicts: list[Verdict] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
+    seeds: list[int] = field(default_factory=list)
+    """The seeds every step ran at (one: the scene's)."""
 
     @property
     def duration_s(self) -> float:
@@ -170,7 +252,7 @@ class TearingStudy:
         return next(r for r in self.runs if r.name == name)
 
     def rows(self) -> list[dict]:
-        return [r.row() for r in self.runs]
+        return [row for r in self.runs for row in r.rows()]
 
 
 def _say(stream: Optional[TextIO], text: str) -> None:
@@ -190,7 +272,7 @@ def judge(shipped: TearRun, reference: TearRun, check: Optional[TearRun], spacin
     """PASS/FAIL per quantity: shipped within the tolerance of the reference, the reference within it of check."""
     ship = compare(shipped, reference, spacing_m)
     ref = compare(reference, check, spacing_m) if check is not None else {}
-    bad = [r.name for r in (shipped, reference, check) if r is not None and not r.result.ok]
+    bad = [r.name for r in (shipped, reference, check) if r is not None and not r.ok]
     reason = f"stopped by the stability guard: {', '.join(bad)}" if bad else ""
     if check is None:
         reason = reason or "no finer run to check the reference"
@@ -205,8 +287,9 @@ def judge(shipped: TearRun, reference: TearRun, check: Optional[TearRun], spacin
 
 def run_tearing_study(spec: SceneSpec, frames: int, factors: tuple[float, ...] = TEAR_STEP_FACTORS,
                       reference_factor: float = TEAR_REFERENCE_FACTOR,
-                      stream: Optional[TextIO] = sys.stderr) -> TearingStudy:
-    """Run the scene with tearing on at each step h0 * factor for `frames` frames and compare the tears."""
+                      stream: Optional[TextIO] = sys.stderr, seeds: tuple[int, ...] = ()) -> TearingStudy:
+    """Run the scene with tearing on at each step h0 * factor for `frames` frames and compare the tears;
+    with `seeds`, every step at each seed, compared by the means over the seeds (default: the scene's seed)."""
     if not spec.cloth.tearing.enabled:
         raise ValueError(f"scene {spec.name} does not tear")
     factors = tuple(sorted(set(factors), reverse=True))
@@ -220,12 +303,18 @@ def run_tearing_study(spec: SceneSpec, frames: int, factors: tuple[float, ...] =
     # Some tearing kernels are first called once the cloth tears (the contact of mass couples): run the
     # coarsest step through untimed, so that no compilation lands in a timed run (about 3 % more work).
     run_variant(with_step_factor(base, factors[0]), frames, record=False, locate_stage=False)
+    seeds = tuple(seeds) or (spec.scene.seed,)
     runs = []
     for f in factors:
         vspec = with_step_factor(base, f)
         name = step_label(f)
-        _say(stream, f"study {spec.name}: tearing on, step {name} ({frames * vspec.time.steps_per_frame} steps) ...")
-        runs.append(TearRun(name, f, run_variant(vspec, frames, record=False)))
+        results = []
+        for seed in seeds:
+            at = f", seed {seed}" if len(seeds) > 1 else ""
+            _say(stream, f"study {spec.name}: tearing on, step {name}{at} ({frames * vspec.time.steps_per_frame} "
+                         "steps) ...")
+            results.append(run_variant(with_seed(vspec, seed), frames, record=False))
+        runs.append(TearRun(name, f, results[0], more=results[1:]))
     finer = [r for r in runs if r.factor < reference_factor]
     ref = next(r for r in runs if r.factor == reference_factor)
     check = finer[0] if finer else None  # the next finer step
@@ -238,7 +327,8 @@ def run_tearing_study(spec: SceneSpec, frames: int, factors: tuple[float, ...] =
             r.rel_diff = compare(r, other, spec.cloth.spacing_m)
     study = TearingStudy(scene=spec.name, frames=frames, frame_s=h0 * spec.time.steps_per_frame, base_step_s=h0,
                          spacing_m=spec.cloth.spacing_m, bounds_m=(rest.min(axis=0).tolist(), rest.max(axis=0).tolist()),
-                         runs=runs, shipped=shipped.name, reference=ref.name, check=check.name if check else None)
+                         runs=runs, shipped=shipped.name, reference=ref.name, check=check.name if check else None,
+                         seeds=list(seeds))
     study.verdicts = judge(shipped, ref, check, spec.cloth.spacing_m)
     study.notes = _notes(study)
     return study
@@ -247,10 +337,12 @@ def run_tearing_study(spec: SceneSpec, frames: int, factors: tuple[float, ...] =
 def _notes(study: TearingStudy) -> list[str]:
     notes = []
     for r in study.runs:
-        if not r.result.ok:
-            d = r.result.diagnostic or {}
-            notes.append(f"Tearing on, step {r.name}: stopped by the stability guard at step {d.get('step')} "
-                         f"(stage {d.get('stage')}); its figures are those of the last state reached.")
+        for result in r.results:
+            if not result.ok:
+                d = result.diagnostic or {}
+                at = f", seed {result.spec.scene.seed}" if len(r.results) > 1 else ""
+                notes.append(f"Tearing on, step {r.name}{at}: stopped by the stability guard at step {d.get('step')} "
+                             f"(stage {d.get('stage')}); its figures are those of the last state reached.")
     ref = study.run(study.reference)
     if ref.figures.get("first_break_s") is None:
         notes.append(f"Nothing broke within {study.duration_s:.4g} s at the reference step: the counts agree "

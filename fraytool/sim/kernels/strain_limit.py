@@ -215,7 +215,7 @@ def _solve_line(
     return worst
 
 
-@nb.njit(cache=True, fastmath=False)
+@nb.njit(cache=True, fastmath=False, parallel=True)
 def limit_strain_lines(
     # model
     line_springs, line_start, group_start, spring_rest_length_m, strain_limit, tolerance, max_iterations,
@@ -251,9 +251,10 @@ def limit_strain_lines(
     (group_start: weft lines [group_start[0], group_start[1]), warp lines after), so weft and warp
     meet at base-level crossings only between groups.
 
-    Lines of one group share no mass, so their order inside the group does not matter (and they
-    could be solved in parallel: each writes its own slice of the scratch and its own line_worst
-    entry, the largest residual taken after the group). Returns (sweeps used,
+    Lines of one group share no mass, so their order inside the group does not matter: they are solved
+    in parallel (numba prange), each line by one thread from start to end, writing its own slice of
+    the scratch and its own line_worst entry; the largest residual is taken after the group. The
+    result is therefore the same, bit for bit, on any number of threads. Returns (sweeps used,
     converged); `tension` holds the multipliers, indexed like line_springs."""
     stretch = 1.0 + strain_limit
     alpha = compliance_s2_per_kg
@@ -265,7 +266,7 @@ def limit_strain_lines(
         for g in range(groups):
             lo = group_start[g]
             hi = group_start[g + 1]
-            for l in range(lo, hi):
+            for l in nb.prange(lo, hi):
                 line_worst[l] = _solve_line(line_start[l], line_start[l + 1], line_springs, spring_rest_length_m,
                                             stretch, alpha, particle_inv_mass, spring_particle_a, spring_particle_b,
                                             spring_alive, tension, diag, upper, rhs, unit, particle_position_m)

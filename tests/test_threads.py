@@ -1,0 +1,80 @@
+"""The parallel kernels give the same frames on one thread and on two (fraytool/threads.py), and
+--threads is checked."""
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fraytool.commands.main import main
+from fraytool.threads import thread_limit
+from helpers import pulled_strip_text
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _simulate(scene: Path, out: Path, threads: int) -> dict:
+    env = dict(os.environ, NUMBA_NUM_THREADS=str(threads), PYTHONPATH=str(ROOT))
+    r = subprocess.run([sys.executable, "-m", "fraytool", "simulate", str(scene), "-o", str(out), "--json",
+                        "--progress", "none"], capture_output=True, text=True, env=env, cwd=ROOT, timeout=600)
+    assert r.returncode == 0, r.stderr
+    return json.loads(r.stdout)
+
+
+PARALLEL_STRIP = """[cloth.strain]
+limit = 0.10
+stiffness_n_per_m = 400.0
+damping_ratio = 1.0
+[self_collision]
+enabled = true
+"""
+"""The pulled strip with the compliant strain limit (yarn by yarn, in parallel) and self-collision."""
+
+
+def test_a_tearing_run_is_bit_identical_on_one_and_two_threads(tmp_path):
+    """The yarn-level pulled strip with the figure scenes' compliant strain limit and self-collision
+    tears (splits, cuts, couples): every frame and the checkpoint are the same bytes whether numba may
+    use one thread or two."""
+    scene = tmp_path / "strip.toml"
+    scene.write_text(pulled_strip_text("strip", yarn_level=True, extra=PARALLEL_STRIP))
+    one = _simulate(scene, tmp_path / "one", 1)
+    two = _simulate(scene, tmp_path / "two", 2)
+    assert one["broken_springs"] > 0 and one["yarn_level_crossings"] > 0  # it tore at the yarn level
+    assert {k: v for k, v in one.items() if "wall" not in k and "_s" != k[-2:]} == \
+        {k: v for k, v in two.items() if "wall" not in k and "_s" != k[-2:]}
+    frames = sorted((tmp_path / "one" / "frames").glob("*.npz"))
+    assert len(frames) > 3
+    for path in frames:
+        with np.load(path) as a, np.load(tmp_path / "two" / "frames" / path.name) as b:
+            assert sorted(a.files) == sorted(b.files)
+            for key in a.files:
+                assert a[key].tobytes() == b[key].tobytes(), (path.name, key)
+
+
+def test_threads_flag_is_checked(tmp_path, capsys):
+    scene = tmp_path / "strip.toml"
+    scene.write_text(pulled_strip_text("strip"))
+    too_many = thread_limit() + 1
+    assert main(["simulate", str(scene), "-o", str(tmp_path / "o"), "--threads", str(too_many)]) == 2
+    err = capsys.readouterr().err
+    assert f"--threads {too_many}: allowed 1 to {thread_limit()}" in err
+    assert main(["simulate", str(scene), "-o", str(tmp_path / "o"), "--threads", "0"]) == 2
+    assert not (tmp_path / "o").exists()  # refused before anything was written
+
+
+@pytest.mark.skipif(thread_limit() < 2, reason="needs two cores: numba allows one thread here")
+def test_threads_flag_sets_numba(tmp_path):
+    import numba
+
+    scene = tmp_path / "strip.toml"
+    scene.write_text(pulled_strip_text("strip"))
+    before = numba.get_num_threads()
+    try:
+        assert main(["simulate", str(scene), "-o", str(tmp_path / "o"), "--frames", "1", "--threads", "1",
+                     "--progress", "none"]) == 0
+        assert numba.get_num_threads() == 1
+    finally:
+        numba.set_num_threads(before)
