@@ -54,10 +54,11 @@ def main() -> None:
     x_prev = sim.solver.buffers.prev_position_m.copy()
     x = state.particle_position_m.copy()
     margin = 0.5 * sc.contact_distance_m + sc.slack_m
+    spring_yarn = sim.model.spring_yarn()
 
     def build():
         return find_candidate_pairs_kernel(x_prev, x, state.spring_particle_a, state.spring_particle_b,
-                                           state.spring_alive, sc.spring_yarn, margin, 0.0)
+                                           state.spring_alive, spring_yarn, margin, 0.0)
 
     def build_listed():
         return candidate_pairs_of_segments_kernel(x_prev, x, state.spring_particle_a, state.spring_particle_b,
@@ -65,7 +66,7 @@ def main() -> None:
 
     pairs = build()  # warm-up (cache load)
     assert np.array_equal(build_listed(), pairs)
-    live = int((state.spring_alive & (sc.spring_yarn >= 0)).sum())
+    live = int((state.spring_alive & (spring_yarn >= 0)).sum())
     print(f"state after {args.frames} frames: {state.spring_particle_a.shape[0]} spring slots, "
           f"{live} live yarn segments, {len(pairs)} candidate pairs (margin {margin:.3g} m, swept x_prev -> x)")
     print(f"find_candidate_pairs_kernel:        {time_call(build, args.repeats):.3f} ms per call")

@@ -268,7 +268,7 @@ def test_kept_candidates_cover_every_pair_while_tearing():
 
     def ensure_and_check(state, prev):
         ensure(state, prev)
-        need = _pairs_the_step_can_act_on(state, prev, sc.spring_yarn, sc.contact_distance_m)
+        need = _pairs_the_step_can_act_on(state, prev, sim.model.spring_yarn(), sc.contact_distance_m)
         have = set(map(tuple, sc._cand.tolist()))
         assert need <= have, f"step {state.step_index}: missing {sorted(need - have)[:5]}"
         assert np.all(sc._cand[:, 0] < sc._cand[:, 1])
@@ -291,7 +291,7 @@ def _run_checking_every_step(sim, frames):
     re-attaching segments to the new masses: each end goes from its particle before to its particle
     after (pairs that share an end particle before or after are skipped: they meet at that mass).
     Returns the crossings as (motion, step, spring, spring, t)."""
-    segments = np.nonzero(sim.solver.self_collision.spring_yarn >= 0)[0]
+    segments = sim.solver.self_collision.yarn_segments
     found, mid = [], {}
 
     def after_self_collision(state, prev, dt_s):
@@ -361,7 +361,7 @@ def _crossing_step():
 
 def _yarn_crossings(sim, prev):
     state = sim.state
-    live = np.nonzero((sim.solver.self_collision.spring_yarn >= 0) & state.spring_alive)[0]
+    live = np.nonzero((sim.model.spring_yarn() >= 0) & state.spring_alive)[0]
     return crossed_pairs(prev, state.particle_position_m, state.spring_particle_a[live],
                          state.spring_particle_b[live], TOL)
 

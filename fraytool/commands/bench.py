@@ -1,11 +1,13 @@
 """`fraytool bench`: median milliseconds per frame and the split by stage.
 
-The first frame pays numba compilation (or loading it from the cache); it is timed apart as
-compile_s and left out of the median. Frames are exported to a temporary folder so the export
+An empty run first (build, first frame, export) pays numba compilation (or loading it from the
+cache); it is timed apart as compile_s, and the memory figures are taken over the resident size
+after it (bench_simulation). Frames are exported to a temporary folder so the export
 stage is measured as a real run pays it.
 """
 from __future__ import annotations
 
+import gc
 import json
 import statistics
 import sys
@@ -15,34 +17,48 @@ from dataclasses import replace
 from pathlib import Path
 
 from fraytool.io.frame_store import FrameStore
+from fraytool.resident_memory import peak_rss_bytes, release_freed_memory, reset_peak, rss_bytes
 from fraytool.scene import load_scene, scene_hash
 from fraytool.sim.simulation import Simulation
 
 DEFAULT_FRAMES = 48
 
 
-def _peak_rss_bytes() -> int:
-    """Peak resident set size of this process so far (Linux reports ru_maxrss in KiB)."""
-    import resource
-
-    return int(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss) * 1024
+def empty_run(spec, out_dir: Path) -> float:
+    """Build the scene, simulate and write its first frame, and drop it all: every module and numba
+    kernel the run uses is then loaded (compiled or read from the cache). Returns the seconds taken."""
+    t0 = time.perf_counter()
+    sim = Simulation(spec)
+    store = FrameStore(out_dir)
+    store.start(sim.model.arrays(), scene_hash(spec), {"scene": spec.name})
+    record = sim.advance_frame()
+    store.write_frame(record, sim.checkpoint_arrays())
+    return time.perf_counter() - t0
 
 
 def bench_simulation(spec, frames: int = DEFAULT_FRAMES, out_dir: Path | None = None) -> dict:
-    """Simulate `frames` frames after a warm-up frame; returns the bench figures.
+    """An empty run, then `frames` frames simulated and written; returns the bench figures.
 
-    bytes_per_crossing: (peak RSS at the end - peak RSS before the model was built) / crossings,
-    i.e. what the model, the state, the solver's scratch, the stages and numba's compiled kernels
-    added; for small scenes the kernels dominate, for large ones the per-crossing arrays."""
-    rss_before = _peak_rss_bytes()
-    t0 = time.perf_counter()
+    compile_s: the empty run (build, first frame and its export), where numba compiles or loads
+    every kernel the scene uses. bytes_per_crossing: (peak RSS of the measured run - RSS after the
+    empty run) / crossings, i.e. what the model, the state, the solver's scratch, the stages, the
+    temporaries of building and stepping, and the frame export add over a process that has every
+    kernel loaded (the empty run's freed memory goes back to the system first: malloc_trim). Where
+    the peak cannot be reset (no /proc/self/clear_refs), the baseline is the peak before the empty
+    run, kernels included (memory_baseline says which)."""
+    rss_start = peak_rss_bytes()
+    with tempfile.TemporaryDirectory() as tmp:
+        compile_s = empty_run(spec, Path(tmp) / "empty")
+    gc.collect()
+    release_freed_memory()
+    if reset_peak():
+        rss_before, baseline = rss_bytes(), "after an empty run"
+    else:
+        rss_before, baseline = rss_start, "before an empty run (kernels included)"
     sim = Simulation(spec)
     with tempfile.TemporaryDirectory() as tmp:
         store = FrameStore(Path(out_dir or tmp))
         store.start(sim.model.arrays(), scene_hash(spec), {"scene": spec.name})
-        sim.advance_frame()  # compiles (or loads from cache) every kernel the scene uses
-        compile_s = time.perf_counter() - t0
-        sim.solver.reset_timers()
         per_frame, export_s = [], []
         for _ in range(frames):
             t = time.perf_counter()
@@ -52,6 +68,7 @@ def bench_simulation(spec, frames: int = DEFAULT_FRAMES, out_dir: Path | None = 
             t_end = time.perf_counter()
             per_frame.append(t_sim - t)
             export_s.append(t_end - t_sim)
+    peak = peak_rss_bytes()
     stages = {k: 1e3 * v / frames for k, v in sim.solver.stage_s.items() if v > 0.0}
     return {
         "scene": spec.name,
@@ -64,8 +81,9 @@ def bench_simulation(spec, frames: int = DEFAULT_FRAMES, out_dir: Path | None = 
         "export_ms_per_frame": 1e3 * statistics.median(export_s),
         "compile_s": compile_s,
         "strain_iterations_max": sim.solver.strain_iterations_max,
-        "peak_rss_bytes": _peak_rss_bytes(),
-        "bytes_per_crossing": (_peak_rss_bytes() - rss_before) / max(1, sim.model.crossing_count),
+        "peak_rss_bytes": peak,
+        "bytes_per_crossing": (peak - rss_before) / max(1, sim.model.crossing_count),
+        "memory_baseline": baseline,
         "summary": sim.summary(),
     }
 
@@ -91,13 +109,13 @@ def bench_command(args) -> int:
     print(f"scene {result['scene']}: {result['masses']} masses, {result['springs']} springs, "
           f"{frames} frames x {spec.time.steps_per_frame} steps", file=out)
     print(f"simulation: {result['ms_per_frame']:.2f} ms per frame (median); "
-          f"compile/cache load {result['compile_s']:.2f} s (first frame, not in the median)", file=out)
+          f"compile/cache load {result['compile_s']:.2f} s (empty run: build and first frame, not in the median)", file=out)
     for name, ms in result["stages_ms_per_frame"].items():
         print(f"  {name:18s} {ms:8.2f} ms/frame (mean)", file=out)
     print(f"export: {result['export_ms_per_frame']:.2f} ms per frame (median; writing the frame record and "
           "checkpoint, not in the simulation figure)", file=out)
     print(f"memory: peak RSS {result['peak_rss_bytes'] / 2**20:.0f} MiB; "
-          f"{result['bytes_per_crossing']:.0f} bytes per crossing over the RSS before the model was built", file=out)
+          f"{result['bytes_per_crossing']:.0f} bytes per crossing over the RSS {result['memory_baseline']}", file=out)
     if "render_stages_ms_per_frame" in result:
         print(f"render: {result['render_ms_per_frame']:.2f} ms per frame", file=out)
         for name, ms in result["render_stages_ms_per_frame"].items():

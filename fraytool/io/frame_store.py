@@ -53,7 +53,7 @@ def arrays_checksum(arrays: dict[str, np.ndarray], scene_hash: str) -> str:
     for name in sorted(arrays):
         a = np.ascontiguousarray(arrays[name])
         h.update(f"{name}|{a.dtype.str}|{a.shape}|".encode())
-        h.update(a.tobytes())
+        h.update(memoryview(a).cast("B") if a.size else b"")  # the bytes of a.tobytes(), not a copy
     return h.hexdigest()
 
 

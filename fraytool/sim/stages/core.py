@@ -99,7 +99,7 @@ class Damping(_NoSummary):
         self.model = model
         self.damping = model.damping
         self.per_piece = bool(model.tearing)
-        self._labels = np.zeros(model.particle_count, np.int64)
+        self._labels = np.zeros(model.particle_count if self.per_piece else 0, np.int64)
         self._piece_count = 0
         self._topology_key: tuple = ()
 

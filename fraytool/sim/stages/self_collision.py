@@ -93,14 +93,13 @@ class SelfCollision:
 
     def __init__(self, model: Model):
         self.model = model
-        self.spring_yarn = yarn_segment_ids(model)
         self.contact_distance_m = CONTACT_FRACTION * model.thickness_m
         self.iterations = model.self_collision_iterations
         self.slack_m = SLACK_FRACTION * model.spacing_m
         """Extra broad-phase margin: candidates stay valid while no end point leaves its box by more."""
         self.margin_m = 0.5 * self.contact_distance_m + self.slack_m
         self.friction = model.self_collision_friction
-        self.yarn_segments = np.nonzero(self.spring_yarn >= 0)[0].astype(np.int32)
+        self.yarn_segments = np.nonzero(yarn_segment_ids(model) >= 0)[0].astype(np.int32)
         self._cand = None
         self._box_lo = self._box_hi = None
         self._inflated = None

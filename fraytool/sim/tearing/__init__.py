@@ -58,8 +58,10 @@ class YarnTearing:
         self._weft_free = np.zeros(model.crossing_count, np.bool_)
         """Scratch of the cut rule: crossings whose weft (warp) lies on a free run (contact.free_yarn_runs)."""
         self._runs_key: tuple = ()
-        self._fragment_left = np.full(model.spring_count, 1 << 30, np.int64)
-        self._fragment_right = np.full(model.spring_count, 1 << 30, np.int64)
+        # crossings to the yarn end on each side of a spring (yarn_runs.yarn_fragments): at most
+        # ANCHORED (1 << 30) + a yarn's length, so int32
+        self._fragment_left = np.full(model.spring_count, 1 << 30, np.int32)
+        self._fragment_right = np.full(model.spring_count, 1 << 30, np.int32)
         self._warp_free = np.zeros(model.crossing_count, np.bool_)
         self._couple_count = 0
         self._owner: Optional[State] = None

@@ -40,11 +40,6 @@ class TearTopology:
     structural_shear_list: np.ndarray
     """Shear springs (not twins) of the grid cells on either side of each structural spring
     (at most 2 cells x 2 diagonals), shape (nnz,), int32."""
-    shear_cell_border: np.ndarray
-    """The 4 structural springs bordering the cell of each shear spring or twin (-1 for other
-    kinds), shape (spring_count, 4), int32."""
-    bend_span: np.ndarray
-    """The 2 structural springs a bend spring spans (-1 for other kinds), shape (spring_count, 2), int32."""
 
 
 def _csr(keys: np.ndarray, values: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray]:
@@ -56,25 +51,16 @@ def _csr(keys: np.ndarray, values: np.ndarray, size: int) -> tuple[np.ndarray, n
     return start, values[order].astype(np.int32)
 
 
-def build_tear_topology(model: Model) -> TearTopology:
-    """Derive the lookup tables of `model` (pure NumPy, O(springs))."""
-    n = model.crossing_count
-    W = model.warp_yarns
+def spanned_structural_springs(model: Model) -> tuple[np.ndarray, np.ndarray]:
+    """(bend_span, shear_cell_border): the 2 structural springs each bend spring spans, shape
+    (spring_count, 2), and the 4 structural springs bordering the grid cell of each shear spring or
+    twin, shape (spring_count, 4); int32, -1 for springs of other kinds. The CSR tables of
+    build_tear_topology are made from them and they are dropped (24 bytes per spring slot);
+    topology_problems makes them again."""
     S = model.spring_count
     kind = model.spring_kind
-    ca = model.spring_crossing_a.astype(np.int64)
-    cb = model.spring_crossing_b.astype(np.int64)
-    ids = np.arange(S, dtype=np.int64)
-
-    not_twin = kind != SHEAR_TWIN
-    keys = np.concatenate([ca[not_twin], cb[not_twin]])
-    vals = np.concatenate([ids[not_twin], ids[not_twin]])
-    c_start, c_list = _csr(keys, vals, n)
-
-    attached = np.zeros(n, bool)
-    held = model.attachment_particle[model.attachment_particle < n]
-    attached[held] = True
-
+    W = model.warp_yarns
+    ca, cb = model.spring_crossing_a, model.spring_crossing_b
     weft = model.weft_structural_spring
     warp = model.warp_structural_spring
     ia, ja = ca % W, ca // W
@@ -90,8 +76,6 @@ def build_tear_topology(model: Model) -> TearTopology:
     i0, j0 = ia[bv], np.minimum(ja[bv], jb[bv])
     bend_span[bv, 0] = warp[i0, j0]
     bend_span[bv, 1] = warp[i0, j0 + 1]
-    bends = np.concatenate([bw, bv])
-    b_start, b_list = _csr(bend_span[bends].ravel().astype(np.int64), np.repeat(bends, 2), S)
 
     # Shear springs and twins: cell (i0, j0) = lower-left corner of the quad they cross.
     cell_border = np.full((S, 4), -1, np.int32)
@@ -101,8 +85,35 @@ def build_tear_topology(model: Model) -> TearTopology:
     cell_border[sh, 1] = weft[j0 + 1, i0]
     cell_border[sh, 2] = warp[i0, j0]
     cell_border[sh, 3] = warp[i0 + 1, j0]
+    return bend_span, cell_border
+
+
+def build_tear_topology(model: Model) -> TearTopology:
+    """Derive the lookup tables of `model` (pure NumPy, O(springs))."""
+    n = model.crossing_count
+    S = model.spring_count
+    kind = model.spring_kind
+    ca = model.spring_crossing_a.astype(np.int64)
+    cb = model.spring_crossing_b.astype(np.int64)
+    ids = np.arange(S, dtype=np.int64)
+
+    not_twin = kind != SHEAR_TWIN
+    keys = np.concatenate([ca[not_twin], cb[not_twin]])
+    vals = np.concatenate([ids[not_twin], ids[not_twin]])
+    c_start, c_list = _csr(keys, vals, n)
+    del keys, vals, ids, ca, cb
+
+    attached = np.zeros(n, bool)
+    held = model.attachment_particle[model.attachment_particle < n]
+    attached[held] = True
+
+    bend_span, cell_border = spanned_structural_springs(model)
+    bends = np.nonzero((kind == BEND_WEFT) | (kind == BEND_WARP))[0]
+    b_start, b_list = _csr(bend_span[bends].ravel().astype(np.int64), np.repeat(bends, 2), S)
+    del bend_span
     orig = np.nonzero(kind == SHEAR)[0]
     s_start, s_list = _csr(cell_border[orig].ravel().astype(np.int64), np.repeat(orig, 4), S)
+    del cell_border
 
     structural = np.nonzero((kind == STRUCT_WEFT) | (kind == STRUCT_WARP))[0].astype(np.int32)
     return TearTopology(
@@ -115,8 +126,6 @@ def build_tear_topology(model: Model) -> TearTopology:
         structural_bend_list=b_list,
         structural_shear_start=s_start,
         structural_shear_list=s_list,
-        shear_cell_border=cell_border,
-        bend_span=bend_span,
     )
 
 
@@ -178,11 +187,10 @@ def topology_problems(model: Model, state, topo: TearTopology | None = None) -> 
     if (lvl & topo.crossing_attached).any():
         out.append("held crossing split")
     bend = (kind == BEND_WEFT) | (kind == BEND_WARP)
-    span = topo.bend_span
+    span, border = spanned_structural_springs(model)
     if (alive[bend] & ~(alive[span[bend, 0]] & alive[span[bend, 1]])).any():
         out.append("live bend spring over a cut yarn")
     shear = (kind == SHEAR) | (kind == SHEAR_TWIN)
-    border = topo.shear_cell_border
     if (alive[shear] & ~alive[border[shear]].all(axis=1)).any():
         out.append("live shear spring in a torn cell")
     parted = lvl & ~state.couple_connected
