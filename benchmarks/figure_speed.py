@@ -5,7 +5,9 @@ this machine's speed varies by up to a quarter from one minute to the next (shar
 process (`fraytool bench SCENE --frames <shot frames - 1> --json`); the best, median and worst of
 the runs' medians are printed with the target.
 
-    python benchmarks/figure_speed.py [--repeats 3] [--scenes fig7_square_grab,fig5_corner_grab]
+    python benchmarks/figure_speed.py [--repeats 3] [--scenes fig7_square_grab,fig5_corner_grab] [--threads N]
+
+--threads N passes `--threads N` to every bench (default: numba's default, every core).
 """
 from __future__ import annotations
 
@@ -22,11 +24,12 @@ TARGETS_MS = {"fig5_corner_grab": 30.0, "fig6_thrown_ball_plain": 30.0, "fig6_th
 """Median simulation ms per frame over the whole shot, self-collision on (issue 10)."""
 
 
-def bench(scene: str) -> dict:
+def bench(scene: str, threads: int | None = None) -> dict:
     from fraytool.scene import load_scene
 
     frames = load_scene(scene).time.frames - 1
-    r = subprocess.run([sys.executable, "-m", "fraytool", "bench", scene, "--frames", str(frames), "--json"],
+    extra = ["--threads", str(threads)] if threads else []
+    r = subprocess.run([sys.executable, "-m", "fraytool", "bench", scene, "--frames", str(frames), "--json", *extra],
                        capture_output=True, text=True, cwd=ROOT)
     if r.returncode != 0:
         raise SystemExit(f"{scene}: fraytool bench failed: {r.stderr.strip().splitlines()[-1:]}")
@@ -37,11 +40,12 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--scenes", default=",".join(TARGETS_MS))
+    ap.add_argument("--threads", type=int, default=None)
     args = ap.parse_args()
     print("| scene | target [ms] | best | median | worst | runs | stages of the best run [ms] |")
     print("|---|---|---|---|---|---|---|")
     for scene in args.scenes.split(","):
-        runs = [bench(scene) for _ in range(args.repeats)]
+        runs = [bench(scene, args.threads) for _ in range(args.repeats)]
         ms = sorted(r["ms_per_frame"] for r in runs)
         best = min(runs, key=lambda r: r["ms_per_frame"])
         stages = ", ".join(f"{k} {v:.1f}" for k, v in best["stages_ms_per_frame"].items())

@@ -1,9 +1,13 @@
 """How many threads the simulation kernels use (`--threads N`; numba's NUMBA_NUM_THREADS sets the most).
 
-The parallel kernels (numba prange: spring forces, the explicit Euler updates, strain limiting yarn by
-yarn) give the same result, bit for bit, on any number of threads: every thread writes its own
-particles or springs, and every sum runs in the same order as on one thread. The thread count therefore
-changes only the speed. The farm's workers run one thread each (fraytool.farm.runner.WORKER_ENV)."""
+The parallel kernels (numba prange: strain limiting yarn by yarn, `limit_strain_lines`, or colour group
+by colour group, `limit_strain_groups`) give the same result, bit for bit, on any number of threads:
+every thread moves its own particles, and the largest residual is taken after each group. The thread
+count therefore changes only the speed. The other kernels run on one thread: spring forces sum into
+shared particles in spring order (a parallel order-keeping version, per particle or per chunk, was
+measured 1.5-2x slower per thread than the serial loop, so no faster on two cores), the explicit
+Euler updates are too cheap for a parallel region to pay, and self-collision and tearing are
+sequential by design (Gauss-Seidel over pairs and couples). The farm's workers run one thread each (fraytool.farm.runner.WORKER_ENV)."""
 from __future__ import annotations
 
 from fraytool.errors import InputError

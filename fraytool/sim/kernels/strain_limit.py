@@ -67,6 +67,67 @@ def limit_strain(
     return max_iterations, max_iterations == 0
 
 
+@nb.njit(cache=True, fastmath=False, parallel=True)
+def limit_strain_groups(
+    # model
+    limited_springs, group_start, spring_rest_length_m, strain_limit, tolerance, max_iterations,
+    # state in
+    particle_inv_mass, spring_particle_a, spring_particle_b, spring_alive,
+    # scratch, one entry per limited spring (overwritten)
+    worst_of,
+    # state in/out
+    particle_position_m,
+):
+    """`limit_strain` over springs in groups that share no mass (limited_springs[group_start[g]:
+    group_start[g + 1]]), each group in parallel; returns (sweeps used, converged).
+
+    Inside a group no two springs move the same particle, so the order inside it does not matter and
+    the result is the same, bit for bit, as `limit_strain` over the concatenated list (which sweeps
+    forward, then backward: the groups in reverse order) on any number of threads."""
+    stretch = 1.0 + strain_limit
+    groups = group_start.shape[0] - 1
+    for it in range(max_iterations):
+        worst = 0.0
+        for step in range(groups):
+            g = step if it % 2 == 0 else groups - 1 - step
+            lo = group_start[g]
+            hi = group_start[g + 1]
+            for k in nb.prange(lo, hi):
+                worst_of[k] = 0.0
+                s = limited_springs[k]
+                if not spring_alive[s]:
+                    continue
+                a = spring_particle_a[s]
+                b = spring_particle_b[s]
+                max_length = stretch * spring_rest_length_m[s]
+                dx = particle_position_m[b, 0] - particle_position_m[a, 0]
+                dy = particle_position_m[b, 1] - particle_position_m[a, 1]
+                dz = particle_position_m[b, 2] - particle_position_m[a, 2]
+                d2 = dx * dx + dy * dy + dz * dz
+                if d2 <= max_length * max_length:
+                    continue
+                w_a = particle_inv_mass[a]
+                w_b = particle_inv_mass[b]
+                w = w_a + w_b
+                if w == 0.0:
+                    continue
+                length = math.sqrt(d2)
+                worst_of[k] = (length - max_length) / spring_rest_length_m[s]
+                c = (length - max_length) / (length * w)
+                particle_position_m[a, 0] += w_a * c * dx
+                particle_position_m[a, 1] += w_a * c * dy
+                particle_position_m[a, 2] += w_a * c * dz
+                particle_position_m[b, 0] -= w_b * c * dx
+                particle_position_m[b, 1] -= w_b * c * dy
+                particle_position_m[b, 2] -= w_b * c * dz
+            for k in range(lo, hi):
+                if worst_of[k] > worst:
+                    worst = worst_of[k]
+        if worst <= tolerance:
+            return it + 1, True
+    return max_iterations, max_iterations == 0
+
+
 @nb.njit(cache=True, fastmath=False)
 def damp_overstretched(
     # model

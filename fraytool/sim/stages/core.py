@@ -18,7 +18,7 @@ from fraytool.sim.kernels.integrate import (
 )
 from fraytool.sim.kernels.pieces import label_pieces
 from fraytool.sim.kernels.rigid_contact import collide_rigid
-from fraytool.sim.kernels.strain_limit import damp_overstretched, limit_strain, limit_strain_lines
+from fraytool.sim.kernels.strain_limit import damp_overstretched, limit_strain_groups, limit_strain_lines
 from fraytool.sim.model import Model
 from fraytool.sim.rigid import advance_bodies, apply_cloth_impulse
 from fraytool.sim.stages.base import StepBuffers
@@ -28,10 +28,17 @@ from fraytool.sim.state import State
 def colour_ordered_structural_springs(model: Model) -> np.ndarray:
     """Slots of the structural springs grouped by colour: weft springs (i, i+1) with i even, then
     i odd, then warp springs (j, j+1) with j even, then j odd; ascending slots inside a group."""
+    return colour_groups(model)[0]
+
+
+def colour_groups(model: Model) -> tuple[np.ndarray, np.ndarray]:
+    """colour_ordered_structural_springs and the start of each colour group in it (+ the end)."""
     weft = model.weft_structural_spring
     warp = model.warp_structural_spring
     groups = [weft[:, 0::2], weft[:, 1::2], warp[:, 0::2], warp[:, 1::2]]
-    return np.concatenate([np.sort(g.ravel()) for g in groups]).astype(np.int32)
+    springs = np.concatenate([np.sort(g.ravel()) for g in groups]).astype(np.int32)
+    starts = np.concatenate([[0], np.cumsum([g.size for g in groups])]).astype(np.int64)
+    return springs, starts
 
 
 def yarn_line_springs(model: Model) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -156,10 +163,10 @@ class Attachments(_NoSummary):
 class StrainLimiting(_NoSummary):
     """Step 5: strain limiting by constraint projection (§4.1).
 
-    With [cloth.strain] stiffness_n_per_m = 0 (the paper's hard projection, `limit_strain`): point
+    With [cloth.strain] stiffness_n_per_m = 0 (the paper's hard projection, `limit_strain_groups`): point
     Gauss-Seidel over the structural springs in four colour groups (weft i even, weft i odd, warp j
     even, warp j odd): no two springs of a group share a mass, so a sweep is order-independent inside
-    each group and has no spatial sweep direction.
+    each group (each group runs in parallel) and has no spatial sweep direction.
 
     With stiffness_n_per_m > 0 the limit is a compliant constraint (XPBD, `limit_strain_lines`): where
     it cannot be met the yarn stretches by a definite amount, and every sweep solves each yarn whole
@@ -173,7 +180,8 @@ class StrainLimiting(_NoSummary):
 
     def __init__(self, model: Model):
         self.model = model
-        self.limited_springs = colour_ordered_structural_springs(model)
+        self.limited_springs, self.colour_start = colour_groups(model)
+        self._worst_of = np.zeros(self.limited_springs.shape[0])
         self.compliant = model.strain_stiffness_n_per_m > 0.0
         if self.compliant:
             self.line_springs, self.line_start, self.line_groups = yarn_line_springs(model)
@@ -204,10 +212,11 @@ class StrainLimiting(_NoSummary):
                 self._tension, self._diag, self._upper, self._rhs, self._unit, self._line_worst,
                 state.particle_position_m)
         else:
-            it, converged = limit_strain(self.limited_springs, state.spring_rest_length_m, m.strain_limit,
-                                         m.strain_tolerance, m.strain_max_iterations, state.particle_inv_mass,
-                                         state.spring_particle_a, state.spring_particle_b, state.spring_alive,
-                                         state.particle_position_m)
+            it, converged = limit_strain_groups(self.limited_springs, self.colour_start, state.spring_rest_length_m,
+                                                m.strain_limit, m.strain_tolerance, m.strain_max_iterations,
+                                                state.particle_inv_mass, state.spring_particle_a,
+                                                state.spring_particle_b, state.spring_alive, self._worst_of,
+                                                state.particle_position_m)
         self.iterations_last = it
         self.iterations_max = max(self.iterations_max, it)
         self.cap_hits += 0 if converged else 1
