@@ -28,7 +28,7 @@ def bench(scene: str, threads: int | None = None) -> dict:
     from fraytool.scene import load_scene
 
     frames = load_scene(scene).time.frames - 1
-    extra = ["--threads", str(threads)] if threads else []
+    extra = ["--threads", str(threads)] if threads is not None else []
     r = subprocess.run([sys.executable, "-m", "fraytool", "bench", scene, "--frames", str(frames), "--json", *extra],
                        capture_output=True, text=True, cwd=ROOT)
     if r.returncode != 0:

@@ -60,4 +60,3 @@ def test_shear_acts_only_in_compression():
         assert (np.abs(out).max() > 0) == expect_force
         if expect_force:  # compressed: pushes the ends apart
             assert np.dot(out[b], x[b] - x[a]) > 0
-

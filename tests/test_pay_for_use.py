@@ -53,3 +53,22 @@ def test_plain_cloth_compiles_no_rigid_or_attachment_kernel(tmp_path):
 def test_bodies_and_attachments_do_compile_their_kernels(tmp_path):
     out = _probe(tmp_path, small_scene_text() + BODY)
     assert out["rigid"] == 1 and out["attach"] == 1 and out["solver_has_rigid"]
+
+
+def test_contact_before_the_strain_limit_only_where_a_tearing_cloth_meets_a_body():
+    """The extra rigid-contact pass before strain limiting (RigidContactBeforeLimit) exists only in a
+    scene that tears and has a colliding body, ahead of StrainLimiting; step 6's contact stays after
+    the constraints, as in the paper's order."""
+    from fraytool.scene import parse_scene
+    from fraytool.sim import Simulation
+    from helpers import pulled_strip_text
+
+    def stage_names(text):
+        return [type(s).__name__ for s in Simulation(parse_scene(text, "s.toml")).solver.stages]
+
+    ball = ('[[bodies]]\nname = "ball"\nshape = "sphere"\nradius_m = 0.01\nposition_m = [0.04, 0.018, 0.01]\n')
+    torn = stage_names(pulled_strip_text("strip", yarn_level=True, extra=ball))
+    assert torn.index("RigidContactBeforeLimit") < torn.index("StrainLimiting") < torn.index("RigidContact")
+    assert torn.index("RigidContact") < torn.index("TearingStage")
+    assert "RigidContactBeforeLimit" not in stage_names(small_scene_text() + BODY)  # does not tear
+    assert "RigidContactBeforeLimit" not in stage_names(pulled_strip_text("strip", yarn_level=True))  # no ball

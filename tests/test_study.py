@@ -331,19 +331,53 @@ def test_tearing_study_compares_the_means_over_the_seeds(tearing_study_files):
     assert differ
 
 
+def test_seed_means_keep_what_exists_only_where_something_broke_apart():
+    """A seed that never broke has no first break, free ends or centroid: those are means over the
+    seeds that broke, counted in seeds_broken, and two steps where different numbers of seeds broke
+    differ infinitely in them (not 0, as means over different runs would say)."""
+    from fraytool.study.tear_convergence import compare_figures, ensemble_figures
+
+    def fig(broken, first, free, x):
+        return {"broken_springs": broken, "first_break_s": first, "yarn_level_crossings": 2 * broken,
+                "fray_mean_free_end_m": free, "centroid_m": None if first is None else [x, 0.0, 0.0],
+                "broken_structural_springs": broken, "torn_length_m": 0.004 * broken, "pieces": 1}
+
+    all_broke = ensemble_figures([fig(4, 0.01, 0.02, 0.0), fig(6, 0.03, 0.04, 0.008)])
+    assert all_broke["seeds_broken"] == 2 and all_broke["broken_springs"] == 5.0
+    assert all_broke["first_break_s"] == pytest.approx(0.02) and all_broke["fray_mean_free_end_m"] == pytest.approx(0.03)
+    assert all_broke["centroid_m"] == pytest.approx([0.004, 0.0, 0.0])
+    one_broke = ensemble_figures([fig(4, 0.02, 0.03, 0.004), fig(0, None, 0.0, 0.0)])
+    assert one_broke["seeds_broken"] == 1 and one_broke["broken_springs"] == 2.0  # counts: over every seed
+    assert one_broke["first_break_s"] == 0.02 and one_broke["fray_mean_free_end_m"] == 0.03  # over the one
+    assert one_broke["centroid_m"] == [0.004, 0.0, 0.0]
+    diff = compare_figures(one_broke, all_broke, 0.004)
+    assert diff["first_break_s"] == math.inf and diff["fray_mean_free_end_m"] == math.inf
+    assert diff["centroid_distance_spacings"] == math.inf
+    assert diff["broken_springs"] == pytest.approx(0.6)
+    same = compare_figures(all_broke, dict(all_broke), 0.004)
+    assert all(v == 0.0 for v in same.values())
+    none = ensemble_figures([fig(0, None, 0.0, 0.0), fig(0, None, 0.0, 0.0)])
+    assert none["seeds_broken"] == 0 and none["first_break_s"] is None and none["centroid_m"] is None
+
+
 def test_seeds_flag_is_checked(tmp_path):
     from fraytool.commands.study import parse_seeds
 
     assert parse_seeds("1-4") == (1, 2, 3, 4) and parse_seeds("3,7,9") == (3, 7, 9)
     assert parse_seeds("1-2,8") == (1, 2, 8)
-    for bad in ("x", "4-1", "-1", "1,1", ""):
+    for bad in ("x", "4-1", "-1", "1,1", "", "1-", "1-,2", "+3", "1_000", "0-1000000000", f"{2 ** 63}"):
         with pytest.raises(InputError, match="--seeds"):
             parse_seeds(bad)
+    with pytest.raises(InputError, match="seed 2 is listed twice"):
+        parse_seeds("1-3,2")
     spec = parse_scene(pulled_strip_text("strip", yarn_level=True), "strip.toml")
     first = spec.scene.seed
     assert plan_study(spec).tearing_seeds == (first, first + 1, first + 2, first + 3)  # full: 4 from the scene's
     assert plan_study(spec, quick=True).tearing_seeds == (first,)
     assert plan_study(spec, seeds=(5, 9)).tearing_seeds == (5, 9)
+    fixed = dc.replace(spec, cloth=dc.replace(spec.cloth, tearing=dc.replace(spec.cloth.tearing,
+                                                                            break_strain_spread=0.0)))
+    assert plan_study(fixed).tearing_seeds == (first,)  # every seed would give the same run
     scene = tmp_path / "hanging.toml"
     scene.write_text(HANGING)
     err = io.StringIO()

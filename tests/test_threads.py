@@ -26,20 +26,22 @@ def _simulate(scene: Path, out: Path, threads: int) -> dict:
 
 PARALLEL_STRIP = """[cloth.strain]
 limit = 0.10
-stiffness_n_per_m = 400.0
-damping_ratio = 1.0
+stiffness_n_per_m = {stiffness}
+damping_ratio = {damping}
 [self_collision]
 enabled = true
 """
-"""The pulled strip with the compliant strain limit (yarn by yarn, in parallel) and self-collision."""
+"""The pulled strip with self-collision and the hard strain limit (colour groups in parallel,
+stiffness 0) or the figure scenes' compliant one (yarn lines in parallel)."""
 
 
-def test_a_tearing_run_is_bit_identical_on_one_and_two_threads(tmp_path):
-    """The yarn-level pulled strip with the figure scenes' compliant strain limit and self-collision
-    tears (splits, cuts, couples): every frame and the checkpoint are the same bytes whether numba may
-    use one thread or two."""
+@pytest.mark.parametrize("stiffness", [0.0, 400.0], ids=["hard limit", "compliant limit"])
+def test_a_tearing_run_is_bit_identical_on_one_and_two_threads(tmp_path, stiffness):
+    """The yarn-level pulled strip with self-collision tears (splits, cuts, couples): every frame and
+    the checkpoint are the same bytes whether numba may use one thread or two."""
     scene = tmp_path / "strip.toml"
-    scene.write_text(pulled_strip_text("strip", yarn_level=True, extra=PARALLEL_STRIP))
+    extra = PARALLEL_STRIP.format(stiffness=stiffness, damping=1.0 if stiffness else 0.0)
+    scene.write_text(pulled_strip_text("strip", yarn_level=True, extra=extra))
     one = _simulate(scene, tmp_path / "one", 1)
     two = _simulate(scene, tmp_path / "two", 2)
     assert one["broken_springs"] > 0 and one["yarn_level_crossings"] > 0  # it tore at the yarn level

@@ -36,6 +36,13 @@ def empty_run(spec, out_dir: Path) -> float:
     return time.perf_counter() - t0
 
 
+def _threads() -> int:
+    """Threads the parallel kernels may use in this run (--threads or numba's default)."""
+    import numba
+
+    return int(numba.get_num_threads())
+
+
 def bench_simulation(spec, frames: int = DEFAULT_FRAMES, out_dir: Path | None = None) -> dict:
     """An empty run, then `frames` frames simulated and written; returns the bench figures.
 
@@ -76,6 +83,7 @@ def bench_simulation(spec, frames: int = DEFAULT_FRAMES, out_dir: Path | None = 
         "springs": int(sim.state.spring_alive.sum()),
         "frames": frames,
         "steps_per_frame": spec.time.steps_per_frame,
+        "threads": _threads(),
         "ms_per_frame": 1e3 * statistics.median(per_frame),
         "stages_ms_per_frame": stages,
         "export_ms_per_frame": 1e3 * statistics.median(export_s),

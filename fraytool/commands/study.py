@@ -30,20 +30,35 @@ def study_dir(spec: SceneSpec, out: Optional[Path]) -> Path:
     return base / STUDY_DIR
 
 
+MAX_SEEDS = 64
+"""Most seeds one study may run (each runs every step: 5 runs per seed)."""
+SEED_MAX = 2 ** 63 - 1
+"""Largest seed (as [scene] seed)."""
+
+
 def parse_seeds(text: str) -> tuple[int, ...]:
-    """--seeds: "1-4", "3,7,9" or a mix ("1-3,8"); whole numbers >= 0, at least one, none twice."""
+    """--seeds: "1-4", "3,7,9" or a mix ("1-3,8"): whole numbers 0..SEED_MAX, at most MAX_SEEDS of them,
+    none twice."""
+    import re
+
     seeds: list[int] = []
-    try:
-        for part in text.split(","):
-            lo, _, hi = part.strip().partition("-")
-            first, last = int(lo), int(hi) if hi else int(lo)
-            if first < 0 or last < first:
-                raise ValueError
-            seeds += range(first, last + 1)
-    except ValueError:
-        raise InputError(f"--seeds {text!r}: expected seeds >= 0 as a range or a list, e.g. 1-4 or 1,3,7") from None
-    if len(set(seeds)) != len(seeds):
-        raise InputError(f"--seeds {text!r}: a seed is listed twice")
+    for part in text.split(","):
+        m = re.fullmatch(r"\s*([0-9]+)(?:-([0-9]+))?\s*", part)
+        if m is None:
+            raise InputError(f"--seeds {text!r}: {part.strip()!r} is not a seed or a range; expected e.g. 1-4 or "
+                             "1,3,7 (whole numbers >= 0)")
+        first = int(m.group(1))
+        last = int(m.group(2)) if m.group(2) is not None else first
+        if last < first:
+            raise InputError(f"--seeds {text!r}: the range {part.strip()} runs backwards")
+        if last > SEED_MAX:
+            raise InputError(f"--seeds {text!r}: {last} is above the largest seed, {SEED_MAX} (as [scene] seed)")
+        if len(seeds) + last - first + 1 > MAX_SEEDS:
+            raise InputError(f"--seeds {text!r}: more than {MAX_SEEDS} seeds (each runs every step of the study)")
+        seeds += range(first, last + 1)
+    twice = sorted({s for s in seeds if seeds.count(s) > 1})
+    if twice:
+        raise InputError(f"--seeds {text!r}: seed {twice[0]} is listed twice")
     return tuple(seeds)
 
 

@@ -229,8 +229,9 @@ def _one_line(exc: BaseException) -> str:
 
 WORKER_ENV = {"LP_NUM_THREADS": "1", "NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1",
               "DASK_LOGGING__DISTRIBUTED": "critical"}
-"""One core per worker: the kernels are serial, and Mesa's llvmpipe would otherwise rasterise on every
-core in every worker (N workers would fight over the same cores)."""
+"""One core per worker: the simulation kernels run on one thread in a farm task (tasks.one_thread, also
+on remote workers), and Mesa's llvmpipe would otherwise rasterise on every core in every worker (N
+workers would fight over the same cores)."""
 
 
 def local_client(workers: int, stream: TextIO):

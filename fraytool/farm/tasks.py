@@ -51,6 +51,15 @@ def shot_frames(shot: Shot, out_dir: Path) -> FrameRange:
     return job.frames
 
 
+def one_thread() -> None:
+    """A farm task simulates on one thread: every worker has its core (a remote worker started without
+    NUMBA_NUM_THREADS=1 would otherwise run the parallel kernels on every core of its machine, as many
+    times as it has worker processes). The frames are the same on any number of threads."""
+    from fraytool.threads import use_threads
+
+    use_threads(1)
+
+
 def simulate_task(shot: Shot, out_dir: str, frames_needed: int) -> dict:
     """Simulate (or continue) the shot's frames 0..frames_needed-1 into out_dir/frames."""
     from fraytool.sim.run import simulate_to_disk
@@ -59,6 +68,7 @@ def simulate_task(shot: Shot, out_dir: str, frames_needed: int) -> dict:
     from fraytool.scene import scene_hash
 
     t0 = time.time()
+    one_thread()
     spec = load_shot(shot)
     store = FrameStore(Path(out_dir))
     # continue (or repair) this shot's own frames; frames of other settings are replaced

@@ -21,7 +21,10 @@ KERNEL_DESCRIPTIONS = {
     "integrate_positions": "position update x += dt v",
     "apply_attachments": "attachments",
     "limit_strain": "strain limiting",
+    "limit_strain_groups": "strain limiting",
+    "limit_strain_lines": "strain limiting, yarn by yarn",
     "collide_rigid": "rigid-body collisions",
+    "collide_rigid (before strain limiting)": "rigid-body collisions, before strain limiting",
     "velocities_from_positions": "velocity post-process v = (x - x_prev) / dt",
 }
 

@@ -154,7 +154,15 @@ def frames_for(spec: SceneSpec, duration_s: float) -> int:
 
 
 TEAR_SEEDS = 4
-"""The full tearing study runs every step at this many seeds (the scene's and the next ones); --quick at one."""
+"""The full tearing study runs every step at this many seeds (the scene's and the next ones); --quick at
+one, and so does a scene whose break limits are not random (break_strain_spread = 0: every seed gives
+the same run)."""
+
+
+def default_seed_count(spec: SceneSpec, quick: bool) -> int:
+    """Seeds of the tearing study without --seeds (TEAR_SEEDS)."""
+    random = spec.cloth.tearing.break_strain_spread > 0.0
+    return TEAR_SEEDS if random and not quick else 1
 
 
 def plan_study(spec: SceneSpec, quick: bool = False, duration_s: Optional[float] = None,
@@ -191,7 +199,7 @@ def plan_study(spec: SceneSpec, quick: bool = False, duration_s: Optional[float]
                      tearing_frames=tear_frames if tears else None,
                      tearing_step_factors=TEAR_STEP_FACTORS if tears else (), trajectories=trajectories,
                      tearing_seeds=tuple(seeds) if seeds else
-                     tuple(spec.scene.seed + i for i in range(1 if quick else TEAR_SEEDS)))
+                     tuple(spec.scene.seed + i for i in range(default_seed_count(spec, quick))))
 
 
 # --- error measures and orders --------------------------------------------------------------------

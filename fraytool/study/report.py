@@ -18,7 +18,7 @@ if TYPE_CHECKING:
     from fraytool.study.stability_sweep import SweepResult
     from fraytool.study.tear_convergence import TearingStudy
 
-RUN_COLUMNS = ("run", "varied", "value", "role", "seeds", "step_s", "steps_per_frame", "strain_max_iterations",
+RUN_COLUMNS = ("run", "varied", "value", "role", "seeds", "seeds_broken", "step_s", "steps_per_frame", "strain_max_iterations",
                "strain_tolerance", "collision_iterations", "damping", "frames", "simulated_s", "steps", "wall_s",
                "status", "rms_final_m", "rms_time_m", "max_m", "max_strain", "strain_cap_hits", "max_jitter",
                "compared_with", "broken_springs", "broken_springs_rel_diff", "first_break_s",
@@ -32,8 +32,9 @@ per step (varied = "step, tearing on"; role shipped / reference / check): the te
 centroid of the broken structural springs [m]) and each quantity's relative difference against the run
 named in compared_with (the reference h0/8; for the reference, h0/16); centroid_distance_spacings is
 the centroids' distance in yarn spacings. Run at several seeds, a step's row holds the means over the
-seeds (seeds lists them; wall_s is their sum) and is followed by one row per seed (role "seed", seeds
-the one seed), which is not compared."""
+seeds (seeds lists them; seeds_broken counts those that broke a spring; wall_s is their sum, max_strain
+and max_jitter their largest) and is followed by one row per seed (role "seed", seeds the one seed),
+which is not compared. First break, mean free end and centroid are means over the seeds that broke."""
 
 
 def write_text(path: Path, text: str) -> None:

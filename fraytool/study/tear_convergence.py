@@ -159,21 +159,21 @@ class TearRun:
         """The runs.csv rows (fraytool.study.report.RUN_COLUMNS): the step's row (the mean over the seeds,
         compared), then with several seeds one row per seed (role "seed", not compared)."""
         seeds = self.seeds
-        row = self._row(self.result, self.figures, self.role, "-".join(str(s) for s in seeds) if len(seeds) > 1
-                        else str(seeds[0]))
+        row = self._row(self.result, self.figures, self.role, ",".join(str(s) for s in seeds))
         row.update({"run": f"step {self.name}, tearing on", "wall_s": self.wall_s, "status": self.status,
                     "strain_cap_hits": sum(r.strain_cap_hits for r in self.results),
                     "max_strain": max(r.max_strain for r in self.results),
+                    "max_jitter": max(r.max_jitter for r in self.results),
+                    BROKE_SEEDS: self.figures.get(BROKE_SEEDS),
                     "compared_with": self.compared_with, CENTROID_DISTANCE: self.rel_diff.get(CENTROID_DISTANCE)})
-        if len(seeds) > 1:
-            row["seeds"] = ",".join(str(s) for s in seeds)
         for key, _ in QUANTITIES:
             row[f"{key}_rel_diff"] = self.rel_diff.get(key)
         out = [row]
         if len(seeds) > 1:
             for seed, result, fig in zip(seeds, self.results, self.per_seed_figures):
                 r = self._row(result, fig, "seed", str(seed))
-                r.update({"run": f"step {self.name}, tearing on, seed {seed}", "wall_s": result.wall_s,
+                r.update({BROKE_SEEDS: int(fig.get("first_break_s") is not None),
+                          "run": f"step {self.name}, tearing on, seed {seed}", "wall_s": result.wall_s,
                           "status": result.status, "strain_cap_hits": result.strain_cap_hits})
                 out.append(r)
         return out
@@ -185,19 +185,30 @@ def run_figures(result: RunResult) -> dict:
     return {"first_break_s": t.get("first_break_s"), **t.get("final", {})}
 
 
-def ensemble_figures(figures: list[dict]) -> dict:
-    """The mean of each compared quantity over runs at different seeds (one run: its own figures).
+BROKE_SEEDS = "seeds_broken"
+"""Figures key (and runs.csv column): how many of the seeds' runs broke a spring."""
+WHEN_BROKEN = ("first_break_s", "fray_mean_free_end_m")
+"""Quantities that exist only for a run that broke something: averaged over those runs, and not
+comparable between two steps where different numbers of seeds broke (compare)."""
 
-    Counts become means (floats). The time of the first break and the centroid are means over the runs
-    where something broke (None when nothing broke in any). Also averaged: broken structural springs and
-    torn length; pieces is the mean count."""
+
+def ensemble_figures(figures: list[dict]) -> dict:
+    """The mean of each compared quantity over runs at different seeds (one run: its own figures),
+    with BROKE_SEEDS, the number of runs that broke a spring.
+
+    Counts become means (floats), over every run. The time of the first break, the mean free end and
+    the centroid are means over the runs that broke something (None when none did): a run that never
+    broke has no first break and no cut ends. Also averaged: broken structural springs and torn length;
+    pieces is the mean count."""
+    broke = [f for f in figures if f.get("first_break_s") is not None]
     if len(figures) == 1:
-        return dict(figures[0])
-    out: dict = {}
+        return {**figures[0], BROKE_SEEDS: len(broke)}
+    out: dict = {BROKE_SEEDS: len(broke)}
     for key in [k for k, _ in QUANTITIES] + ["broken_structural_springs", "torn_length_m", "pieces"]:
-        values = [f.get(key) for f in figures if f.get(key) is not None]
+        pool = broke if key in WHEN_BROKEN else figures
+        values = [f.get(key) for f in pool if f.get(key) is not None]
         out[key] = float(np.mean(values)) if values else None
-    cents = [f["centroid_m"] for f in figures if f.get("centroid_m") is not None]
+    cents = [f["centroid_m"] for f in broke if f.get("centroid_m") is not None]
     out["centroid_m"] = [float(c) for c in np.mean(cents, axis=0)] if cents else None
     return out
 
@@ -261,10 +272,19 @@ def _say(stream: Optional[TextIO], text: str) -> None:
 
 
 def compare(a: TearRun, b: TearRun, spacing_m: float) -> dict:
-    """Relative differences of a's quantities against b's, and the distance of the centroids."""
-    fa, fb = a.figures, b.figures
+    """Relative differences of a's quantities against b's, and the distance of the centroids. When a
+    different number of seeds broke something in the two steps, the quantities that exist only for a
+    run that broke (WHEN_BROKEN, the centroid) differ infinitely: their means cover different runs."""
+    return compare_figures(a.figures, b.figures, spacing_m)
+
+
+def compare_figures(fa: dict, fb: dict, spacing_m: float) -> dict:
+    """compare on two figures dicts (ensemble_figures)."""
     out = {key: relative_difference(fa.get(key), fb.get(key)) for key, _ in QUANTITIES}
     out[CENTROID_DISTANCE] = centroid_distance(fa.get("centroid_m"), fb.get("centroid_m"), spacing_m)
+    if fa.get(BROKE_SEEDS) != fb.get(BROKE_SEEDS):
+        for key in WHEN_BROKEN + (CENTROID_DISTANCE,):
+            out[key] = math.inf
     return out
 
 
@@ -343,6 +363,12 @@ def _notes(study: TearingStudy) -> list[str]:
                 at = f", seed {result.spec.scene.seed}" if len(r.results) > 1 else ""
                 notes.append(f"Tearing on, step {r.name}{at}: stopped by the stability guard at step {d.get('step')} "
                              f"(stage {d.get('stage')}); its figures are those of the last state reached.")
+    for r in study.runs:
+        broke = r.figures.get(BROKE_SEEDS, 0)
+        if 0 < broke < len(r.results):
+            notes.append(f"Tearing on, step {r.name}: only {broke} of {len(r.results)} seeds broke a spring; the first "
+                         "break, mean free end and centroid are means over those, and differ infinitely from a step "
+                         "where another number of seeds broke.")
     ref = study.run(study.reference)
     if ref.figures.get("first_break_s") is None:
         notes.append(f"Nothing broke within {study.duration_s:.4g} s at the reference step: the counts agree "

@@ -6,7 +6,10 @@ l* = (1 + limit) L, moving its ends along u (unit, a to b) by their inverse-mass
     Δx_a = +w_a / (w_a + w_b) (l - l*) u,   Δx_b = -w_b / (w_a + w_b) (l - l*) u
 
 Sweeps run Gauss-Seidel, alternating direction to avoid a drift bias, until a sweep finds every
-spring within limit + tolerance or the iteration cap is hit. Serial, hence deterministic.
+spring within limit + tolerance or the iteration cap is hit. `limit_strain` is the serial sweep;
+the solver runs `limit_strain_groups` (the same sweeps, the springs of one colour group at a time in
+parallel) or, for a compliant limit, `limit_strain_lines` (one yarn per thread). Both give the same
+bits on any number of threads: a thread moves only masses no other thread of the group touches.
 """
 from __future__ import annotations
 
@@ -79,7 +82,8 @@ def limit_strain_groups(
     particle_position_m,
 ):
     """`limit_strain` over springs in groups that share no mass (limited_springs[group_start[g]:
-    group_start[g + 1]]), each group in parallel; returns (sweeps used, converged).
+    group_start[g + 1]]): the groups one after another, the springs of a group in parallel; returns
+    (sweeps used, converged).
 
     Inside a group no two springs move the same particle, so the order inside it does not matter and
     the result is the same, bit for bit, as `limit_strain` over the concatenated list (which sweeps

@@ -29,6 +29,9 @@ def build_stages(model: Model, speed_limit_m_s: float) -> list:
     stages.append(core.PositionUpdate(model))
     if model.attachment_count > 0:
         stages.append(core.Attachments(model))
+    contact = model.body_count > 0 and bool(model.body_collide.any())
+    if contact and model.tearing:
+        stages.append(core.RigidContactBeforeLimit(model))  # the limit sees a body's push before breaks
     stages.append(core.StrainLimiting(model))
     tearing = None
     if model.tearing:
@@ -37,7 +40,7 @@ def build_stages(model: Model, speed_limit_m_s: float) -> list:
         tearing = TearingStage(model)
         if tearing.yarn_level:
             stages.append(YarnContactStage(tearing.tearing))
-    if model.body_count > 0 and bool(model.body_collide.any()):
+    if contact:
         stages.append(core.RigidContact(model))
     if model.self_collision:
         from fraytool.sim.stages.self_collision import SelfCollision  # only scenes with self-collision
