@@ -68,15 +68,27 @@ def test_threads_flag_is_checked(tmp_path, capsys):
 
 
 @pytest.mark.skipif(thread_limit() < 2, reason="needs two cores: numba allows one thread here")
-def test_threads_flag_sets_numba(tmp_path):
+def test_threads_flag_and_the_default_set_numba(tmp_path, monkeypatch):
+    """--threads N sets numba's threads; without it a command runs one thread, unless the environment
+    sets NUMBA_NUM_THREADS (fraytool.threads.DEFAULT_THREADS)."""
     import numba
 
     scene = tmp_path / "strip.toml"
     scene.write_text(pulled_strip_text("strip"))
     before = numba.get_num_threads()
+
+    def run(*extra):
+        assert main(["simulate", str(scene), "-o", str(tmp_path / "o"), "--frames", "1", "--progress", "none",
+                     *extra]) == 0
+        return numba.get_num_threads()
+
     try:
-        assert main(["simulate", str(scene), "-o", str(tmp_path / "o"), "--frames", "1", "--threads", "1",
-                     "--progress", "none"]) == 0
-        assert numba.get_num_threads() == 1
+        assert run("--threads", "2") == 2
+        monkeypatch.delenv("NUMBA_NUM_THREADS", raising=False)
+        assert run() == 1  # the default
+        numba.set_num_threads(2)
+        monkeypatch.setenv("NUMBA_NUM_THREADS", "2")
+        assert run() == 2  # the environment's choice stands
+        assert run("--threads", "1") == 1
     finally:
         numba.set_num_threads(before)

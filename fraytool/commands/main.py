@@ -83,8 +83,8 @@ def _progress_flag(p: argparse.ArgumentParser) -> None:
 
 
 def _threads_flag(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--threads", type=int, metavar="N", help="threads for the simulation kernels (default: all "
-                   "that NUMBA_NUM_THREADS allows, the machine's cores); the frames are the same on any number")
+    p.add_argument("--threads", type=int, metavar="N", help="threads for the parallel simulation kernels (default 1, "
+                   "or NUMBA_NUM_THREADS if set; at most the machine's cores); the frames are the same on any number")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -362,10 +362,9 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
 
     set_default_mode(getattr(args, "progress", "auto"))
     try:
-        if getattr(args, "threads", None) is not None:
-            from fraytool.threads import use_threads
+        from fraytool.threads import set_up_threads
 
-            use_threads(args.threads)
+        set_up_threads(getattr(args, "threads", None))
         return COMMANDS[args.command](args)
     except FraytoolError as exc:
         kind = "error" if isinstance(exc, InputError) else "run failed"
