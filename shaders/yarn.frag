@@ -24,24 +24,49 @@ uniform vec3 u_fill_dir;
 #ifdef SHADOWS
 #include "shadow.glsl"
 #endif
+#ifdef RIBBON
+// Ribbons (fraytool.render.ribbon): the strip through the yarn's axis faces the eye; v_normal is
+// v S, v in [-1, 1] across it. The pixel sees the tube's point axis + r (v S + sqrt(1 - v^2) V),
+// V the direction to the eye square to the yarn: its normal shades the pixel, its position is
+// looked up in the shadow map and its depth is written, so the strip draws as the round tube.
+uniform mat4 u_view_proj;
+uniform vec3 u_eye;
+uniform float u_yarn_radius;     // [m]
+in vec3 v_tangent;
+#endif
 
 in vec3 v_normal;
 in vec2 v_kajiya;
 in vec4 v_albedo;
-#ifdef SHADOWS
+#if defined(SHADOWS) || defined(RIBBON)
 in vec3 v_position;
 #endif
 
 out vec4 f_color;
 
 void main() {
+#ifdef RIBBON
+    vec3 T = normalize(v_tangent);
+    vec3 V = u_eye - v_position;
+    V = normalize(V - dot(V, T) * T);
+    float v2 = min(dot(v_normal, v_normal), 1.0);
+    float bulge = sqrt(1.0 - v2);
+    vec3 N = normalize(v_normal + bulge * V);
+    vec3 surface = v_position + u_yarn_radius * bulge * V;
+    vec4 clip = u_view_proj * vec4(surface, 1.0);
+    gl_FragDepth = clamp(0.5 * clip.z / clip.w + 0.5, 0.0, 1.0);
+#else
     vec3 N = normalize(v_normal);
+#endif
+#if defined(SHADOWS) && !defined(RIBBON)
+    vec3 surface = v_position;
+#endif
     float n_l = dot(N, u_light_dir);
     float diffuse = mix(max(n_l, 0.0), v_kajiya.x, u_kajiya_weight);
     float highlight = u_specular * v_kajiya.y * smoothstep(-0.2, 0.3, n_l);
     float key = u_light_intensity;
 #ifdef SHADOWS
-    key *= key_light_visibility(v_position, N);
+    key *= key_light_visibility(surface, N);
 #endif
     float ambient = u_ambient;
 #ifdef FILL

@@ -3,7 +3,8 @@
 // The Kajiya-Kay terms depend only on the tangent, the light and the view direction, which are
 // smooth along a yarn and constant around it, so they are evaluated here per vertex (cheaper on a
 // software rasteriser: fewer interpolated values); Lambert, which needs the normal across the
-// tube, is evaluated per fragment. See yarn.frag for the model.
+// tube, is evaluated per fragment. See yarn.frag for the model. With RIBBON the vertices are on
+// view-facing strips and in_normal is the signed direction across the strip (fraytool.render.ribbon).
 
 uniform mat4 u_view_proj;
 uniform vec3 u_eye;              // camera position [m]
@@ -21,8 +22,11 @@ in float in_warp;
 out vec3 v_normal;
 out vec2 v_kajiya;               // (diffuse sin(T, L), specular cos(thetaL - thetaE)^p)
 out vec4 v_albedo;               // linear RGB and alpha
-#ifdef SHADOWS
-out vec3 v_position;             // world position [m], for the shadow lookup
+#if defined(SHADOWS) || defined(RIBBON)
+out vec3 v_position;             // world position [m], for the shadow lookup (ribbons: on the strip)
+#endif
+#ifdef RIBBON
+out vec3 v_tangent;              // yarn tangent, to rebuild the tube's normal per pixel
 #endif
 
 void main() {
@@ -38,8 +42,11 @@ void main() {
     v_kajiya = vec2(sin_tl, pow(cos_cone, u_shininess));
     v_normal = in_normal;
     v_albedo = vec4(mix(u_weft_color, u_warp_color, in_warp), in_alpha);
-#ifdef SHADOWS
+#if defined(SHADOWS) || defined(RIBBON)
     v_position = in_position;
+#endif
+#ifdef RIBBON
+    v_tangent = T;
 #endif
     gl_Position = u_view_proj * vec4(in_position, 1.0);
 }

@@ -16,6 +16,8 @@ import numpy as np
 from fraytool.io.frame_record import FrameRecord
 from fraytool.render.camera import Camera
 from fraytool.render.lod import Detail, choose_detail
+from fraytool.render.ribbon import (ribbon_shadow_positions, ribbon_triangles, ribbon_vertices,
+                                    translucent_ribbon_triangles)
 from fraytool.render.spline import catmull_rom, polyline_tangents
 from fraytool.render.tube import VERTEX_FLOATS, fade_alpha, sweep_tubes, translucent_triangles, tube_triangles
 from fraytool.render.wireframe import SpringLines, spring_lines
@@ -39,6 +41,10 @@ class YarnStyle:
     """Most tube sides (the level of detail may use fewer)."""
     spacing_m: float
     """Yarn spacing at rest [m] (sets the sampling density the level of detail needs)."""
+    shape: str = "tube"
+    """"tube" (swept circles) or "ribbon" (view-facing strips shaded as tubes, fraytool.render.ribbon)."""
+    light_direction: tuple = (0.0, 1.0, 0.0)
+    """Direction towards the key light (ribbons: the shadow pass's strips face it)."""
 
     @staticmethod
     def from_spec(render: RenderSpec, topology: Mapping[str, np.ndarray]) -> "YarnStyle":
@@ -50,6 +56,8 @@ class YarnStyle:
             samples_per_segment=render.spline_samples,
             sides=render.tube_sides,
             spacing_m=spacing,
+            shape=render.yarn_shape,
+            light_direction=tuple(float(v) for v in render.light_direction),
         )
 
 
@@ -65,6 +73,9 @@ class YarnMesh:
     """Centroid of each translucent triangle [m], shape (Ft, 3), float32 (for the depth sort)."""
     pieces: int
     detail: Detail
+    shadow_positions: Optional[np.ndarray] = None
+    """Ribbons only: vertex positions of the strips turned to face the key light [m], (V, 3) float32,
+    drawn into the shadow map instead of `vertices` (fraytool.render.ribbon)."""
 
 
 @dataclass(frozen=True)
@@ -133,15 +144,17 @@ class GeometryBuilder:
                              st.sides, st.samples_per_segment)
 
     def _triangles(self, offsets: np.ndarray, sides: int) -> np.ndarray:
-        key = (sides, np.diff(offsets).tobytes())
+        key = (self.style.shape, sides, np.diff(offsets).tobytes())
         if key != self._tri_key:
-            self._tri = tube_triangles(offsets, sides)
+            self._tri = ribbon_triangles(offsets) if self.style.shape == "ribbon" else tube_triangles(offsets, sides)
             self._tri_key = key
         return self._tri
 
     def yarn_mesh(self, pieces: YarnPieces) -> YarnMesh:
         st = self.style
         detail = self.detail(pieces)
+        if st.shape == "ribbon":
+            return self._ribbon_mesh(pieces, detail)
         curves = catmull_rom(pieces.points, pieces.offsets, detail.samples_per_segment)
         tangents = polyline_tangents(curves.points, curves.offsets)
         alpha = fade_alpha(curves.points, curves.offsets, pieces.broken_start, pieces.broken_end,
@@ -157,6 +170,28 @@ class GeometryBuilder:
             opaque, translucent = tri, tri[:0]
         centroid = tube.position[translucent].mean(axis=1) if len(translucent) else np.zeros((0, 3), np.float32)
         return YarnMesh(tube.vertices, opaque, translucent, centroid, pieces.count, detail)
+
+    def _ribbon_mesh(self, pieces: YarnPieces, detail: Detail) -> YarnMesh:
+        """View-facing strips (fraytool.render.ribbon); the eye is the camera's (its origin without one)."""
+        st = self.style
+        curves = catmull_rom(pieces.points, pieces.offsets, detail.samples_per_segment)
+        tangents = polyline_tangents(curves.points, curves.offsets)
+        alpha = fade_alpha(curves.points, curves.offsets, pieces.broken_start, pieces.broken_end,
+                           st.fade_length_m)
+        warp = np.repeat(pieces.kind.astype(np.float32), np.diff(curves.offsets))
+        eye = self.camera.eye if self.camera is not None else np.zeros(3)
+        vertices = ribbon_vertices(curves.points, tangents, st.radius_m, alpha, warp, eye)
+        shadow = ribbon_shadow_positions(curves.points, tangents, st.radius_m, np.asarray(st.light_direction))
+        tri = self._triangles(curves.offsets, 2)
+        if (alpha < 1.0).any():
+            see_through = translucent_ribbon_triangles(curves.offsets, alpha)
+            opaque, translucent = tri[~see_through], tri[see_through]
+        else:
+            opaque, translucent = tri, tri[:0]
+        centroid = (vertices[:, 0:3][translucent].mean(axis=1) if len(translucent)
+                    else np.zeros((0, 3), np.float32))
+        return YarnMesh(vertices, opaque, translucent, centroid, pieces.count, Detail(2, detail.samples_per_segment),
+                        shadow_positions=shadow)
 
     def build(self, record: FrameRecord, yarns: bool = True, lines: bool = False) -> FrameGeometry:
         """Geometry of one frame; `yarns` / `lines` choose what the shaded and wireframe views need."""

@@ -182,7 +182,8 @@ class Renderer:
         self._fbo_out = ctx.framebuffer(color_attachments=[self._resolved], depth_attachment=self._depth_out)
 
         features = (("SHADOWS",) if render.shadows else ()) + (("FILL",) if render.fill_intensity > 0 else ())
-        self._yarn_prog = load_program(ctx, "yarn.vert", "yarn.frag", features)
+        self.ribbons = render.yarn_shape == "ribbon"
+        self._yarn_prog = load_program(ctx, "yarn.vert", "yarn.frag", features + (("RIBBON",) if self.ribbons else ()))
         self._body_prog = load_program(ctx, "body.vert", "body.frag", features)
         self._ground_prog = load_program(ctx, "body.vert", "ground.frag", features)
         self._line_prog = load_program(ctx, "line.vert", "line.frag")
@@ -203,6 +204,8 @@ class Renderer:
                 self.shadow.add_body_mesh(name, vbo, ibo)
 
         self._yarn_vbo = _Stream(ctx)
+        self._shadow_vbo = _Stream(ctx)
+        """Ribbons: the strips turned to the key light, for the shadow pass (fraytool.render.ribbon)."""
         self._opaque_ibo = _Stream(ctx)
         self._translucent_ibo = _Stream(ctx)
         self._line_vbo = _Stream(ctx)
@@ -210,6 +213,7 @@ class Renderer:
         self._line_vao: Optional[tuple[int, moderngl.VertexArray]] = None
         self._opaque_uploaded: Optional[np.ndarray] = None
 
+        self._thickness_m = float(np.asarray(topology.get("thickness_m", 0.0)).item())
         self._set_uniforms(render)
         self.bodies = BodySet(topology, plane_half_size_m=self._scene_scale(topology) * 20.0,
                               ground=self._ground())
@@ -242,6 +246,9 @@ class Renderer:
                 if k in prog:
                     prog[k].value = tuple(np.atleast_1d(v).tolist()) if np.ndim(v) else float(v)
         y = self._yarn_prog
+        if "u_yarn_radius" in y:
+            radius = r.yarn_radius_m if r.yarn_radius_m > 0 else 0.5 * self._thickness_m
+            y["u_yarn_radius"].value = float(radius)
         y["u_specular"].value = r.specular
         y["u_shininess"].value = r.shininess
         y["u_kajiya_weight"].value = KAJIYA_WEIGHT
@@ -318,15 +325,18 @@ class Renderer:
         have_yarns = mesh is not None and len(mesh.vertices) > 0
         if have_yarns:
             self._yarn_prog["u_view_proj"].write(view_proj)
+        cull = not self.ribbons  # a strip has no back faces to cull, and its winding is not kept
         if have_yarns and len(mesh.opaque):
-            ctx.enable(moderngl.CULL_FACE)
+            if cull:
+                ctx.enable(moderngl.CULL_FACE)
             self._yarn_vao("opaque", self._opaque_ibo).render(moderngl.TRIANGLES, vertices=mesh.opaque.size)
         ctx.disable(moderngl.CULL_FACE)
         self._draw_bodies(geom, view_proj)
         self._draw_ground(view_proj)
         if not have_yarns:
             return
-        ctx.enable(moderngl.CULL_FACE)
+        if cull:
+            ctx.enable(moderngl.CULL_FACE)
         if len(mesh.translucent):
             order = np.argsort(self.camera.view_depth(mesh.centroid), kind="stable")  # far first
             self._translucent_ibo.write(mesh.translucent[order])
@@ -363,10 +373,14 @@ class Renderer:
         """Render the key light's depth map of this frame and hand it to the shaded programs."""
         mesh = geom.yarns
         have_yarns = mesh is not None and len(mesh.opaque) > 0
-        yarn_vao = self._yarn_vbo if have_yarns else None
-        light = self.shadow.draw(self._light_dir, mesh.vertices[:, :3] if have_yarns else None,
-                                 yarn_vao, self._opaque_ibo if have_yarns else None,
-                                 mesh.opaque.size if have_yarns else 0, self.bodies, geom)
+        casters = self._yarn_vbo if have_yarns else None
+        positions = mesh.vertices[:, :3] if have_yarns else None
+        packed = False
+        if have_yarns and mesh.shadow_positions is not None:  # ribbons: the strips turned to the light
+            self._shadow_vbo.write(mesh.shadow_positions)
+            casters, positions, packed = self._shadow_vbo, mesh.shadow_positions, True
+        light = self.shadow.draw(self._light_dir, positions, casters, self._opaque_ibo if have_yarns else None,
+                                 mesh.opaque.size if have_yarns else 0, self.bodies, geom, packed=packed)
         for prog in (self._yarn_prog, self._body_prog, self._ground_prog):
             self.shadow.bind(prog, light)
 
@@ -450,7 +464,7 @@ class Renderer:
         for vaos in self._body_vaos.values():
             for vao in vaos:
                 vao.release()
-        for s in (self._yarn_vbo, self._opaque_ibo, self._translucent_ibo, self._line_vbo):
+        for s in (self._yarn_vbo, self._shadow_vbo, self._opaque_ibo, self._translucent_ibo, self._line_vbo):
             s.release()
         if self.shadow is not None:
             self.shadow.release()

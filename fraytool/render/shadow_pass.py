@@ -44,19 +44,21 @@ class ShadowPass:
     def add_body_mesh(self, name: str, vbo: moderngl.Buffer, ibo: moderngl.Buffer) -> None:
         self._body_vaos[name] = self.ctx.vertex_array(self.program, [(vbo, "3f 12x", "in_position")], ibo, 4)
 
-    def _yarns(self, vbo_stream, ibo_stream) -> moderngl.VertexArray:
-        key = (vbo_stream.generation, ibo_stream.generation)
+    def _yarns(self, vbo_stream, ibo_stream, packed: bool) -> moderngl.VertexArray:
+        key = (id(vbo_stream), vbo_stream.generation, ibo_stream.generation, packed)
         if self._yarn_vao is None or self._yarn_vao[0] != key:
             if self._yarn_vao is not None:
                 self._yarn_vao[1].release()
-            vao = self.ctx.vertex_array(self.program, [(vbo_stream.buffer, "3f 32x", "in_position")],
+            layout = "3f" if packed else "3f 32x"  # positions only, or the interleaved yarn vertices
+            vao = self.ctx.vertex_array(self.program, [(vbo_stream.buffer, layout, "in_position")],
                                         ibo_stream.buffer, 4)
             self._yarn_vao = (key, vao)
         return self._yarn_vao[1]
 
     def draw(self, light_dir: np.ndarray, yarn_positions: Optional[np.ndarray], yarn_vbo, opaque_ibo,
-             opaque_count: int, bodies: BodySet, geom) -> Optional[LightFrame]:
-        """Fit the light to this frame's casters and draw them; None when nothing casts."""
+             opaque_count: int, bodies: BodySet, geom, packed: bool = False) -> Optional[LightFrame]:
+        """Fit the light to this frame's casters and draw them; None when nothing casts. `packed`: the
+        yarn buffer holds positions only (ribbons turned to the light), not the interleaved vertices."""
         points, radii = caster_points(yarn_positions, self.body_shape, geom.body_position_m,
                                       self.body_radius, self.body_half)
         light = fit_light(light_dir, points, radii, self.size)
@@ -77,7 +79,7 @@ class ShadowPass:
             self._body_vaos[d.mesh].render(moderngl.TRIANGLES)
         if yarn_vbo is not None and opaque_count:
             prog["u_model"].write(gl_matrix_bytes(np.eye(4)))
-            self._yarns(yarn_vbo, opaque_ibo).render(moderngl.TRIANGLES, vertices=opaque_count)
+            self._yarns(yarn_vbo, opaque_ibo, packed).render(moderngl.TRIANGLES, vertices=opaque_count)
         ctx.polygon_offset = (0.0, 0.0)
         return light
 

@@ -214,6 +214,9 @@ class RenderSpec:
                                doc="length over which a broken yarn end fades out [m]; 0 means 2 x spacing")
     spline_samples: int = key("int", 4, lo=1, hi=64, doc="Catmull-Rom samples per yarn segment (a maximum)")
     tube_sides: int = key("int", 6, lo=3, hi=64, doc="sides of a yarn tube (a maximum)")
+    yarn_shape: str = key("str", "tube", choices=("tube", "ribbon"),
+                          doc="how yarns are drawn: tube (swept circles of tube_sides) or ribbon (view-facing "
+                              "strips shaded and depth-corrected as round tubes: a sixth of the triangles)")
     ground_plane: bool = key("bool", False, doc="draw a ground plane at ground_height_m")
     ground_height_m: float = key("float", 0.0, doc="height of the drawn ground plane [m]")
     body_color: Vec3 = key("color", (0.55, 0.6, 0.7), doc="sRGB colour of rigid bodies")

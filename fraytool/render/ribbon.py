@@ -1,0 +1,112 @@
+"""Yarns as ribbons that face the viewer, shaded as round tubes (`[render] yarn_shape = "ribbon"`).
+
+A tube of s sides costs 2 s triangles per spline sample step, and llvmpipe's cost follows the
+triangle count, not the pixels (fig7 at 1280x720: the same draw time at 320x180). A yarn a few
+pixels wide can instead be drawn as a flat strip through its centre line, as wide as the yarn and
+turned to face the eye: 2 triangles per step, a sixth of a 6-sided tube. yarn.frag (RIBBON) then
+rebuilds, per pixel, the point of the round tube that the pixel sees and its normal from the
+position across the strip, so the shading (Lambert, Kajiya-Kay, shadows) and the depth are those of
+the tube, with no facets (a view-facing impostor, as hair and line renderers draw thin strands; here
+the strip's shading, shadow lookup and depth are corrected to the cylinder).
+
+Layout of a ribbon mesh of K pieces and M samples: vertices 2 M, sample-major (vertex 2 k is the
+sample's left edge, 2 k + 1 its right edge, seen with the tangent pointing right); the normal slot
+holds the unit direction across the strip, signed (-S on the left, +S on the right), which the
+rasteriser interpolates to v S, v in [-1, 1] across the strip; triangles 2 per consecutive sample
+pair inside a piece; no caps (broken ends fade out; ends at the border are cut square).
+The shadow pass draws the same strips turned to face the light (`shadow_positions`).
+"""
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from fraytool.render.tube import VERTEX_FLOATS, body_pairs
+
+
+@numba.njit(cache=True)
+def _across(points, tangents, eye, direction, out):  # pragma: no cover - numba
+    """Unit S = T x D per sample, D the direction to `eye` (if `direction` is all zero) or `direction`;
+    where T and D are (nearly) parallel, any unit vector perpendicular to T."""
+    for k in range(points.shape[0]):
+        tx, ty, tz = tangents[k, 0], tangents[k, 1], tangents[k, 2]
+        if direction[0] == 0.0 and direction[1] == 0.0 and direction[2] == 0.0:
+            dx, dy, dz = eye[0] - points[k, 0], eye[1] - points[k, 1], eye[2] - points[k, 2]
+        else:
+            dx, dy, dz = direction[0], direction[1], direction[2]
+        sx, sy, sz = ty * dz - tz * dy, tz * dx - tx * dz, tx * dy - ty * dx
+        n = np.sqrt(sx * sx + sy * sy + sz * sz)
+        d = np.sqrt(dx * dx + dy * dy + dz * dz)
+        if n <= 1e-9 * d or n == 0.0:  # looking along the yarn: its width does not show
+            ax, ay, az = abs(tx), abs(ty), abs(tz)
+            if ax <= ay and ax <= az:
+                sx, sy, sz = 0.0, tz, -ty
+            elif ay <= az:
+                sx, sy, sz = -tz, 0.0, tx
+            else:
+                sx, sy, sz = ty, -tx, 0.0
+            n = np.sqrt(sx * sx + sy * sy + sz * sz)
+        out[k, 0] = sx / n
+        out[k, 1] = sy / n
+        out[k, 2] = sz / n
+
+
+def across(points: np.ndarray, tangents: np.ndarray, eye_m=None, direction=None) -> np.ndarray:
+    """Unit vectors across the strip at every sample, (M, 3) float64: T x (eye - x) for a strip facing
+    the point `eye_m`, or T x direction for one facing a direction (a directional light)."""
+    X = np.ascontiguousarray(points, dtype=np.float64)
+    T = np.ascontiguousarray(tangents, dtype=np.float64)
+    out = np.zeros_like(X)
+    e = np.zeros(3) if eye_m is None else np.asarray(eye_m, dtype=np.float64)
+    d = np.zeros(3) if direction is None else np.asarray(direction, dtype=np.float64)
+    if len(X):
+        _across(X, T, e, d, out)
+    return out
+
+
+def ribbon_vertices(points: np.ndarray, tangents: np.ndarray, radius_m: float, alpha: np.ndarray,
+                    warp: np.ndarray, eye_m: np.ndarray) -> np.ndarray:
+    """Interleaved vertices (2 M, VERTEX_FLOATS) float32 of strips facing `eye_m` (module docstring)."""
+    X = np.asarray(points, dtype=np.float64)
+    S = across(X, tangents, eye_m=eye_m)
+    out = np.empty((2 * len(X), VERTEX_FLOATS), dtype=np.float32)
+    out[0::2, 0:3] = X - radius_m * S
+    out[1::2, 0:3] = X + radius_m * S
+    out[0::2, 3:6] = -S
+    out[1::2, 3:6] = S
+    out[0::2, 6:9] = tangents
+    out[1::2, 6:9] = tangents
+    out[0::2, 9] = alpha
+    out[1::2, 9] = alpha
+    out[0::2, 10] = warp
+    out[1::2, 10] = warp
+    return out
+
+
+def ribbon_shadow_positions(points: np.ndarray, tangents: np.ndarray, radius_m: float,
+                            light_dir: np.ndarray) -> np.ndarray:
+    """Positions (2 M, 3) float32 of the same strips turned to face the key light (the direction
+    towards it), for the shadow map: their depth from the light is the tube's axis, and their width
+    the tube's as the light sees it."""
+    X = np.asarray(points, dtype=np.float64)
+    S = across(X, tangents, direction=light_dir)
+    out = np.empty((2 * len(X), 3), dtype=np.float32)
+    out[0::2] = X - radius_m * S
+    out[1::2] = X + radius_m * S
+    return out
+
+
+def ribbon_triangles(offsets: np.ndarray) -> np.ndarray:
+    """Index buffer (F, 3) uint32 of the strips: for each consecutive sample pair r, r + 1 of a piece,
+    (2r, 2r+1, 2r+2) and (2r+1, 2r+3, 2r+2). Depends only on the piece sample counts (cache it)."""
+    r = body_pairs(offsets)
+    a = 2 * r
+    return np.stack([np.stack([a, a + 1, a + 2], -1), np.stack([a + 1, a + 3, a + 2], -1)],
+                    axis=1).reshape(-1, 3).astype(np.uint32)
+
+
+def translucent_ribbon_triangles(offsets: np.ndarray, alpha: np.ndarray) -> np.ndarray:
+    """Mask over `ribbon_triangles(offsets)`: True where a triangle has a vertex with alpha < 1."""
+    a = np.asarray(alpha) < 1.0
+    r = body_pairs(offsets)
+    return np.repeat(a[r] | a[r + 1], 2)
