@@ -26,9 +26,11 @@ uniform vec3 u_fill_dir;
 #endif
 #ifdef RIBBON
 // Ribbons (fraytool.render.ribbon): the strip through the yarn's axis faces the eye; v_normal is
-// v S, v in [-1, 1] across it. The pixel sees the tube's point axis + r (v S + sqrt(1 - v^2) V),
-// V the direction to the eye square to the yarn: its normal shades the pixel, its position is
-// looked up in the shadow map and its depth is written, so the strip draws as the round tube.
+// v S, v in [-1, 1] across it. The ray from the eye through this pixel's point P of the strip meets
+// the tube at P + r sqrt(1 - v^2) / sin(theta) E (E towards the eye, theta between E and the yarn),
+// where the tube's normal is v S + sqrt(1 - v^2) V (V: E square to the yarn, normalised): the normal
+// shades the pixel, the point is looked up in the shadow map and its depth is written, so the strip
+// draws as the round tube.
 uniform mat4 u_view_proj;
 uniform vec3 u_eye;
 uniform float u_yarn_radius;     // [m]
@@ -47,12 +49,15 @@ out vec4 f_color;
 void main() {
 #ifdef RIBBON
     vec3 T = normalize(v_tangent);
-    vec3 V = u_eye - v_position;
-    V = normalize(V - dot(V, T) * T);
+    vec3 E = normalize(u_eye - v_position);
+    vec3 across_view = E - dot(E, T) * T;          // length sin(theta)
+    float sin_theta = max(length(across_view), 0.2); // looking (nearly) along the yarn: bounded
+    vec3 V = across_view / sin_theta;
     float v2 = min(dot(v_normal, v_normal), 1.0);
     float bulge = sqrt(1.0 - v2);
-    vec3 N = normalize(v_normal + bulge * V);
-    vec3 surface = v_position + u_yarn_radius * bulge * V;
+    vec3 n = v_normal + bulge * V;
+    vec3 N = dot(n, n) > 1e-12 ? normalize(n) : E;  // a yarn seen exactly end-on: face the eye
+    vec3 surface = v_position + (u_yarn_radius * bulge / sin_theta) * E;
     vec4 clip = u_view_proj * vec4(surface, 1.0);
     gl_FragDepth = clamp(0.5 * clip.z / clip.w + 0.5, 0.0, 1.0);
 #else

@@ -63,3 +63,14 @@ def test_set_reaches_simulate_and_render(scene, tmp_path, capsys):
     assert main(["render", str(scene), "-o", str(tmp_path / "b"), "--frames", "0:1", "--resolution", "32x24",
                  "--set", "scene.name=renamed"]) == 0
     assert (tmp_path / "b" / "renamed_000000-000001.mp4").is_file()
+
+
+def test_the_solver_revision_is_part_of_the_scene_hash(monkeypatch):
+    """Frames simulated by an older solver (another SIM_REVISION) do not match the scene any more, so
+    they are simulated again instead of resumed or reused."""
+    import fraytool.scene.load as load
+
+    spec = load_scene("drape")
+    before = scene_hash(spec)
+    monkeypatch.setattr(load, "SIM_REVISION", load.SIM_REVISION + 1)
+    assert scene_hash(spec) != before

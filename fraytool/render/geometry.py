@@ -43,8 +43,9 @@ class YarnStyle:
     """Yarn spacing at rest [m] (sets the sampling density the level of detail needs)."""
     shape: str = "tube"
     """"tube" (swept circles) or "ribbon" (view-facing strips shaded as tubes, fraytool.render.ribbon)."""
-    light_direction: tuple = (0.0, 1.0, 0.0)
-    """Direction towards the key light (ribbons: the shadow pass's strips face it)."""
+    light_direction: Optional[tuple] = None
+    """Direction towards the key light when the render has shadows (ribbons: the shadow pass's strips
+    face it), else None (no shadow strips are built)."""
 
     @staticmethod
     def from_spec(render: RenderSpec, topology: Mapping[str, np.ndarray]) -> "YarnStyle":
@@ -57,7 +58,7 @@ class YarnStyle:
             sides=render.tube_sides,
             spacing_m=spacing,
             shape=render.yarn_shape,
-            light_direction=tuple(float(v) for v in render.light_direction),
+            light_direction=tuple(float(v) for v in render.light_direction) if render.shadows else None,
         )
 
 
@@ -181,7 +182,8 @@ class GeometryBuilder:
         warp = np.repeat(pieces.kind.astype(np.float32), np.diff(curves.offsets))
         eye = self.camera.eye if self.camera is not None else np.zeros(3)
         vertices = ribbon_vertices(curves.points, tangents, st.radius_m, alpha, warp, eye)
-        shadow = ribbon_shadow_positions(curves.points, tangents, st.radius_m, np.asarray(st.light_direction))
+        shadow = (ribbon_shadow_positions(curves.points, tangents, st.radius_m, np.asarray(st.light_direction))
+                  if st.light_direction is not None else None)
         tri = self._triangles(curves.offsets, 2)
         if (alpha < 1.0).any():
             see_through = translucent_ribbon_triangles(curves.offsets, alpha)

@@ -4,9 +4,9 @@ A tube of s sides costs 2 s triangles per spline sample step, and llvmpipe's cos
 triangle count, not the pixels (fig7 at 1280x720: the same draw time at 320x180). A yarn a few
 pixels wide can instead be drawn as a flat strip through its centre line, as wide as the yarn and
 turned to face the eye: 2 triangles per step, a sixth of a 6-sided tube. yarn.frag (RIBBON) then
-rebuilds, per pixel, the point of the round tube that the pixel sees and its normal from the
-position across the strip, so the shading (Lambert, Kajiya-Kay, shadows) and the depth are those of
-the tube, with no facets (a view-facing impostor, as hair and line renderers draw thin strands; here
+finds, per pixel, where the ray through the pixel meets the round tube (from the position across
+the strip and the angle between the ray and the yarn) and the tube's normal there, so the shading
+(Lambert, Kajiya-Kay, shadows) and the depth are those of the tube, with no facets (a view-facing impostor, as hair and line renderers draw thin strands; here
 the strip's shading, shadow lookup and depth are corrected to the cylinder).
 
 Layout of a ribbon mesh of K pieces and M samples: vertices 2 M, sample-major (vertex 2 k is the

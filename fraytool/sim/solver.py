@@ -3,7 +3,8 @@
 Per step of size dt:
  1. forces: springs (+ gravity in 2);           2. velocities v += dt (g + f/m);
  3. PBD damping (Müller 2007 §3.5);              4. positions x += dt v;
- 5. constraints: attachments, strain limiting (§4.1), yarn contact at connected couples (§3.3);
+ 5. constraints: attachments, (a tearing scene with a colliding body: rigid contact once more), strain
+    limiting (§4.1), yarn contact at connected couples (§3.3);
  6. collisions: rigid bodies (§4.3), self-collision (§4.2);
  7. strains: transitions to yarn level and cuts (§3.4);
  8. velocity post-process v = (x - x_prev) / dt, with the stability guard.

@@ -7,7 +7,9 @@ A stage is an object with
   ``buffers`` (start-of-step positions, forces, body impulses);
 - ``summary(state) -> dict``: figures for ``fraytool simulate --json`` (empty when it has none).
 
-``build_stages(model)`` makes exactly the stages a model needs, in the paper's order; the optional
+``build_stages(model)`` makes exactly the stages a model needs, in the paper's order (with one
+addition: a scene that tears and has a colliding body also runs rigid contact before strain limiting,
+docs/tearing.md "Contact with bodies before the strain limit"); the optional
 ones (yarn contact and tearing, self-collision) are imported only when the model uses them, so a
 scene pays only for what it uses and their numba kernels are never compiled otherwise.
 """
@@ -20,7 +22,7 @@ __all__ = ["STAGE_NAMES", "HookStage", "Stage", "StepBuffers", "build_stages"]
 
 
 def build_stages(model: Model, speed_limit_m_s: float) -> list:
-    """The stages of one step for `model`, in the order of docs/method.md §4."""
+    """The stages of one step for `model`, in the order of docs/method.md §4 (and its one departure)."""
     from fraytool.sim.stages import core
 
     stages: list = [core.SpringForces(model), core.VelocityUpdate(model)]

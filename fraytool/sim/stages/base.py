@@ -9,8 +9,8 @@ import numpy as np
 from fraytool.sim.model import Model
 from fraytool.sim.state import State
 
-STAGE_NAMES = ("forces", "integration", "damping", "strain_limiting", "yarn_contact", "collisions",
-               "self_collision", "tearing")
+STAGE_NAMES = ("forces", "integration", "damping", "contact_before_limit", "strain_limiting", "yarn_contact",
+               "collisions", "self_collision", "tearing")
 """Timing buckets, in step order (the velocity updates all count as "integration")."""
 
 
@@ -23,7 +23,8 @@ class StepBuffers:
     force_n: np.ndarray
     """Spring forces of the step [N], shape (particle_count, 3), float64."""
     body_impulse_n_s: np.ndarray
-    """Impulse the cloth received from each body this step [N s], shape (body_count, 3), float64."""
+    """Impulse the cloth received from each body in the last rigid-contact pass [N s], shape (body_count, 3),
+    float64 (a scene that tears with a colliding body has two passes per step, each applied on its own)."""
     bad_particle: int = -1
     """Set by the velocity post-process: a particle found non-finite or too fast, else -1."""
 

@@ -262,6 +262,7 @@ class RigidContactBeforeLimit(RigidContact):
     constraints, so no mass ends a step inside a body; each pass gives its own reaction impulse to
     dynamic bodies, so momentum is exchanged as before."""
 
+    name = "contact_before_limit"
     kernel = "collide_rigid (before strain limiting)"
 
 
