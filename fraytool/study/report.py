@@ -208,6 +208,11 @@ def tearing_section(tear: "TearingStudy") -> list[str]:
                  f"centroid of the broken structural springs within {CENTROID_TOLERANCE_SPACINGS:g} yarn spacings "
                  f"({tear.spacing_m:g} m). In brackets: the relative difference against the reference (for the "
                  f"reference, against {tear.check or '-'}); the centroid's distance in spacings.")
+    if len(tear.seeds) == 1:
+        out.append("")
+        out.append(f"One seed ({tear.seeds[0]}): a single run per step also differs from the reference by the scatter "
+                   "between seeds (which yarn breaks first), so a FAIL here may be that scatter rather than the step; "
+                   "the full study runs every step at 4 seeds and compares their means (`--seeds LIST` chooses them).")
     if len(tear.seeds) > 1:
         out.append("")
         out.append(f"Every step ran at seeds {', '.join(str(s) for s in tear.seeds)} (the break limits' draws): the "
