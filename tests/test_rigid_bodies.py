@@ -108,8 +108,19 @@ def test_held_cloth_stops_the_thrown_ball_and_throws_it_back():
     assert energy_out <= energy_in, f"a passive cloth returned {energy_out:.3e} J of the {energy_in:.3e} J it got"
 
 
+UNBROKEN_TEARING = """
+[cloth.tearing]
+enabled = true
+yarn_level = false
+break_strain = 5.0
+"""
+"""Tearing on but nothing breaks: the solver then also runs rigid contact before strain limiting
+(RigidContactBeforeLimit), a second exchange of momentum with the ball in every step."""
+
+
+@pytest.mark.parametrize("tearing", [False, True], ids=["one_contact_pass", "two_contact_passes"])
 @pytest.mark.parametrize("gravity", [False, True], ids=["no_gravity", "gravity"])
-def test_momentum_the_ball_loses_is_the_momentum_the_free_cloth_gains(gravity):
+def test_momentum_the_ball_loses_is_the_momentum_the_free_cloth_gains(gravity, tearing):
     """A free cloth (no pins, no attachments) and the ball thrown at it: their only external force is
     gravity, so ball + cloth momentum changes by exactly (M + m_cloth) g t; with no gravity it is
     conserved. Springs, strain limiting and contact exchange momentum in equal and opposite pairs,
@@ -117,9 +128,11 @@ def test_momentum_the_ball_loses_is_the_momentum_the_free_cloth_gains(gravity):
     to ~1e-17 N s, while a reaction impulse or a ball mass off by one part in a million misses it
     by ~4e-9 N s). The ball's momentum uses its mass from the scene text, not the model's."""
     g = np.array([0.0, -9.81 if gravity else 0.0, 0.0])
-    spec = small_scene(BALL.format(gravity="true" if gravity else "false"),
+    spec = small_scene(BALL.format(gravity="true" if gravity else "false") + (UNBROKEN_TEARING if tearing else ""),
                        gravity=f"[0.0, {g[1]}, 0.0]", nx=12, ny=12, frames=40)
     sim = Simulation(spec)
+    names = [type(st).__name__ for st in sim.solver.stages]
+    assert ("RigidContactBeforeLimit" in names) == tearing
     s = sim.state
     ball = sim.model.body_names.index("ball")
     act = s.particle_active
@@ -146,6 +159,7 @@ def test_momentum_the_ball_loses_is_the_momentum_the_free_cloth_gains(gravity):
         external = (BALL_MASS_KG + cloth_mass) * g * (s.time_s - t0)
         worst = max(worst, float(np.abs((cloth - cloth0) + (ball_p - ball0) - external).max()))
     assert contact_steps > 0, "the ball never touched the cloth"
+    assert not s.spring_broken.any()  # the same cloth in both cases: only the contact passes differ
     # the exchange is no trifle: the contact impulse on the cloth (its momentum change less gravity's)
     # took more than a third of the ball's momentum
     impulse = (cloth - cloth0) - cloth_mass * g * (s.time_s - t0)
