@@ -119,7 +119,7 @@ def bench_command(args) -> int:
     print(f"simulation: {result['ms_per_frame']:.2f} ms per frame (median); "
           f"compile/cache load {result['compile_s']:.2f} s (empty run: build and first frame, not in the median)", file=out)
     for name, ms in result["stages_ms_per_frame"].items():
-        print(f"  {name:18s} {ms:8.2f} ms/frame (mean)", file=out)
+        print(f"  {name:20s} {ms:8.2f} ms/frame (mean)", file=out)
     print(f"export: {result['export_ms_per_frame']:.2f} ms per frame (median; writing the frame record and "
           "checkpoint, not in the simulation figure)", file=out)
     print(f"memory: peak RSS {result['peak_rss_bytes'] / 2**20:.0f} MiB; "
