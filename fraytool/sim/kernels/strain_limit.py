@@ -18,6 +18,39 @@ import math
 import numba as nb
 
 
+@nb.njit(cache=True, fastmath=False, inline="always")
+def _project_stretched(s, stretch, spring_rest_length_m, particle_inv_mass, spring_particle_a, spring_particle_b,
+                       spring_alive, particle_position_m):
+    """Project spring s back to `stretch` x its rest length if it is longer (module docstring); returns
+    its excess strain, 0 when it was not projected (within the limit, cut, or both ends held). A spring
+    within its limit costs one squared length and a compare; only stretched ones pay for the root."""
+    if not spring_alive[s]:
+        return 0.0  # a cut spring no longer holds its ends together
+    a = spring_particle_a[s]
+    b = spring_particle_b[s]
+    max_length = stretch * spring_rest_length_m[s]
+    dx = particle_position_m[b, 0] - particle_position_m[a, 0]
+    dy = particle_position_m[b, 1] - particle_position_m[a, 1]
+    dz = particle_position_m[b, 2] - particle_position_m[a, 2]
+    d2 = dx * dx + dy * dy + dz * dz
+    if d2 <= max_length * max_length:
+        return 0.0
+    w_a = particle_inv_mass[a]
+    w_b = particle_inv_mass[b]
+    w = w_a + w_b
+    if w == 0.0:
+        return 0.0  # both ends held by bodies: nothing can move
+    length = math.sqrt(d2)
+    c = (length - max_length) / (length * w)
+    particle_position_m[a, 0] += w_a * c * dx
+    particle_position_m[a, 1] += w_a * c * dy
+    particle_position_m[a, 2] += w_a * c * dz
+    particle_position_m[b, 0] -= w_b * c * dx
+    particle_position_m[b, 1] -= w_b * c * dy
+    particle_position_m[b, 2] -= w_b * c * dz
+    return (length - max_length) / spring_rest_length_m[s]
+
+
 @nb.njit(cache=True, fastmath=False)
 def limit_strain(
     # model
@@ -27,44 +60,17 @@ def limit_strain(
     # state in/out
     particle_position_m,
 ):
-    """Project the springs listed in `limited_springs`; returns (sweeps used, converged).
-
-    Same projection as `project_distance_max`, inlined: a spring within its limit costs one squared
-    length and a compare; only stretched springs pay for the square root.
-    """
+    """Project the springs listed in `limited_springs`; returns (sweeps used, converged)."""
     n = limited_springs.shape[0]
     stretch = 1.0 + strain_limit
     for it in range(max_iterations):
         worst = 0.0
         for k in range(n):
             s = limited_springs[k] if it % 2 == 0 else limited_springs[n - 1 - k]
-            if not spring_alive[s]:
-                continue  # a cut spring no longer holds its ends together
-            a = spring_particle_a[s]
-            b = spring_particle_b[s]
-            max_length = stretch * spring_rest_length_m[s]
-            dx = particle_position_m[b, 0] - particle_position_m[a, 0]
-            dy = particle_position_m[b, 1] - particle_position_m[a, 1]
-            dz = particle_position_m[b, 2] - particle_position_m[a, 2]
-            d2 = dx * dx + dy * dy + dz * dz
-            if d2 <= max_length * max_length:
-                continue
-            w_a = particle_inv_mass[a]
-            w_b = particle_inv_mass[b]
-            w = w_a + w_b
-            if w == 0.0:
-                continue  # both ends held by bodies: nothing can move
-            length = math.sqrt(d2)
-            excess = (length - max_length) / spring_rest_length_m[s]
+            excess = _project_stretched(s, stretch, spring_rest_length_m, particle_inv_mass, spring_particle_a,
+                                        spring_particle_b, spring_alive, particle_position_m)
             if excess > worst:
                 worst = excess
-            c = (length - max_length) / (length * w)
-            particle_position_m[a, 0] += w_a * c * dx
-            particle_position_m[a, 1] += w_a * c * dy
-            particle_position_m[a, 2] += w_a * c * dz
-            particle_position_m[b, 0] -= w_b * c * dx
-            particle_position_m[b, 1] -= w_b * c * dy
-            particle_position_m[b, 2] -= w_b * c * dz
         if worst <= tolerance:
             return it + 1, True
     return max_iterations, max_iterations == 0
@@ -97,33 +103,9 @@ def limit_strain_groups(
             lo = group_start[g]
             hi = group_start[g + 1]
             for k in nb.prange(lo, hi):
-                worst_of[k] = 0.0
-                s = limited_springs[k]
-                if not spring_alive[s]:
-                    continue
-                a = spring_particle_a[s]
-                b = spring_particle_b[s]
-                max_length = stretch * spring_rest_length_m[s]
-                dx = particle_position_m[b, 0] - particle_position_m[a, 0]
-                dy = particle_position_m[b, 1] - particle_position_m[a, 1]
-                dz = particle_position_m[b, 2] - particle_position_m[a, 2]
-                d2 = dx * dx + dy * dy + dz * dz
-                if d2 <= max_length * max_length:
-                    continue
-                w_a = particle_inv_mass[a]
-                w_b = particle_inv_mass[b]
-                w = w_a + w_b
-                if w == 0.0:
-                    continue
-                length = math.sqrt(d2)
-                worst_of[k] = (length - max_length) / spring_rest_length_m[s]
-                c = (length - max_length) / (length * w)
-                particle_position_m[a, 0] += w_a * c * dx
-                particle_position_m[a, 1] += w_a * c * dy
-                particle_position_m[a, 2] += w_a * c * dz
-                particle_position_m[b, 0] -= w_b * c * dx
-                particle_position_m[b, 1] -= w_b * c * dy
-                particle_position_m[b, 2] -= w_b * c * dz
+                worst_of[k] = _project_stretched(limited_springs[k], stretch, spring_rest_length_m, particle_inv_mass,
+                                                 spring_particle_a, spring_particle_b, spring_alive,
+                                                 particle_position_m)
             for k in range(lo, hi):
                 if worst_of[k] > worst:
                     worst = worst_of[k]
