@@ -1,6 +1,8 @@
 """`fraytool render` end to end: simulate, render, write MP4 and PNGs, resume, clear errors."""
 from __future__ import annotations
 
+import json
+
 import os
 import subprocess
 import sys
@@ -121,10 +123,23 @@ def test_bench_render_stage_timings(tmp_path):
     from fraytool.commands.render_bench import render_stage_timings
     from fraytool.scene import load_scene
 
-    t = render_stage_timings(load_scene(SCENE), tmp_path, frames=3, resolution=(64, 48), samples=4)
+    parts = {}
+    t = render_stage_timings(load_scene(SCENE), tmp_path, frames=3, resolution=(64, 48), samples=4, parts=parts)
     assert set(t) == {"geometry", "draw", "readback", "encode"}
     assert all(v > 0 for v in t.values())
     assert (tmp_path / "frames" / "frame_000002.npz").is_file()     # simulated where asked
+    assert {"yarns", "resolve", "other"} <= set(parts) and all(v > 0 for k, v in parts.items() if k != "other")
+
+
+def test_bench_render_uses_the_scene_resolution(capsys):
+    """`bench --render` draws at the scene's [render] resolution and samples, so --set changes them."""
+    from fraytool.commands.main import main
+
+    assert main(["bench", str(SCENE), "--frames", "2", "--render", "--json",
+                 "--set", "render.resolution=[96,64]", "--set", "render.samples=2"]) == 0
+    out = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert out["render_resolution"] == [96, 64] and out["render_samples"] == 2
+    assert "yarns" in out["render_draw_parts_ms_per_frame"]
 
 
 def test_terminated_render_leaves_no_partial_mp4_and_resumes(tmp_path):

@@ -108,8 +108,12 @@ def bench_command(args) -> int:
     if args.render:
         from fraytool.commands.render_bench import render_stage_timings  # GL only when asked
 
-        result["render_stages_ms_per_frame"] = render_stage_timings(spec, frames=min(frames, 10))
+        parts: dict[str, float] = {}
+        result["render_stages_ms_per_frame"] = render_stage_timings(spec, frames=min(frames, 10), parts=parts)
         result["render_ms_per_frame"] = sum(result["render_stages_ms_per_frame"].values())
+        result["render_draw_parts_ms_per_frame"] = parts
+        result["render_resolution"] = list(spec.render.resolution)
+        result["render_samples"] = spec.render.samples
     if args.json:
         print(json.dumps({k: v for k, v in result.items() if k != "summary"}))
         return 0
@@ -125,9 +129,15 @@ def bench_command(args) -> int:
     print(f"memory: peak RSS {result['peak_rss_bytes'] / 2**20:.0f} MiB; "
           f"{result['bytes_per_crossing']:.0f} bytes per crossing over the RSS {result['memory_baseline']}", file=out)
     if "render_stages_ms_per_frame" in result:
-        print(f"render: {result['render_ms_per_frame']:.2f} ms per frame", file=out)
+        W, H = result["render_resolution"]
+        print(f"render: {result['render_ms_per_frame']:.2f} ms per frame at {W}x{H}, "
+              f"{result['render_samples']} MSAA samples ([render] resolution, samples)", file=out)
         for name, ms in result["render_stages_ms_per_frame"].items():
             print(f"  {name:18s} {ms:8.2f} ms/frame", file=out)
+            if name == "draw":
+                for part, part_ms in result["render_draw_parts_ms_per_frame"].items():
+                    print(f"    {part:16s} {part_ms:8.2f} ms/frame (timed apart, the queue finished around each)",
+                          file=out)
     return 0
 
 

@@ -1,12 +1,17 @@
 """Render stage timings for `fraytool bench --render`: milliseconds per frame for
 - "geometry": frame record -> yarn pieces -> splines -> tubes (NumPy/numba, fraytool.render.geometry);
 - "draw": upload, shadow map, GL draw into the multisampled target and resolve, to completion (glFinish);
+  ``draw_parts`` splits it (Renderer.part_s: the GL queue is finished before and after each part, so
+  the parts add up to about the draw): "shadow_map" (the key light's depth pass), "yarns" (opaque and
+  fading yarns), "bodies", "ground", "resolve" (multisample resolve), "other" (upload, clears);
 - "readback": reading the resolved image back to the CPU, flipping it (and un-premultiplying with alpha);
 - "encode": H.264 MP4 encoding (the default output), frames sent to ffmpeg plus finishing the file.
 
 Stages are timed one after the other (all frames are drawn first, then encoded), so each figure is
 what that stage costs on its own and the sum is the per-frame cost of a sequential render. The
 first frame is drawn once before timing (numba compilation or cache load, shader compilation).
+Size and samples are the scene's ``[render] resolution`` and ``samples`` (so `--set` changes them);
+on llvmpipe the draw grows with the pixels and samples as well as the triangles.
 Figures are medians over the frames, except encode, which is total time / frames (ffmpeg works
 ahead of the pipe, so single-frame figures mean little).
 """
@@ -47,9 +52,14 @@ def _frames_dir(spec: SceneSpec, out_dir: Optional[Path], frames: int, tmp: str)
 
 
 def render_stage_timings(spec: SceneSpec, out_dir: Optional[Path] = None, frames: int = DEFAULT_FRAMES,
-                         resolution: tuple[int, int] = (1280, 720), samples: int = 4) -> dict[str, float]:
-    """Milliseconds per frame of the render stages for the first `frames` frames of `spec`."""
-    spec = dataclasses.replace(spec, render=dataclasses.replace(spec.render, resolution=tuple(resolution),
+                         resolution: Optional[tuple[int, int]] = None, samples: Optional[int] = None,
+                         parts: Optional[dict[str, float]] = None) -> dict[str, float]:
+    """Milliseconds per frame of the render stages for the first `frames` frames of `spec`, at
+    `resolution` and `samples` (default: the scene's). `parts`, if given, receives the median
+    milliseconds per frame of the draw's parts (module docstring)."""
+    resolution = tuple(resolution or spec.render.resolution)
+    samples = spec.render.samples if samples is None else int(samples)
+    spec = dataclasses.replace(spec, render=dataclasses.replace(spec.render, resolution=resolution,
                                                                 samples=samples))
     frames = max(1, min(frames, spec.time.frames))
     W, H = resolution
@@ -63,6 +73,7 @@ def render_stage_timings(spec: SceneSpec, out_dir: Optional[Path] = None, frames
             builder = GeometryBuilder(topology, YarnStyle.from_spec(spec.render, topology), renderer.camera, H)
             renderer.render(builder.build(records[0]))  # warm-up: numba, shaders, buffers
             geometry_s, draw_s, read_s, images = [], [], [], []
+            geoms = []
             for record in records:
                 t0 = time.perf_counter()
                 geom = builder.build(record)
@@ -75,6 +86,20 @@ def render_stage_timings(spec: SceneSpec, out_dir: Optional[Path] = None, frames
                 geometry_s.append(t1 - t0)
                 draw_s.append(t2 - t1)
                 read_s.append(t3 - t2)
+                geoms.append(geom)
+            if parts is not None:  # timed apart: finishing the queue between parts costs a little
+                per_frame = []
+                for geom in geoms:
+                    renderer.part_s = {}
+                    t0 = time.perf_counter()
+                    renderer.draw(geom)
+                    ctx.finish()
+                    total = time.perf_counter() - t0
+                    renderer.part_s["other"] = total - sum(renderer.part_s.values())
+                    per_frame.append(renderer.part_s)
+                renderer.part_s = None
+                for name in per_frame[0]:
+                    parts[name] = 1e3 * statistics.median(p.get(name, 0.0) for p in per_frame)
             renderer.release()
         finally:
             ctx.release()

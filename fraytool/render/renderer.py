@@ -37,6 +37,8 @@ share the output size, left W//2 columns shaded, right W - W//2 wireframe).
 """
 from __future__ import annotations
 
+import time
+from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Mapping, Optional
 
@@ -167,6 +169,8 @@ class Renderer:
         self.camera = Camera(camera)
         self.wireframe = wireframe
         self.panels = panels(self.size[0], wireframe)
+        self.part_s: Optional[dict[str, float]] = None
+        """Seconds per part of the last draws when a dict (``_part``; fraytool bench --render)."""
 
         W, H = self.size
         if target == "float":
@@ -329,10 +333,13 @@ class Renderer:
         if have_yarns and len(mesh.opaque):
             if cull:
                 ctx.enable(moderngl.CULL_FACE)
-            self._yarn_vao("opaque", self._opaque_ibo).render(moderngl.TRIANGLES, vertices=mesh.opaque.size)
+            with self._part("yarns"):
+                self._yarn_vao("opaque", self._opaque_ibo).render(moderngl.TRIANGLES, vertices=mesh.opaque.size)
         ctx.disable(moderngl.CULL_FACE)
-        self._draw_bodies(geom, view_proj)
-        self._draw_ground(view_proj)
+        with self._part("bodies"):
+            self._draw_bodies(geom, view_proj)
+        with self._part("ground"):
+            self._draw_ground(view_proj)
         if not have_yarns:
             return
         if cull:
@@ -345,8 +352,9 @@ class Renderer:
             ctx.blend_func = (moderngl.SRC_ALPHA, moderngl.ONE_MINUS_SRC_ALPHA, moderngl.ONE,
                               moderngl.ONE_MINUS_SRC_ALPHA)
             self._fbo_ms.depth_mask = False
-            self._yarn_vao("translucent", self._translucent_ibo).render(
-                moderngl.TRIANGLES, vertices=mesh.translucent.size)
+            with self._part("yarns"):
+                self._yarn_vao("translucent", self._translucent_ibo).render(
+                    moderngl.TRIANGLES, vertices=mesh.translucent.size)
             self._fbo_ms.depth_mask = True
             ctx.disable(moderngl.BLEND)
         ctx.disable(moderngl.CULL_FACE)
@@ -384,6 +392,19 @@ class Renderer:
         for prog in (self._yarn_prog, self._body_prog, self._ground_prog):
             self.shadow.bind(prog, light)
 
+    @contextmanager
+    def _part(self, name: str):
+        """With ``part_s`` a dict (fraytool bench --render), time this part of the draw to completion
+        into ``part_s[name]`` (the GL queue is finished before and after it); otherwise nothing."""
+        if self.part_s is None:
+            yield
+            return
+        self.ctx.finish()
+        t0 = time.perf_counter()
+        yield
+        self.ctx.finish()
+        self.part_s[name] = self.part_s.get(name, 0.0) + time.perf_counter() - t0
+
     def draw(self, geom: FrameGeometry) -> None:
         """Draw one frame into the multisampled framebuffer and resolve it (no read-back)."""
         W, H = self.size
@@ -392,7 +413,8 @@ class Renderer:
         if geom.yarns is not None:
             self._upload_yarns(geom)
         if self.shadow is not None:
-            self._draw_shadow_map(geom)
+            with self._part("shadow_map"):
+                self._draw_shadow_map(geom)
             self._fbo_ms.use()
         if len(self.panels) == 1:
             self._fbo_ms.clear(*self._clear, depth=1.0)
@@ -413,7 +435,8 @@ class Renderer:
                 self._draw_wireframe(geom, vp)
         self._fbo_ms.viewport = (0, 0, W, H)
         self._fbo_ms.scissor = None
-        self.ctx.copy_framebuffer(self._fbo_out, self._fbo_ms)
+        with self._part("resolve"):
+            self.ctx.copy_framebuffer(self._fbo_out, self._fbo_ms)
         self.ctx.disable_direct(GL_FRAMEBUFFER_SRGB)      # leave the context as we found it
 
     def read(self) -> np.ndarray:

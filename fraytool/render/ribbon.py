@@ -1,8 +1,8 @@
 """Yarns as ribbons that face the viewer, shaded as round tubes (`[render] yarn_shape = "ribbon"`).
 
-A tube of s sides costs 2 s triangles per spline sample step, and llvmpipe's cost follows the
-triangle count, not the pixels (fig7 at 1280x720: the same draw time at 320x180). A yarn a few
-pixels wide can instead be drawn as a flat strip through its centre line, as wide as the yarn and
+A tube of s sides costs 2 s triangles per spline sample step, and on llvmpipe every triangle costs
+its set-up and rasterisation whatever its size (fig7 at 1280x720, 4x MSAA: 6-sided tubes about 260 ms
+per frame to draw, ribbons about 150). A yarn a few pixels wide can instead be drawn as a flat strip through its centre line, as wide as the yarn and
 turned to face the eye: 2 triangles per step, a sixth of a 6-sided tube. yarn.frag (RIBBON) then
 finds, per pixel, where the ray through the pixel meets the round tube (from the position across
 the strip and the angle between the ray and the yarn) and the tube's normal there, so the shading
