@@ -140,14 +140,14 @@ def test_bad_shot_is_reported_others_finish_rerun_does_nothing(scene, tmp_path, 
     assert data["shots"]["small"]["scene"] == str(scene)
     good = data["shots"]["small"]
     assert good["status"] == "done" and set(good["tasks"]) == {"simulate", "render 0-6", "join"}
-    assert Path(good["outputs"]["mp4"]).name == "small_000000-000006.mp4"
+    assert Path(good["outputs"]["video"]).name == "small_000000-000006.mp4"
     stamps = {p: p.stat().st_mtime_ns for p in (out / "small").rglob("*") if p.is_file()}
     assert main(argv) == 1
     assert "small: already done" in capsys.readouterr().err
     assert {p: p.stat().st_mtime_ns for p in (out / "small").rglob("*") if p.is_file()} == stamps
-    Path(good["outputs"]["mp4"]).unlink()  # half-finished: the join runs again, nothing else is redone
+    Path(good["outputs"]["video"]).unlink()  # half-finished: the join runs again, nothing else is redone
     assert main(argv) == 1
-    assert Path(good["outputs"]["mp4"]).is_file()
+    assert Path(good["outputs"]["video"]).is_file()
     again = json.loads((out / "job.json").read_text())["shots"]["small"]["tasks"]
     assert again["render 0-6"]["rendered"] == 0 and again["render 0-6"]["reused"] == 6
     (out / "small" / "png" / "frame_000003.png").unlink()  # a missing PNG: the shot is not done
@@ -241,7 +241,7 @@ def test_farm_tasks_write_16bit_alpha_pngs_and_exrs_when_asked(scene, tmp_path):
     tasks.simulate_task(shot, str(out), frames.end)
     tasks.render_chunk_task(shot, str(out), 0, 3, 1)
     result = tasks.join_task(shot, str(out))
-    assert _outputs_complete({"outputs": {"mp4": result["mp4"], "png": result["png_dir"], "exr": result["exr_dir"]}},
+    assert _outputs_complete({"outputs": {"video": result["video"], "png": result["png_dir"], "exr": result["exr_dir"]}},
                              frames)
     for k in range(3):
         png = out / "png" / f"frame_{k:06d}.png"
@@ -253,7 +253,7 @@ def test_farm_tasks_write_16bit_alpha_pngs_and_exrs_when_asked(scene, tmp_path):
         channels = read_exr(out / "exr" / f"frame_{k:06d}.exr")
         assert set(channels) == {"R", "G", "B", "A", "Z"}
     (out / "exr" / "frame_000001.exr").unlink()
-    assert not _outputs_complete({"outputs": {"mp4": result["mp4"], "png": result["png_dir"],
+    assert not _outputs_complete({"outputs": {"video": result["video"], "png": result["png_dir"],
                                               "exr": result["exr_dir"]}}, frames)
 
 
@@ -265,3 +265,54 @@ def test_job_file_render_flags(tmp_path, scene):
     job.write_text(f'[render]\ndepth = 12\n[[shots]]\nscene = "{scene}"\n')
     with pytest.raises(InputError, match=r"depth = 12: 8 or 16"):
         load_job(job)
+
+
+def test_farm_tasks_prores_and_fit_match_fraytool_render(scene, tmp_path):
+    """--codec prores and --fit in a batch (its tasks run here in-process, as a worker runs them): the
+    whole shot is simulated before any chunk renders, every chunk gets the camera fitted over the whole
+    shot, the PNGs are 16-bit RGBA and byte for byte those of `fraytool render --png --codec prores
+    --depth 16 --fit`, and the join writes a ProRes 4444 .mov with alpha."""
+    import subprocess
+
+    import imageio_ffmpeg
+
+    from fraytool.farm import tasks
+    from fraytool.farm.runner import _outputs_complete
+
+    (shot,) = expand(str(scene), [], [], RenderOptions(resolution=(64, 48), frames="0:4", codec="prores", fit=True))
+    out = tmp_path / "shot"
+    assert tasks.frames_to_simulate(shot, out) == 24      # the fit covers the whole shot, not frames 0-3
+    tasks.simulate_task(shot, str(out), tasks.frames_to_simulate(shot, out))
+    tasks.render_chunk_task(shot, str(out), 0, 2, 1)       # two chunks: each fits the camera itself
+    tasks.render_chunk_task(shot, str(out), 2, 4, 1)
+    result = tasks.join_task(shot, str(out))
+    assert result["video"].endswith(".mov")
+    assert _outputs_complete({"outputs": {"video": result["video"], "png": result["png_dir"]}}, tasks.shot_frames(shot, out))
+    probe = subprocess.run([imageio_ffmpeg.get_ffmpeg_exe(), "-hide_banner", "-i", result["video"]],
+                           capture_output=True, text=True).stderr
+    assert "prores" in probe and "yuva444p" in probe, probe
+
+    ref = tmp_path / "ref"
+    assert main(["render", str(scene), "-o", str(ref), "--png", "--codec", "prores", "--depth", "16",
+                 "--fit", "--frames", "0:4", "--resolution", "64x48", "--progress", "none"]) == 0
+    for k in range(4):
+        name = f"frame_{k:06d}.png"
+        assert (out / "png" / name).read_bytes() == (ref / "png" / name).read_bytes(), name
+
+
+def test_job_file_codec_and_fit(tmp_path, scene):
+    job = tmp_path / "job.toml"
+    job.write_text(f'[render]\ncodec = "prores"\nfit = true\n[[shots]]\nscene = "{scene}"\n')
+    (shot,) = load_job(job).shots
+    assert (shot.render.codec, shot.render.fit) == ("prores", True)
+    job.write_text(f'[render]\ncodec = "prores"\ndepth = 8\n[[shots]]\nscene = "{scene}"\n')
+    with pytest.raises(InputError, match=r'codec = "prores" with depth = 8'):
+        load_job(job)
+    job.write_text(f'[render]\ncodec = "vp9"\n[[shots]]\nscene = "{scene}"\n')
+    with pytest.raises(InputError, match=r'codec = \'vp9\': "h264" or "prores"'):
+        load_job(job)
+
+
+def test_batch_refuses_prores_with_8bit_pngs(capsys):
+    assert main(["batch", "drape", "--codec", "prores", "--depth", "8"]) == 2
+    assert "--codec prores with --depth 8" in capsys.readouterr().err

@@ -14,7 +14,7 @@ from fraytool.errors import InputError, RunError
 
 def batch_command(args) -> int:
     from fraytool.farm.runner import local_client, remote_client, run_job
-    from fraytool.farm.shots import Job, RenderOptions, check_job_name, expand, load_job, parse_wedge, unique_names
+    from fraytool.farm.shots import Job, RenderOptions, check_job_name, check_render_options, expand, load_job, parse_wedge, unique_names
     from fraytool.render.options import parse_resolution
     from fraytool.scene.overrides import parse_assignment
 
@@ -24,7 +24,9 @@ def batch_command(args) -> int:
     render = RenderOptions(resolution=parse_resolution(args.resolution, need_even=True, no_mp4_hint=False)
                            if args.resolution else None,
                            samples=args.samples, wireframe=args.wireframe, frames=args.frames,
-                           alpha=True if args.alpha else None, depth=args.depth, exr=True if args.exr else None)
+                           alpha=True if args.alpha else None, depth=args.depth, exr=True if args.exr else None,
+                           codec=args.codec, fit=True if args.fit else None)
+    check_render_options(render, "batch", flags=True)
     if args.scheduler and args.workers:
         raise InputError("--workers starts a local cluster; with --scheduler the cluster's own workers run the job")
     job = None

@@ -185,6 +185,12 @@ def build_parser() -> argparse.ArgumentParser:
     ba.add_argument("--alpha", action="store_true", help="transparent background for every shot (as in render)")
     ba.add_argument("--depth", type=int, choices=(8, 16), help="PNG bits per channel of every shot (as in render)")
     ba.add_argument("--exr", action="store_true", help="also an EXR sequence per shot (as in render)")
+    ba.add_argument("--codec", choices=("h264", "prores"),
+                    help="video codec of every shot (as in render): h264 (default) or prores (ProRes 4444 with "
+                         "alpha in <shot>.mov; the PNGs are then 16-bit RGBA, which the join encodes)")
+    ba.add_argument("--fit", action="store_true",
+                    help="frame every shot's cloth over its whole shot (as in render; the shot is simulated "
+                         "before any frame is rendered)")
     ba.add_argument("--chunk-frames", type=_positive_int, help="frames per render task (default 24)")
     ba.add_argument("--no-contact-sheet", action="store_true", help="no contact sheet for wedges")
     _progress_flag(ba)

@@ -41,19 +41,6 @@ def ensure_frames(spec: SceneSpec, out_dir: Path, needed: int, stream: TextIO = 
     return store
 
 
-def fitted_job(job, store: FrameStore):
-    """The job with its camera fitted to every frame record of the scene (fraytool.render.fit)."""
-    import dataclasses
-
-    from fraytool.render.fit import fit_camera, shot_points
-
-    topology = store.load_topology()
-    records = (store.load_frame(f) for f in range(job.spec.time.frames))
-    w, h = job.spec.render.resolution
-    camera = fit_camera(job.spec.camera, shot_points(topology, records), w / h)
-    return dataclasses.replace(job, spec=dataclasses.replace(job.spec, camera=camera))
-
-
 def _fmt(v) -> str:
     return "(" + ", ".join(f"{x:.4f}" for x in v) + ")"
 
@@ -117,6 +104,8 @@ def _render(args, stream: Optional[TextIO]) -> int:
             if job.spec.camera.fit:
                 # the fit covers the whole shot, so farm shards of one scene agree on the camera
                 store = ensure_frames(job.spec, job.out_dir, job.spec.time.frames, stream)
+                from fraytool.render.fit import fitted_job
+
                 job = fitted_job(job, store)
                 cam = job.spec.camera
                 print(f"fraytool: --fit: camera at {_fmt(cam.position_m)} looking at {_fmt(cam.target_m)}",

@@ -37,6 +37,15 @@ def compose(images: list[np.ndarray], labels: list[str], tile: tuple[int, int], 
     return np.asarray(sheet)
 
 
+def _opaque(image: np.ndarray, background_srgb) -> np.ndarray:
+    """A shot's PNG as an opaque tile: with alpha (--alpha, ProRes), over its scene's background."""
+    if image.shape[-1] == 4:
+        from fraytool.render.color import over_background
+
+        return over_background(image, background_srgb)
+    return image
+
+
 def write_contact_sheet(shots: list[Shot], job_dir: Path, name: str) -> Path:
     from fraytool.farm.tasks import render_job_for
     from fraytool.render.encode import VideoWriter, read_png
@@ -51,7 +60,7 @@ def write_contact_sheet(shots: list[Shot], job_dir: Path, name: str) -> Path:
     path = job_dir / f"{name}_contact_sheet.mp4"
     with VideoWriter(path, (tile[0] * grid[0], tile[1] * grid[1]), jobs[0].spec.time.fps) as writer:
         for i in range(frames):
-            images = [read_png(j.png_path(j.frames.frames()[i])) for j in jobs]
+            images = [_opaque(read_png(j.png_path(j.frames.frames()[i])), j.spec.render.background) for j in jobs]
             writer.write(compose(images, [s.label for s in shots], tile, grid))
     return path
 

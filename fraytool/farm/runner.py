@@ -37,9 +37,10 @@ def settings_digest(shot: Shot) -> str:
 
 
 def _outputs_complete(entry: dict, frames) -> bool:
-    """The MP4 and every PNG (and EXR, when asked for) of the shot's frame range are there."""
+    """The video (MP4 or ProRes .mov) and every PNG (and EXR, when asked for) of the shot's frame range
+    are there."""
     outs = entry.get("outputs", {})
-    if not outs or not Path(outs.get("mp4", "")).is_file():
+    if not outs or not Path(outs.get("video", outs.get("mp4", ""))).is_file():  # "mp4": job.json before ProRes
         return False
     png = Path(outs.get("png", ""))
     exr = Path(outs["exr"]) if outs.get("exr") else None
@@ -109,7 +110,8 @@ def run_job(job: Job, job_dir: Path, client, stream: TextIO = sys.stderr, progre
                 groups.setdefault(shot.group, []).append(shot)
             continue
         entry.update({"status": "running", "tasks": {}, "error": None, "settings": digest, "outputs": {}})
-        sim = client.submit(tasks.simulate_task, shot, out, frames.end, key=f"simulate-{shot.name}",
+        sim = client.submit(tasks.simulate_task, shot, out, tasks.frames_to_simulate(shot, Path(out)),
+                            key=f"simulate-{shot.name}",
                             retries=RETRIES, pure=False)
         futures[sim] = (shot.name, "simulate")
         chunks = []
@@ -147,7 +149,7 @@ def run_job(job: Job, job_dir: Path, client, stream: TextIO = sys.stderr, progre
         entry.setdefault("tasks", {})[task] = status
         if task == "join" and status["status"] == "done":
             entry["status"] = "done"
-            entry["outputs"] = {"mp4": result["mp4"], "png": result["png_dir"]}
+            entry["outputs"] = {"video": result["video"], "png": result["png_dir"]}
             if "exr_dir" in result:
                 entry["outputs"]["exr"] = result["exr_dir"]
         if task == "contact sheet" and status["status"] == "done":

@@ -37,7 +37,7 @@ from fraytool.scene.overrides import parse_assignment, parse_value
 DEFAULT_CHUNK_FRAMES = 24
 MAX_WEDGE_VALUES = 1000
 _JOB_KEYS = {"name", "chunk_frames"}
-_RENDER_KEYS = {"resolution", "samples", "wireframe", "frames", "alpha", "depth", "exr"}
+_RENDER_KEYS = {"resolution", "samples", "wireframe", "frames", "alpha", "depth", "exr", "codec", "fit"}
 _SHOT_KEYS = {"scene", "set", "wedge", "render", "name"}
 
 
@@ -55,6 +55,11 @@ class RenderOptions:
     """PNG bits, 8 or 16 (as `--depth`); None: not given (8)."""
     exr: Optional[bool] = None
     """Also an EXR sequence (as `--exr`); None: not given (off)."""
+    codec: Optional[str] = None
+    """Video codec, "h264" or "prores" (as `--codec`); None: not given (h264). ProRes makes the PNGs
+    16-bit RGBA (the join encodes the .mov from them)."""
+    fit: Optional[bool] = None
+    """Frame the cloth over the whole shot (as `--fit`); None: not given (the scene's [camera] fit)."""
 
 
 @dataclass(frozen=True)
@@ -179,7 +184,7 @@ def _render_options(table: dict, where: str, base: RenderOptions) -> RenderOptio
     if frames is not None and not isinstance(frames, str):
         raise InputError(f'{where} frames = {frames!r}: a string "START:END[:STEP]"')
     flags = {}
-    for key in ("alpha", "exr"):
+    for key in ("alpha", "exr", "fit"):
         value = table.get(key, getattr(base, key))
         if value is not None and not isinstance(value, bool):
             raise InputError(f"{where} {key} = {value!r}: true or false")
@@ -187,7 +192,23 @@ def _render_options(table: dict, where: str, base: RenderOptions) -> RenderOptio
     depth = table.get("depth", base.depth)
     if depth is not None and (isinstance(depth, bool) or depth not in (8, 16)):
         raise InputError(f"{where} depth = {depth!r}: 8 or 16 (bits per PNG channel)")
-    return RenderOptions(res, samples, wire, frames, flags["alpha"], depth, flags["exr"])
+    codec = table.get("codec", base.codec)
+    if codec not in ("h264", "prores", None):
+        raise InputError(f'{where} codec = {codec!r}: "h264" or "prores"')
+    return check_render_options(RenderOptions(res, samples, wire, frames, flags["alpha"], depth, flags["exr"],
+                                              codec, flags["fit"]), where)
+
+
+def check_render_options(opts: RenderOptions, where: str, flags: bool = False) -> RenderOptions:
+    """Options that contradict each other are bad input: ProRes in a batch is encoded from the PNG
+    sequence, so its PNGs are 16-bit (``depth = 8`` would make a 10-bit ProRes of 8-bit pixels).
+    `flags`: name them as command-line flags."""
+    if opts.codec == "prores" and opts.depth == 8:
+        what = "--codec prores with --depth 8" if flags else 'codec = "prores" with depth = 8'
+        fix = "leave --depth out or give 16" if flags else "leave depth out or set 16"
+        raise InputError(f"{where}: {what}: a batch encodes the ProRes .mov from the PNG sequence, which is then "
+                         f"16-bit RGBA; {fix}")
+    return opts
 
 
 def load_job(path: Path, sets: Sequence[tuple[str, Any]] = (), wedges: Sequence[tuple[str, list[Any]]] = (),
@@ -263,8 +284,10 @@ def _merge(base: RenderOptions, cli: RenderOptions) -> RenderOptions:
         value = getattr(cli, key)
         return value if value is not None else getattr(base, key)
 
-    return RenderOptions(cli.resolution or base.resolution, pick("samples"), pick("wireframe"), cli.frames or base.frames,
-                         pick("alpha"), pick("depth"), pick("exr"))
+    return check_render_options(
+        RenderOptions(cli.resolution or base.resolution, pick("samples"), pick("wireframe"), cli.frames or base.frames,
+                      pick("alpha"), pick("depth"), pick("exr"), pick("codec"), pick("fit")),
+        "render options (job file and command line)")
 
 
 def check_job_name(name: Any, where: str) -> None:

@@ -38,10 +38,12 @@ def render_job_for(shot: Shot, out_dir: Path, frames: FrameRange):
 
     spec = load_shot(shot)
     r = shot.render
+    prores = r.codec == "prores"
     args = SimpleNamespace(png=True, no_mp4=False, out=str(out_dir), frames=r.frames,
                            resolution=f"{r.resolution[0]}x{r.resolution[1]}" if r.resolution else None,
                            samples=r.samples, camera_position=None, camera_target=None, fov=None,
-                           wireframe=r.wireframe, alpha=bool(r.alpha), depth=r.depth, exr=bool(r.exr))
+                           wireframe=r.wireframe, alpha=bool(r.alpha), depth=16 if prores else r.depth,
+                           exr=bool(r.exr), codec=r.codec or "h264", fit=bool(r.fit))
     job = build_job(spec, args, out_dir)
     return job, replace(job, frames=frames)
 
@@ -49,6 +51,13 @@ def render_job_for(shot: Shot, out_dir: Path, frames: FrameRange):
 def shot_frames(shot: Shot, out_dir: Path) -> FrameRange:
     job, _ = render_job_for(shot, out_dir, FrameRange(0, 1))
     return job.frames
+
+
+def frames_to_simulate(shot: Shot, out_dir: Path) -> int:
+    """Frames the shot's simulation task runs: up to the end of its frame range, or the whole scene
+    when the camera is fitted (--fit, [camera] fit), as the fit covers the whole shot."""
+    job, _ = render_job_for(shot, out_dir, FrameRange(0, 1))
+    return job.spec.time.frames if job.spec.camera.fit else job.frames.end
 
 
 def one_thread() -> None:
@@ -82,14 +91,18 @@ def render_chunk_task(shot: Shot, out_dir: str, start: int, end: int, step: int,
     """Render frames start..end-1 (every step) of the shot to its PNG sequence (and EXRs with exr)."""
     from fraytool.io.frame_store import FrameStore
     from fraytool.render.context import create_context
+    from fraytool.render.fit import fitted_job
     from fraytool.render.sequence import render_job
 
     t0 = time.time()
     _, job = render_job_for(shot, Path(out_dir), FrameRange(start, end, step))
     job = replace(job, video=False, png=True)
+    store = FrameStore(Path(out_dir))
+    if job.spec.camera.fit:  # over the whole shot, simulated before any chunk: every chunk gets this camera
+        job = fitted_job(job, store)
     ctx = create_context()
     try:
-        result = render_job(job, ctx, FrameStore(Path(out_dir)), progress=False)
+        result = render_job(job, ctx, store, progress=False)
     finally:
         ctx.release()
     return {"task": f"render {start}-{end}", "seconds": time.time() - t0, "worker": _where(),
@@ -97,16 +110,19 @@ def render_chunk_task(shot: Shot, out_dir: str, start: int, end: int, step: int,
 
 
 def join_task(shot: Shot, out_dir: str, _after=None) -> dict:
-    """Encode the shot's MP4 from its PNG sequence (the same pixels `fraytool render` encodes)."""
+    """Encode the shot's video (the MP4, or the ProRes .mov) from its PNG sequence: the same pixels
+    `fraytool render` encodes (ProRes from 16-bit RGBA PNGs, as render encodes it from 16 bits)."""
     from fraytool.render.encode import VideoWriter, read_png
+    from fraytool.render.png16 import read_png16
 
     t0 = time.time()
     job, _ = render_job_for(shot, Path(out_dir), FrameRange(0, 1))
+    read = read_png16 if job.png_bits == 16 and job.codec == "prores" else read_png
     with VideoWriter(job.video_path, job.size, job.spec.time.fps, crf=job.spec.output.crf,
-                   background_srgb=job.spec.render.background) as writer:
+                     background_srgb=job.spec.render.background, codec=job.codec) as writer:
         for frame in job.frames.frames():
-            writer.write(read_png(job.png_path(frame)))
-    out = {"task": "join", "seconds": time.time() - t0, "worker": _where(), "mp4": str(job.video_path),
+            writer.write(read(job.png_path(frame)))
+    out = {"task": "join", "seconds": time.time() - t0, "worker": _where(), "video": str(job.video_path),
            "png_dir": str(job.png_dir)}
     if job.exr:
         out["exr_dir"] = str(job.exr_dir)

@@ -65,3 +65,14 @@ def fit_camera(camera: CameraSpec, points: np.ndarray, aspect: float, margin: fl
     eye = target - distance * f
     return dataclasses.replace(camera, position_m=tuple(float(x) for x in eye),
                                target_m=tuple(float(x) for x in target), fit=False)
+
+
+def fitted_job(job, store):
+    """The render job with its camera fitted to every frame record of the scene in `store` (a
+    FrameStore holding the whole shot): the same camera for every frame range of the scene, so farm
+    chunks and `fraytool render` agree."""
+    topology = store.load_topology()
+    records = (store.load_frame(f) for f in range(job.spec.time.frames))
+    w, h = job.spec.render.resolution
+    camera = fit_camera(job.spec.camera, shot_points(topology, records), w / h)
+    return dataclasses.replace(job, spec=dataclasses.replace(job.spec, camera=camera))
