@@ -40,6 +40,31 @@ def test_bench_json(tmp_path, capsys):
     assert out["frames"] == 3 and out["ms_per_frame"] > 0
     assert {"forces", "integration", "strain_limiting"} <= set(out["stages_ms_per_frame"])
     assert out["export_ms_per_frame"] > 0 and "export" not in out["stages_ms_per_frame"]
+    assert out["kernels_compiled_in_timed_frames"] >= 0
+
+
+def test_bench_counts_kernels_compiled_in_this_process(monkeypatch):
+    """`bench` says when numba compiled a fraytool kernel during the timed frames (its stage means then
+    include the compilation): the counter follows the cache misses of fraytool's dispatchers."""
+    import types
+
+    import numba
+
+    from fraytool.commands.bench import kernels_compiled
+
+    module = types.ModuleType("fraytool._bench_probe")
+
+    @numba.njit(cache=False)
+    def probe(x):
+        return x + 1
+
+    module.probe = probe
+    monkeypatch.setitem(sys.modules, module.__name__, module)
+    before = kernels_compiled()
+    assert probe(1) == 2          # compiled now (no cache: a miss)
+    assert kernels_compiled() == before + 1
+    assert probe(2) == 3          # the same signature: no compilation
+    assert kernels_compiled() == before + 1
 
 
 def test_python_dash_m_and_default_out_dir(tmp_path):

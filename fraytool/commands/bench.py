@@ -36,6 +36,22 @@ def empty_run(spec, out_dir: Path) -> float:
     return time.perf_counter() - t0
 
 
+def kernels_compiled() -> int:
+    """How many times numba compiled a fraytool kernel in this process so far (cache misses of the
+    loaded modules' dispatchers; a load from numba's on-disk cache is not counted)."""
+    from numba.core.registry import CPUDispatcher
+
+    seen, count = set(), 0
+    for name, module in list(sys.modules.items()):
+        if not name.startswith("fraytool.") or module is None:
+            continue
+        for obj in vars(module).values():
+            if isinstance(obj, CPUDispatcher) and id(obj) not in seen:
+                seen.add(id(obj))
+                count += sum(obj.stats.cache_misses.values())
+    return count
+
+
 def _threads() -> int:
     """Threads the parallel kernels may use in this run (--threads or numba's default)."""
     import numba
@@ -63,6 +79,7 @@ def bench_simulation(spec, frames: int = DEFAULT_FRAMES, out_dir: Path | None = 
     else:
         rss_before, baseline = rss_start, "before an empty run (kernels included)"
     sim = Simulation(spec)
+    compiled_before = kernels_compiled()
     with tempfile.TemporaryDirectory() as tmp:
         store = FrameStore(Path(out_dir or tmp))
         store.start(sim.model.arrays(), scene_hash(spec), {"scene": spec.name})
@@ -88,6 +105,7 @@ def bench_simulation(spec, frames: int = DEFAULT_FRAMES, out_dir: Path | None = 
         "stages_ms_per_frame": stages,
         "export_ms_per_frame": 1e3 * statistics.median(export_s),
         "compile_s": compile_s,
+        "kernels_compiled_in_timed_frames": kernels_compiled() - compiled_before,
         "strain_iterations_max": sim.solver.strain_iterations_max,
         "peak_rss_bytes": peak,
         "bytes_per_crossing": (peak - rss_before) / max(1, sim.model.crossing_count),
@@ -124,6 +142,10 @@ def bench_command(args) -> int:
           f"compile/cache load {result['compile_s']:.2f} s (empty run: build and first frame, not in the median)", file=out)
     for name, ms in result["stages_ms_per_frame"].items():
         print(f"  {name:20s} {ms:8.2f} ms/frame (mean)", file=out)
+    if result["kernels_compiled_in_timed_frames"]:
+        print(f"  note: numba compiled {result['kernels_compiled_in_timed_frames']} kernel(s) during the timed frames "
+              "(first used after the first frame, with numba's cache cold after a change): the stage means include "
+              "that compilation, the median does not; run the bench again for clean stage figures", file=out)
     print(f"export: {result['export_ms_per_frame']:.2f} ms per frame (median; writing the frame record and "
           "checkpoint, not in the simulation figure)", file=out)
     print(f"memory: peak RSS {result['peak_rss_bytes'] / 2**20:.0f} MiB; "
