@@ -37,7 +37,8 @@ import math
 import numba as nb
 import numpy as np
 
-from fraytool.collision.narrow import (_apart_at_end, _apart_boxes_end, _outside_reach, _share_end, end_segment_boxes)
+from fraytool.collision.narrow import (_apart_at_end, _apart_boxes_end, _lines_apart, _outside_reach, _share_end,
+                                       end_segment_boxes, segment_cross)
 from fraytool.collision.segment import segment_closest_params
 
 
@@ -73,16 +74,7 @@ def _normal(xs, xe, i1, i2, i3, i4, t):
         length = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
         if length > 1e-12:
             return d0 / length, d1 / length, d2 / length
-    # the cross product of the segments at the step start
-    a0 = xs[i2, 0] - xs[i1, 0]
-    a1 = xs[i2, 1] - xs[i1, 1]
-    a2 = xs[i2, 2] - xs[i1, 2]
-    b0 = xs[i4, 0] - xs[i3, 0]
-    b1 = xs[i4, 1] - xs[i3, 1]
-    b2 = xs[i4, 2] - xs[i3, 2]
-    c0 = a1 * b2 - a2 * b1
-    c1 = a2 * b0 - a0 * b2
-    c2 = a0 * b1 - a1 * b0
+    c0, c1, c2 = segment_cross(xs, i1, i2, i3, i4)  # the cross product of the segments at the step start
     length = math.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
     if length > 1e-300:
         return c0 / length, c1 / length, c2 / length
@@ -210,9 +202,10 @@ def repel_close_pairs(
 
     The end boxes of the listed ``segments`` are computed once (``end_segment_boxes``) and the axis
     pre-test reads them, as long as no correction of this call moved one of the pair's end
-    particles (``dirty``): same answers, bit for bit, as computing them per pair. Then the closest
-    distance itself decides (no plane-gap pre-test: at one instant that gap is a lower bound of the
-    distance, so it could only skip pairs the distance test skips). No allocation per pair."""
+    particles (``dirty``): same answers, bit for bit, as computing them per pair. Then the distance
+    between the two lines (``_lines_apart``, a lower bound of the segments' distance: it skips only
+    pairs the distance test skips, without its divisions), then the closest distance itself
+    decides. No allocation per pair."""
     moved = 0
     end_segment_boxes(x_end, spring_particle_a, spring_particle_b, segments, box)
     dirty[:] = False
@@ -230,6 +223,8 @@ def repel_close_pairs(
                 continue
         elif _share_end(i1, i2, i3, i4) or _apart_at_end(x_end, i1, i2, i3, i4, contact_distance_m):
             continue  # (the distance below would be >= d_c)
+        if _lines_apart(x_end, i1, i2, i3, i4, contact_distance_m):
+            continue  # (likewise: fraytool.collision.narrow)
         s, u = closest_parameters(x_end[i1], x_end[i2], x_end[i3], x_end[i4])
         d0 = (1.0 - s) * x_end[i1, 0] + s * x_end[i2, 0] - (1.0 - u) * x_end[i3, 0] - u * x_end[i4, 0]
         d1 = (1.0 - s) * x_end[i1, 1] + s * x_end[i2, 1] - (1.0 - u) * x_end[i3, 1] - u * x_end[i4, 1]
