@@ -229,7 +229,9 @@ def test_yarn_line_solve_reaches_the_point_solve_fixed_point_in_far_fewer_sweeps
     it_lines, ok_lines = limit_strain_lines(ls, starts, groups, model.spring_rest_length_m, 0.10, 1e-11, 200000,
                                             alpha, inv, state.spring_particle_a, state.spring_particle_b,
                                             state.spring_alive, np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n),
-                                            np.zeros((n, 3)), np.zeros(starts.shape[0] - 1), lines)
+                                            np.zeros((n, 3)), np.zeros(starts.shape[0] - 1),
+                                            np.zeros(starts.shape[0] - 1, np.int64), np.zeros(len(lines), np.int64),
+                                            lines)
     assert ok_point and ok_lines
     assert _structural_strain(model, state, lines).max() > 0.11  # infeasible: the yarns stretch past the limit
     # XPBD on nonlinear constraints accumulates each correction along the direction it had when made,
@@ -261,7 +263,8 @@ def test_yarn_line_solve_matches_the_implicit_chain_step():
     z = np.zeros(n)
     it, converged = limit_strain_lines(springs, np.array([0, n], np.int64), np.array([0, 1], np.int64), rest_lengths,
                                        limit, 1e-13, 1000, alpha, w, a, b, alive, z.copy(), z.copy(), z.copy(),
-                                       z.copy(), np.zeros((n, 3)), np.zeros(1), x)
+                                       z.copy(), np.zeros((n, 3)), np.zeros(1), np.zeros(1, np.int64),
+                                       np.zeros(len(x), np.int64), x)
     assert converged and it < 20
     np.testing.assert_allclose(x, point, atol=1e-10)
 

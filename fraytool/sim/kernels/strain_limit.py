@@ -179,11 +179,13 @@ def damp_overstretched(
 def _solve_line(
     first, last, line_springs, spring_rest_length_m, stretch, alpha,
     particle_inv_mass, spring_particle_a, spring_particle_b, spring_alive,
-    tension, diag, upper, rhs, unit, particle_position_m,
+    tension, diag, upper, rhs, unit, particle_position_m, stamp, moved_at,
 ):
     """One block-Gauss-Seidel update of the yarn line line_springs[first:last] (see
-    `limit_strain_lines`); returns the largest residual strain it met (before its update)."""
+    `limit_strain_lines`); returns the largest residual strain it met (before its update) and
+    whether it had a block (an active spring). The particles it moves get ``moved_at[p] = stamp``."""
     worst = 0.0
+    had_block = False
     k = first
     while k < last:
         # -- gather the next block: consecutive active springs chained end to start ------------
@@ -229,6 +231,7 @@ def _solve_line(
         if end == start:
             k = start + 1  # an inactive spring: skip it
             continue
+        had_block = True
         # -- Thomas algorithm on the symmetric tridiagonal block [start, end) -------------------
         for i in range(start + 1, end):
             f = upper[i - 1] / diag[i - 1]
@@ -258,8 +261,20 @@ def _solve_line(
             particle_position_m[b, 0] -= cb * unit[i, 0]
             particle_position_m[b, 1] -= cb * unit[i, 1]
             particle_position_m[b, 2] -= cb * unit[i, 2]
+            moved_at[a] = stamp
+            moved_at[b] = stamp
         k = end
-    return worst
+    return worst, had_block
+
+
+@nb.njit(cache=True, fastmath=False)
+def _moved_since(first, last, line_springs, spring_particle_a, spring_particle_b, spring_alive, moved_at, since):
+    """True if a live spring of the line line_springs[first:last] has an end moved after stamp `since`."""
+    for k in range(first, last):
+        s = line_springs[k]
+        if spring_alive[s] and (moved_at[spring_particle_a[s]] > since or moved_at[spring_particle_b[s]] > since):
+            return True
+    return False
 
 
 @nb.njit(cache=True, fastmath=False, parallel=True)
@@ -269,8 +284,8 @@ def limit_strain_lines(
     compliance_s2_per_kg,
     # state in
     particle_inv_mass, spring_particle_a, spring_particle_b, spring_alive,
-    # scratch (tension zeroed here; the others overwritten)
-    tension, diag, upper, rhs, unit, line_worst,
+    # scratch (tension, moved_at zeroed here; the others overwritten)
+    tension, diag, upper, rhs, unit, line_worst, line_status, moved_at,
     # state in/out
     particle_position_m,
 ):
@@ -302,21 +317,38 @@ def limit_strain_lines(
     in parallel (numba prange), each line by one thread from start to end, writing its own slice of
     the scratch and its own line_worst entry; the largest residual is taken after the group. The
     result is therefore the same, bit for bit, on any number of threads. Returns (sweeps used,
-    converged); `tension` holds the multipliers, indexed like line_springs."""
+    converged); `tension` holds the multipliers, indexed like line_springs.
+
+    Lines left alone: a line whose last update had no block (every spring slack, no tension) and none
+    of whose live springs' ends moved since (``moved_at``: the stamp of the group update that last
+    moved each particle; ``line_status[l]`` = 2 x the stamp of line l's last update + 1 if it had a
+    block) would form no block again and change nothing, so after the first sweep it is skipped, with
+    a residual of 0 as its update would report: the same result, bit for bit, for a fraction of the
+    work (in fig7 about 11 of the 128 yarns have a stretched spring at a step's start)."""
     stretch = 1.0 + strain_limit
     alpha = compliance_s2_per_kg
     for k in range(tension.shape[0]):
         tension[k] = 0.0
+    for p in range(moved_at.shape[0]):
+        moved_at[p] = 0
     groups = group_start.shape[0] - 1
     for it in range(max_iterations):
         worst = 0.0
         for g in range(groups):
             lo = group_start[g]
             hi = group_start[g + 1]
+            stamp = it * groups + g + 1
             for l in nb.prange(lo, hi):
-                line_worst[l] = _solve_line(line_start[l], line_start[l + 1], line_springs, spring_rest_length_m,
-                                            stretch, alpha, particle_inv_mass, spring_particle_a, spring_particle_b,
-                                            spring_alive, tension, diag, upper, rhs, unit, particle_position_m)
+                if it > 0 and line_status[l] % 2 == 0 and not _moved_since(
+                        line_start[l], line_start[l + 1], line_springs, spring_particle_a, spring_particle_b,
+                        spring_alive, moved_at, line_status[l] // 2):
+                    line_worst[l] = 0.0
+                    continue
+                line_worst[l], had_block = _solve_line(
+                    line_start[l], line_start[l + 1], line_springs, spring_rest_length_m, stretch, alpha,
+                    particle_inv_mass, spring_particle_a, spring_particle_b, spring_alive, tension, diag, upper,
+                    rhs, unit, particle_position_m, stamp, moved_at)
+                line_status[l] = 2 * stamp + (1 if had_block else 0)
             for l in range(lo, hi):
                 if line_worst[l] > worst:
                     worst = line_worst[l]

@@ -194,6 +194,9 @@ class StrainLimiting(_NoSummary):
             self._rhs = np.zeros(n)
             self._unit = np.zeros((n, 3))
             self._line_worst = np.zeros(self.line_start.shape[0] - 1)
+            self._line_status = np.zeros(self.line_start.shape[0] - 1, np.int64)
+            self._moved_at = np.zeros(0, np.int64)
+            """Per particle (sized on first use: the particle slots), for `limit_strain_lines`."""
         self.iterations_last = 0
         self.iterations_max = 0
         self.cap_hits = 0
@@ -207,12 +210,14 @@ class StrainLimiting(_NoSummary):
                                state.spring_particle_b, state.spring_alive, buffers.prev_position_m,
                                state.particle_position_m)
         if self.compliant:
+            if self._moved_at.shape[0] != state.particle_position_m.shape[0]:
+                self._moved_at = np.zeros(state.particle_position_m.shape[0], np.int64)
             it, converged = limit_strain_lines(
                 self.line_springs, self.line_start, self.line_groups, state.spring_rest_length_m, m.strain_limit,
                 m.strain_tolerance, m.strain_max_iterations, 1.0 / (m.strain_stiffness_n_per_m * dt_s * dt_s),
                 state.particle_inv_mass, state.spring_particle_a, state.spring_particle_b, state.spring_alive,
-                self._tension, self._diag, self._upper, self._rhs, self._unit, self._line_worst,
-                state.particle_position_m)
+                self._tension, self._diag, self._upper, self._rhs, self._unit, self._line_worst, self._line_status,
+                self._moved_at, state.particle_position_m)
         else:
             it, converged = limit_strain_groups(self.limited_springs, self.colour_start, state.spring_rest_length_m,
                                                 m.strain_limit, m.strain_tolerance, m.strain_max_iterations,
