@@ -82,6 +82,9 @@ def test_check_json_figures(capsys):
     out = json.loads(capsys.readouterr().out)
     assert out["masses"] == 4096
     assert out["springs_by_kind"]["structural_weft"] == 64 * 63
+    # the shear twins are slots reserved for splits, not springs: the kinds add up to the springs
+    assert out["springs_by_kind"]["shear_twin"] == 0 and sum(out["springs_by_kind"].values()) == out["springs"]
+    assert out["spring_slots"] == out["springs"] + out["shear_twin_slots"] and out["shear_twin_slots"] > 0
     assert 0 < out["stability_bound_s"] < 1
 
 
