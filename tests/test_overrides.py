@@ -17,6 +17,7 @@ def scene(tmp_path):
 @pytest.mark.parametrize("sets,edit", [
     (["scene.seed=7"], ("seed = 1", "seed = 7")),
     (["bodies.0.radius_m=0.03"], ("radius_m = 0.02", "radius_m = 0.03")),
+    (["bodies.ball.radius_m=0.03"], ("radius_m = 0.02", "radius_m = 0.03")),   # by the body's name
     (["cloth.weave=twill"], ('weave = "plain"', 'weave = "twill"')),
     (["cloth.weave=\"twill\""], ('weave = "plain"', 'weave = "twill"')),
     (["world.gravity_m_s2=[0.0, -1.0, 0.0]"], ("gravity_m_s2 = [0.0, -9.81, 0.0]", "gravity_m_s2 = [0.0, -1.0, 0.0]")),
@@ -38,7 +39,8 @@ def test_set_equals_editing_the_file(sets, edit, scene, tmp_path):
 @pytest.mark.parametrize("arg,needle", [
     ("cloth.tearing.break_strain=abc", '[cloth.tearing] break_strain = "abc": a number'),
     ("cloth.foo=1", "[cloth] foo = 1: unknown key"),
-    ("bodies.3.radius_m=0.1", "[bodies] has 1 table(s); index 3 does not exist"),
+    ("bodies.3.radius_m=0.1", "[[bodies]] has 1 table(s); index 3 does not exist"),
+    ("bodies.bal.radius_m=0.1", "no [[bodies]] table is named 'bal'; the names are 'ball'"),
     ("attachments.0.edge=left", "the scene has no [[attachments]] tables"),
     ("scene.seed", "expected KEY=VALUE"),
     ("scene..seed=1", "a dotted path of names"),

@@ -73,7 +73,8 @@ def _positive_int(text: str) -> int:
 def _set_flag(p: argparse.ArgumentParser) -> None:
     p.add_argument("--set", dest="sets", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scene key, validated like the file: e.g. --set scene.seed=3, "
-                        "--set cloth.tearing.break_strain=0.3, --set bodies.0.radius_m=0.02 (repeatable)")
+                        "--set cloth.tearing.break_strain=0.3, --set bodies.0.radius_m=0.02 or bodies.ball.radius_m=0.02 "
+                        "(repeatable)")
 
 
 def _progress_flag(p: argparse.ArgumentParser) -> None:

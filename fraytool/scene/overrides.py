@@ -2,7 +2,8 @@
 like the file (wedges and batch jobs use the same).
 
 KEY is the dotted path of a key as the file nests it: `scene.seed`, `cloth.tearing.break_strain`,
-`bodies.0.radius_m` (the first [[bodies]] table), `camera.position_m`. VALUE is a TOML value
+`bodies.0.radius_m` (the first [[bodies]] table) or `bodies.ball.radius_m` (the one with name =
+"ball"), `camera.position_m`. VALUE is a TOML value
 (`0.3`, `true`, `[0.0, 1.0, 0.0]`, `"twill"`); a bare word that is not TOML is taken as a string
 (`--set cloth.weave=twill`). Missing tables on the way are created; a key or table that the schema
 does not have is reported by validation, with the file and the --set it came from.
@@ -45,10 +46,7 @@ def apply_overrides(doc: dict, overrides: Sequence[tuple[str, Any]], flag: str =
         for i, part in enumerate(parts[:-1]):
             where = ".".join(parts[: i + 1])
             if isinstance(node, list):
-                if not part.isdigit() or int(part) >= len(node):
-                    raise InputError(f"{flag} {key}=...: [{'.'.join(parts[:i])}] has {len(node)} table(s); "
-                                     f"index {part} does not exist")
-                node = node[int(part)]
+                node = _table_of(node, part, key, ".".join(parts[:i]), flag)
             elif isinstance(node, dict):
                 if parts[i + 1].isdigit() and part not in node:
                     raise InputError(f"{flag} {key}=...: the scene has no [[{where}]] tables")
@@ -59,6 +57,23 @@ def apply_overrides(doc: dict, overrides: Sequence[tuple[str, Any]], flag: str =
             raise InputError(f"{flag} {key}=...: {'.'.join(parts[:-1])} is not a table")
         node[parts[-1]] = value
     return doc
+
+
+def _table_of(tables: list, part: str, key: str, where: str, flag: str) -> dict:
+    """The table of an array of tables ([[bodies]]) that `part` names: its index, or its `name`."""
+    if part.isdigit():
+        if int(part) < len(tables):
+            return tables[int(part)]
+        raise InputError(f"{flag} {key}=...: [[{where}]] has {len(tables)} table(s); index {part} does not exist")
+    named = [t for t in tables if isinstance(t, dict) and t.get("name") == part]
+    if len(named) == 1:
+        return named[0]
+    names = ", ".join(repr(t.get("name")) for t in tables if isinstance(t, dict) and isinstance(t.get("name"), str))
+    if named:
+        raise InputError(f"{flag} {key}=...: {len(named)} [[{where}]] tables are named {part!r}; use the index (0 to "
+                         f"{len(tables) - 1})")
+    raise InputError(f"{flag} {key}=...: no [[{where}]] table is named {part!r}; the names are {names or 'none'} "
+                     f"(or use the index, 0 to {len(tables) - 1})")
 
 
 def describe(overrides: Sequence[tuple[str, Any]]) -> str:
