@@ -82,8 +82,8 @@ def limit_strain_groups(
     limited_springs, group_start, spring_rest_length_m, strain_limit, tolerance, max_iterations,
     # state in
     particle_inv_mass, spring_particle_a, spring_particle_b, spring_alive,
-    # scratch, one entry per limited spring (overwritten)
-    worst_of,
+    # scratch: per limited spring (overwritten), per particle (zeroed here)
+    worst_of, checked_at, moved_at,
     # state in/out
     particle_position_m,
 ):
@@ -93,19 +93,44 @@ def limit_strain_groups(
 
     Inside a group no two springs move the same particle, so the order inside it does not matter and
     the result is the same, bit for bit, as `limit_strain` over the concatenated list (which sweeps
-    forward, then backward: the groups in reverse order) on any number of threads."""
+    forward, then backward: the groups in reverse order) on any number of threads.
+
+    Springs left alone: after the first sweep, a spring that its last projection left unmoved
+    (within the limit, cut, or held at both ends) and neither of whose ends moved since would be
+    left unmoved again, so it is skipped, with an excess of 0 as its projection would return: the
+    same result, bit for bit, for less work where only part of the cloth is stretched (a drape
+    where it meets the table). ``moved_at[p]``: the stamp (1, 2, ... in the order the group updates
+    run) of the update that last moved particle p; ``checked_at[k]``: that of spring k's last
+    projection, negative when it moved its ends. A particle is moved by one spring per group at most,
+    so the stamps are written race-free."""
     stretch = 1.0 + strain_limit
     groups = group_start.shape[0] - 1
+    for p in range(moved_at.shape[0]):
+        moved_at[p] = 0
     for it in range(max_iterations):
         worst = 0.0
         for step in range(groups):
             g = step if it % 2 == 0 else groups - 1 - step
             lo = group_start[g]
             hi = group_start[g + 1]
+            stamp = it * groups + step + 1
             for k in nb.prange(lo, hi):
-                worst_of[k] = _project_stretched(limited_springs[k], stretch, spring_rest_length_m, particle_inv_mass,
-                                                 spring_particle_a, spring_particle_b, spring_alive,
-                                                 particle_position_m)
+                s = limited_springs[k]
+                a = spring_particle_a[s]
+                b = spring_particle_b[s]
+                since = checked_at[k]
+                if it > 0 and since > 0 and moved_at[a] <= since and moved_at[b] <= since:
+                    worst_of[k] = 0.0
+                    continue
+                excess = _project_stretched(s, stretch, spring_rest_length_m, particle_inv_mass, spring_particle_a,
+                                            spring_particle_b, spring_alive, particle_position_m)
+                worst_of[k] = excess
+                if excess > 0.0:
+                    moved_at[a] = stamp
+                    moved_at[b] = stamp
+                    checked_at[k] = -stamp
+                else:
+                    checked_at[k] = stamp
             for k in range(lo, hi):
                 if worst_of[k] > worst:
                     worst = worst_of[k]

@@ -183,6 +183,9 @@ class StrainLimiting(_NoSummary):
         self.model = model
         self.limited_springs, self.colour_start = colour_groups(model)
         self._worst_of = np.zeros(self.limited_springs.shape[0])
+        self._checked_at = np.zeros(self.limited_springs.shape[0], np.int64)
+        self._moved_at = np.zeros(0, np.int64)
+        """Per particle (sized on first use: the particle slots): the sweeps' record of moved masses."""
         self.compliant = model.strain_stiffness_n_per_m > 0.0
         self.kernel = "limit_strain_lines" if self.compliant else "limit_strain_groups"
         if self.compliant:
@@ -195,8 +198,6 @@ class StrainLimiting(_NoSummary):
             self._unit = np.zeros((n, 3))
             self._line_worst = np.zeros(self.line_start.shape[0] - 1)
             self._line_status = np.zeros(self.line_start.shape[0] - 1, np.int64)
-            self._moved_at = np.zeros(0, np.int64)
-            """Per particle (sized on first use: the particle slots), for `limit_strain_lines`."""
         self.iterations_last = 0
         self.iterations_max = 0
         self.cap_hits = 0
@@ -209,9 +210,9 @@ class StrainLimiting(_NoSummary):
                                m.strain_damping_n_s_per_m, dt_s, state.particle_inv_mass, state.spring_particle_a,
                                state.spring_particle_b, state.spring_alive, buffers.prev_position_m,
                                state.particle_position_m)
+        if self._moved_at.shape[0] != state.particle_position_m.shape[0]:
+            self._moved_at = np.zeros(state.particle_position_m.shape[0], np.int64)
         if self.compliant:
-            if self._moved_at.shape[0] != state.particle_position_m.shape[0]:
-                self._moved_at = np.zeros(state.particle_position_m.shape[0], np.int64)
             it, converged = limit_strain_lines(
                 self.line_springs, self.line_start, self.line_groups, state.spring_rest_length_m, m.strain_limit,
                 m.strain_tolerance, m.strain_max_iterations, 1.0 / (m.strain_stiffness_n_per_m * dt_s * dt_s),
@@ -223,7 +224,7 @@ class StrainLimiting(_NoSummary):
                                                 m.strain_limit, m.strain_tolerance, m.strain_max_iterations,
                                                 state.particle_inv_mass, state.spring_particle_a,
                                                 state.spring_particle_b, state.spring_alive, self._worst_of,
-                                                state.particle_position_m)
+                                                self._checked_at, self._moved_at, state.particle_position_m)
         self.iterations_last = it
         self.iterations_max = max(self.iterations_max, it)
         self.cap_hits += 0 if converged else 1
