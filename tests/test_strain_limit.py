@@ -292,10 +292,22 @@ def test_dashpot_past_the_limit_decays_as_the_exact_exponential_at_any_step():
         assert abs(v[0, 0] + v[1, 0]) < 1e-12  # momentum
 
 
+def _serial_and_grouped(model, state, springs, starts, x0, w, tolerance, sweeps):
+    """(positions, result) of `limit_strain` and of `limit_strain_groups` from x0, limit 5 %."""
+    from fraytool.sim.kernels.strain_limit import limit_strain, limit_strain_groups
+
+    serial, grouped = x0.copy(), x0.copy()
+    a, b, alive = state.spring_particle_a, state.spring_particle_b, state.spring_alive
+    got_serial = limit_strain(springs, model.spring_rest_length_m, 0.05, tolerance, sweeps, w, a, b, alive, serial)
+    got_grouped = limit_strain_groups(springs, starts, model.spring_rest_length_m, 0.05, tolerance, sweeps, w, a, b,
+                                      alive, np.zeros(springs.shape[0]), np.zeros(springs.shape[0], np.int64),
+                                      np.zeros(len(grouped), np.int64), grouped)
+    return (serial, got_serial), (grouped, got_grouped)
+
+
 def test_colour_groups_in_parallel_match_the_serial_sweeps_bit_for_bit():
     """limit_strain_groups (each colour group in parallel) moves every particle exactly as limit_strain
     over the same list does, and reports the same sweeps."""
-    from fraytool.sim.kernels.strain_limit import limit_strain_groups
     from fraytool.sim.stages.core import colour_groups
 
     model = build_model(small_scene(nx=9, ny=7))
@@ -305,12 +317,7 @@ def test_colour_groups_in_parallel_match_the_serial_sweeps_bit_for_bit():
     x0 = state.particle_position_m + rng.normal(scale=0.0012, size=state.particle_position_m.shape)
     w = state.particle_inv_mass.copy()
     w[0] = 0.0  # a held corner
-    serial, grouped = x0.copy(), x0.copy()
-    a, b, alive = state.spring_particle_a, state.spring_particle_b, state.spring_alive
-    got_serial = limit_strain(springs, model.spring_rest_length_m, 0.05, 1e-9, 7, w, a, b, alive, serial)
-    got_grouped = limit_strain_groups(springs, starts, model.spring_rest_length_m, 0.05, 1e-9, 7, w, a, b, alive,
-                                      np.zeros(springs.shape[0]), np.zeros(springs.shape[0], np.int64),
-                                      np.zeros(len(grouped), np.int64), grouped)
+    (serial, got_serial), (grouped, got_grouped) = _serial_and_grouped(model, state, springs, starts, x0, w, 1e-9, 7)
     assert not np.array_equal(serial, x0)  # it projected something
     assert got_serial == got_grouped
     assert serial.tobytes() == grouped.tobytes()
@@ -320,7 +327,6 @@ def test_grouped_sweeps_that_skip_untouched_springs_match_the_serial_sweeps_on_a
     """Only a corner pulled out: most springs are within the limit and untouched after the first
     sweep, so `limit_strain_groups` skips them (its docstring); over 40 sweeps it still ends on the
     same bits as the serial `limit_strain`, which projects every spring every sweep."""
-    from fraytool.sim.kernels.strain_limit import limit_strain, limit_strain_groups
     from fraytool.sim.stages.core import colour_groups
 
     model = build_model(small_scene(nx=24, ny=20))
@@ -331,12 +337,8 @@ def test_grouped_sweeps_that_skip_untouched_springs_match_the_serial_sweeps_on_a
     x0[corner] += np.array([0.02, 0.01, 0.02])          # five spacings out
     w = state.particle_inv_mass.copy()
     w[corner] = 0.0                                      # held there
-    serial, grouped = x0.copy(), x0.copy()
-    a, b, alive = state.spring_particle_a, state.spring_particle_b, state.spring_alive
-    got_serial = limit_strain(springs, model.spring_rest_length_m, 0.05, 1e-12, 40, w, a, b, alive, serial)
-    got_grouped = limit_strain_groups(springs, starts, model.spring_rest_length_m, 0.05, 1e-12, 40, w, a, b, alive,
-                                      np.zeros(springs.shape[0]), np.zeros(springs.shape[0], np.int64),
-                                      np.zeros(len(grouped), np.int64), grouped)
+    (serial, got_serial), (grouped, got_grouped) = _serial_and_grouped(model, state, springs, starts, x0, w, 1e-12,
+                                                                       40)
     moved = np.linalg.norm(serial - x0, axis=1) > 0
     assert 0 < moved.sum() < 0.5 * len(moved)          # a part of the cloth follows the corner
     assert got_serial == got_grouped and got_serial[0] > 5
