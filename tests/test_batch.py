@@ -316,3 +316,32 @@ def test_job_file_codec_and_fit(tmp_path, scene):
 def test_batch_refuses_prores_with_8bit_pngs(capsys):
     assert main(["batch", "drape", "--codec", "prores", "--depth", "8"]) == 2
     assert "--codec prores with --depth 8" in capsys.readouterr().err
+
+
+def test_a_job_json_of_the_version_before_codec_and_fit_still_finds_its_finished_shots(scene, tmp_path):
+    """Shots that set neither codec nor fit keep the settings digest the version before those options
+    wrote into job.json (its rule, spelled out here: the scene, the overrides and the seven render
+    options it had), and an entry that names its video 'mp4' still counts as complete."""
+    import hashlib
+
+    from fraytool.farm.runner import _outputs_complete, settings_digest
+    from fraytool.render.options import FrameRange
+
+    (shot,) = expand(str(scene), [("scene.seed", 3)], [], RenderOptions(resolution=(64, 48), frames="0:2", depth=16))
+    old_fields = {"resolution": (64, 48), "samples": None, "wireframe": None, "frames": "0:2", "alpha": None,
+                  "depth": 16, "exr": None}
+    h = hashlib.sha256(json.dumps([shot.scene, shot.sets, old_fields], default=str).encode())
+    h.update(scene.read_bytes())
+    assert settings_digest(shot) == h.hexdigest()[:16]
+    (prores,) = expand(str(scene), [("scene.seed", 3)], [], RenderOptions(resolution=(64, 48), frames="0:2",
+                                                                          depth=16, codec="prores"))
+    assert settings_digest(prores) != settings_digest(shot)
+    png = tmp_path / "png"
+    png.mkdir()
+    for k in range(2):
+        (png / f"frame_{k:06d}.png").write_bytes(b"x")
+    video = tmp_path / "small.mp4"
+    video.write_bytes(b"x")
+    assert _outputs_complete({"outputs": {"mp4": str(video), "png": str(png)}}, FrameRange(0, 2))
+    video.unlink()
+    assert not _outputs_complete({"outputs": {"mp4": str(video), "png": str(png)}}, FrameRange(0, 2))

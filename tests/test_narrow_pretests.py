@@ -66,6 +66,41 @@ def test_lines_apart_on_crossing_yarns_and_degenerate_cases():
     assert not _lines_apart(nan, 0, 1, 2, 3, 0.0003)
 
 
+def test_lines_apart_leaves_nearly_parallel_pairs_at_the_distance_to_the_exact_test():
+    """Nearly parallel segments just inside the distance: the cross product loses digits there, so
+    the pre-test must not answer (a review found a pair at 0.1 mm that the pre-test skipped and the
+    proximity pass pushes); the proximity pass still pushes them."""
+    from fraytool.sim.kernels.self_collision import repel_close_pairs
+
+    found = np.array([[0.1039441827241614, 0.18898464104973833, 0.01846001030575513],
+                      [0.10109250662732346, 0.18713986557230872, 0.01634701554083084],
+                      [0.10150403259870491, 0.1873020439447105, 0.016674106288347413],
+                      [0.09865235384948895, 0.18545726911027433, 0.01456111454167608]])
+    rng = np.random.default_rng(5)
+    cases = [(found, 1e-4)]
+    for _ in range(300):
+        d1 = rng.normal(size=3)
+        d1 *= 0.004 / np.linalg.norm(d1)
+        n = np.cross(d1, rng.normal(size=3))
+        n /= np.linalg.norm(n)
+        d_c = rng.choice([1e-4, 3e-4])
+        turn = rng.normal(size=3) * 10.0 ** rng.uniform(-9, -4)  # from nearly to barely parallel
+        p1 = rng.normal(0.1, 0.05, 3)
+        p3 = p1 + n * d_c * (1.0 - 1e-10) + d1 * rng.uniform(-0.5, 0.5)
+        cases.append((np.array([p1, p1 + d1, p3, p3 + d1 + turn * 0.004]), d_c))
+    for x, d_c in cases:
+        if _lines_apart(x, 0, 1, 2, 3, d_c):
+            assert _sampled_distance(*x) > d_c
+    x, d_c = cases[0]
+    assert not _lines_apart(x, 0, 1, 2, 3, d_c)
+    xe = x.copy()
+    moved, _ = repel_close_pairs(d_c, 0.0, x.copy(), np.array([[0, 1]], np.int32), 0, np.array([0, 2], np.int32),
+                                 np.array([1, 3], np.int32), np.ones(2, np.bool_), np.ones(4),
+                                 np.array([[-1e9] * 3 + [1e9] * 3] * 4), xe, np.array([0, 1], np.int32),
+                                 np.empty((2, 6)), np.zeros(4, np.bool_))
+    assert moved == 1 and (xe != x).any()
+
+
 def test_cross_plane_apart_skips_only_pairs_apart_during_the_whole_step():
     rng = np.random.default_rng(11)
     gap = 1e-6
@@ -83,4 +118,8 @@ def test_cross_plane_apart_skips_only_pairs_apart_during_the_whole_step():
     xs = np.array([[-0.002, 0.0, 0.0], [0.002, 0.0, 0.0], [0.0, -0.002, 0.0006], [0.0, 0.002, 0.0006]])
     xe = xs.copy()
     xe[2:, 2] -= 0.0012                                # the warp passes through the weft
+    assert not _cross_plane_apart(xs, xe, 0, 1, 2, 3, gap)
+    assert _cross_plane_apart(xs, xs, 0, 1, 2, 3, gap)   # resting: apart
+    xe = xs.copy()
+    xe[1, 0] = np.nan                                   # a NaN at the end of the step only: no answer
     assert not _cross_plane_apart(xs, xe, 0, 1, 2, 3, gap)

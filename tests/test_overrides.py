@@ -42,6 +42,7 @@ def test_set_equals_editing_the_file(sets, edit, scene, tmp_path):
     ("bodies.3.radius_m=0.1", "[[bodies]] has 1 table(s); index 3 does not exist"),
     ("bodies.bal.radius_m=0.1", "no [[bodies]] table is named 'bal'; the names are 'ball'"),
     ("attachments.0.edge=left", "the scene has no [[attachments]] tables"),
+    ("attachments.left.edge=left", "the scene has no [[attachments]] tables"),   # by a name, as by an index
     ("scene.seed", "expected KEY=VALUE"),
     ("scene..seed=1", "a dotted path of names"),
     ("cloth.spacing_m=-1", "[cloth] spacing_m = -1"),

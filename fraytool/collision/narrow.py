@@ -17,7 +17,8 @@ candidates in a torn figure scene and overlap on every axis, so only a plane can
 along d1 x d2 they are a thickness apart. Proximity (``_lines_apart``): the distance between the
 two lines is a lower bound of the segments' distance, so lines more than d_c (1 + 1e-9) apart
 leave the segments apart by more than the closest-point distance computed after it could round
-to. CCD (``_cross_plane_apart``): as for n above, any plane separating the swept end points
+to; the test answers only where its own rounding stays under half that margin (not for nearly
+parallel segments, where the cross product loses digits). CCD (``_cross_plane_apart``): as for n above, any plane separating the swept end points
 separates the segments during the step; the gap must exceed CCD_SKIP_DELTAS delta for the largest
 |coordinate| of the pass (at least each pair's own). Both answer False for (nearly) parallel
 segments and NaN, which the tests after them decide. They only skip pairs the tests after them
@@ -126,18 +127,30 @@ def segment_cross(x, i1, i2, i3, i4):
     return a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
 
 
+_LINES_GUARD = (0.5e-9 / (64.0 * 2.220446049250313e-16)) ** 2
+"""Largest G^2 for which `_lines_apart` answers (its docstring): its rounding then stays under 0.5e-9
+relative, half its margin. Crossing yarns a thickness apart have G of about 10."""
+
+
 @nb.njit(cache=True, fastmath=False, inline="always")
 def _lines_apart(x, i1, i2, i3, i4, distance):
     """True if the lines through segments i1i2 and i3i4 (positions x) are more than distance (1 +
-    1e-9) apart: the segments are then farther apart than that (module docstring). False for
-    (nearly) parallel segments and NaN."""
+    1e-9) apart: the segments are then farther apart than that (module docstring). The test is
+    p^2 > (distance (1 + 1e-9))^2 |c|^2 with c = d1 x d2 and p = (x3 - x1) . c; in floating point p and
+    |c|^2 are off by at most about 64 eps G relative, G = |x3 - x1| |d1| |d2| / (distance |c|) (the
+    cross product loses digits as the segments turn parallel), so it answers only where G <=
+    _LINES_GUARD^(1/2), which keeps that error under 0.5e-9, inside the margin; elsewhere (nearly
+    parallel segments, NaN) it answers False and the closest-point test decides."""
     cx, cy, cz = segment_cross(x, i1, i2, i3, i4)
     cc = cx * cx + cy * cy + cz * cz
     l1 = (x[i2, 0] - x[i1, 0]) ** 2 + (x[i2, 1] - x[i1, 1]) ** 2 + (x[i2, 2] - x[i1, 2]) ** 2
     l2 = (x[i4, 0] - x[i3, 0]) ** 2 + (x[i4, 1] - x[i3, 1]) ** 2 + (x[i4, 2] - x[i3, 2]) ** 2
-    if not cc > 1e-12 * l1 * l2:
-        return False
-    p = (x[i3, 0] - x[i1, 0]) * cx + (x[i3, 1] - x[i1, 1]) * cy + (x[i3, 2] - x[i1, 2]) * cz
+    rx = x[i3, 0] - x[i1, 0]
+    ry = x[i3, 1] - x[i1, 1]
+    rz = x[i3, 2] - x[i1, 2]
+    if not (rx * rx + ry * ry + rz * rz) * l1 * l2 <= _LINES_GUARD * distance * distance * cc:
+        return False  # too near parallel (or too far) for the margin below to cover the rounding; NaN too
+    p = rx * cx + ry * cy + rz * cz
     limit = distance * (1.0 + 1e-9)
     return p * p > limit * limit * cc
 
@@ -160,6 +173,8 @@ def _cross_plane_apart(xs, xe, i1, i2, i3, i4, gap_m):
     pb2 = n0 * xs[i4, 0] + n1 * xs[i4, 1] + n2 * xs[i4, 2]
     pb3 = n0 * xe[i3, 0] + n1 * xe[i3, 1] + n2 * xe[i3, 2]
     pb4 = n0 * xe[i4, 0] + n1 * xe[i4, 1] + n2 * xe[i4, 2]
+    if not (pa1 + pa2 + pa3 + pa4 + pb1 + pb2 + pb3 + pb4) == (pa1 + pa2 + pa3 + pa4 + pb1 + pb2 + pb3 + pb4):
+        return False  # a NaN (min and max below could drop it)
     gap = max(min(min(pa1, pa2), min(pa3, pa4)) - max(max(pb1, pb2), max(pb3, pb4)),
               min(min(pb1, pb2), min(pb3, pb4)) - max(max(pa1, pa2), max(pa3, pa4)))
     return gap > 0.0 and gap * gap > gap_m * gap_m * nn

@@ -98,7 +98,7 @@ def render_stage_timings(spec: SceneSpec, out_dir: Optional[Path] = None, frames
                     renderer.part_s["other"] = total - sum(renderer.part_s.values())
                     per_frame.append(renderer.part_s)
                 renderer.part_s = None
-                for name in per_frame[0]:
+                for name in dict.fromkeys(n for p in per_frame for n in p):  # every part any frame had
                     parts[name] = 1e3 * statistics.median(p.get(name, 0.0) for p in per_frame)
             renderer.release()
         finally:

@@ -26,11 +26,18 @@ RETRIES = 1
 JOB_JSON = "job.json"
 
 
+_LATER_OPTIONS = ("codec", "fit")
+"""RenderOptions fields added after job.json digests were first written."""
+
+
 def settings_digest(shot: Shot) -> str:
     """What decides a shot's outputs: scene (file contents or shipped name), overrides, render options."""
     import hashlib
 
-    h = hashlib.sha256(json.dumps([shot.scene, shot.sets, shot.render.__dict__], default=str).encode())
+    # options added later (codec, fit) count only when given, so a job.json of an older version still
+    # recognises its finished shots
+    render = {k: v for k, v in shot.render.__dict__.items() if v is not None or k not in _LATER_OPTIONS}
+    h = hashlib.sha256(json.dumps([shot.scene, shot.sets, render], default=str).encode())
     if Path(shot.scene).is_file():
         h.update(Path(shot.scene).read_bytes())
     return h.hexdigest()[:16]
@@ -102,7 +109,7 @@ def run_job(job: Job, job_dir: Path, client, stream: TextIO = sys.stderr, progre
         except FraytoolError as exc:
             entry.update({"status": "invalid", "error": str(exc), "tasks": {}})
             continue
-        shot_frames_of[shot.name] = frames.end
+        shot_frames_of[shot.name] = tasks.frames_to_simulate(shot, Path(out))
         digest = settings_digest(shot)
         if entry.get("status") == "done" and entry.get("settings") == digest and _outputs_complete(entry, frames):
             print(f"fraytool: batch: {shot.name}: already done", file=stream)
@@ -110,7 +117,7 @@ def run_job(job: Job, job_dir: Path, client, stream: TextIO = sys.stderr, progre
                 groups.setdefault(shot.group, []).append(shot)
             continue
         entry.update({"status": "running", "tasks": {}, "error": None, "settings": digest, "outputs": {}})
-        sim = client.submit(tasks.simulate_task, shot, out, tasks.frames_to_simulate(shot, Path(out)),
+        sim = client.submit(tasks.simulate_task, shot, out, shot_frames_of[shot.name],
                             key=f"simulate-{shot.name}",
                             retries=RETRIES, pure=False)
         futures[sim] = (shot.name, "simulate")

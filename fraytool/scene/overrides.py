@@ -14,6 +14,7 @@ import tomllib
 from typing import Any, Sequence
 
 from fraytool.errors import InputError
+from fraytool.scene.schema import ARRAY_TABLES
 
 MAX_KEY_CHARS = 200
 
@@ -48,7 +49,7 @@ def apply_overrides(doc: dict, overrides: Sequence[tuple[str, Any]], flag: str =
             if isinstance(node, list):
                 node = _table_of(node, part, key, ".".join(parts[:i]), flag)
             elif isinstance(node, dict):
-                if parts[i + 1].isdigit() and part not in node:
+                if part not in node and (parts[i + 1].isdigit() or where in ARRAY_TABLES):
                     raise InputError(f"{flag} {key}=...: the scene has no [[{where}]] tables")
                 node = node.setdefault(part, {})
             else:
