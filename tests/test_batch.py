@@ -345,3 +345,19 @@ def test_a_job_json_of_the_version_before_codec_and_fit_still_finds_its_finished
     assert _outputs_complete({"outputs": {"mp4": str(video), "png": str(png)}}, FrameRange(0, 2))
     video.unlink()
     assert not _outputs_complete({"outputs": {"mp4": str(video), "png": str(png)}}, FrameRange(0, 2))
+
+
+def test_the_join_rounds_16bit_pngs_to_8_bits_for_h264(tmp_path):
+    """An H.264 join from 16-bit PNGs rounds each value to the nearest 8-bit step (v / 257), as the
+    8-bit render does from the same colour, instead of dropping the low byte."""
+    import numpy as np
+
+    from fraytool.farm.tasks import _read_png16_as_8bit
+    from fraytool.render.png16 import write_png16
+
+    values = np.array([0, 128, 129, 200, 257, 32896, 33024, 33025, 65535], np.uint16)
+    image = np.repeat(values[None, :, None], 3, axis=2)
+    write_png16(tmp_path / "f.png", image)
+    got = _read_png16_as_8bit(tmp_path / "f.png")[0, :, 0]
+    assert got.tolist() == [0, 0, 1, 1, 1, 128, 128, 129, 255]
+    assert got.tolist() != (values >> 8).tolist()   # what dropping the low byte gives

@@ -109,15 +109,31 @@ def render_chunk_task(shot: Shot, out_dir: str, start: int, end: int, step: int,
             "rendered": result.rendered, "reused": result.reused}
 
 
+def _read_png16_as_8bit(path: Path):
+    """A 16-bit PNG of ours, rounded to 8 bits per channel (uint8)."""
+    import numpy as np
+
+    from fraytool.render.png16 import read_png16
+
+    image = read_png16(path).astype(np.uint32)
+    return ((image * 255 + 32767) // 65535).astype(np.uint8)
+
+
 def join_task(shot: Shot, out_dir: str, _after=None) -> dict:
     """Encode the shot's video (the MP4, or the ProRes .mov) from its PNG sequence: the same pixels
-    `fraytool render` encodes (ProRes from 16-bit RGBA PNGs, as render encodes it from 16 bits)."""
+    `fraytool render` encodes (ProRes from 16-bit RGBA PNGs, as render encodes it from 16 bits). An
+    H.264 MP4 from 16-bit PNGs gets them rounded to 8 bits (Pillow's own reading drops the low byte,
+    which put a quarter of the values one step below render's; rounded, a value differs only where
+    the colour lies within 1/514 of a step's midpoint)."""
     from fraytool.render.encode import VideoWriter, read_png
     from fraytool.render.png16 import read_png16
 
     t0 = time.time()
     job, _ = render_job_for(shot, Path(out_dir), FrameRange(0, 1))
-    read = read_png16 if job.png_bits == 16 and job.codec == "prores" else read_png
+    if job.png_bits == 16:
+        read = read_png16 if job.codec == "prores" else _read_png16_as_8bit
+    else:
+        read = read_png
     with VideoWriter(job.video_path, job.size, job.spec.time.fps, crf=job.spec.output.crf,
                      background_srgb=job.spec.render.background, codec=job.codec) as writer:
         for frame in job.frames.frames():
