@@ -43,6 +43,34 @@ def test_bench_json(tmp_path, capsys):
     assert out["kernels_compiled_in_timed_frames"] >= 0
 
 
+def test_bench_times_again_when_kernels_compiled_during_the_timed_frames(tmp_path, monkeypatch):
+    """A kernel compiled during the timed frames (a cold numba cache) would be in the stage means and
+    the memory peak: the bench then times the frames again and reports that second run."""
+    import itertools
+
+    from fraytool.commands import bench
+    from fraytool.scene import load_scene
+
+    scene = tmp_path / "s.toml"
+    scene.write_text(small_scene_text(frames=4))
+    runs = []
+    real = bench._timed_run
+
+    def counted(*args, **kwargs):
+        runs.append(1)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(bench, "_timed_run", counted)
+    counter = itertools.count(10, 3)                      # every call sees 3 more compilations
+    monkeypatch.setattr(bench, "kernels_compiled", lambda: next(counter))
+    out = bench.bench_simulation(load_scene(scene), frames=2)
+    assert len(runs) == 2 and out["timed_runs"] == 2 and out["kernels_compiled_in_timed_frames"] == 3
+    runs.clear()
+    monkeypatch.setattr(bench, "kernels_compiled", lambda: 10)  # nothing compiled: timed once
+    out = bench.bench_simulation(load_scene(scene), frames=2)
+    assert len(runs) == 1 and out["timed_runs"] == 1 and out["kernels_compiled_in_timed_frames"] == 0
+
+
 def test_bench_counts_kernels_compiled_in_this_process(monkeypatch):
     """`bench` says when numba compiled a fraytool kernel during the timed frames (its stage means then
     include the compilation): the counter follows the cache misses of fraytool's dispatchers."""
