@@ -4,7 +4,13 @@ numba's ``cache=True`` checks only the file that defines a kernel, not the files
 calls: after an edit of ``segments.py``, the cached tearing and self-collision kernels that call it
 would silently keep the old code. fraytool's kernels call each other across files and packages, so
 the whole cache is keyed on one hash of every source file of the package; when it changes, every
-cache file (``*.nbi``, ``*.nbc``) under the package is deleted before any kernel is loaded.
+cache file (``*.nbi``, ``*.nbc``) of the package is deleted before any kernel is loaded.
+
+Where numba keeps them: ``__pycache__`` beside each source file, or, when the environment sets
+``NUMBA_CACHE_DIR``, one folder per source folder inside it, named as numba names it
+(``<folder>_<sha1 of the folder's path>``, numba's UserProvidedCacheLocator); the stamp of the
+sources' hash then lives there too (one per fraytool checkout), so a cache folder shared between
+checkouts or switched between runs is judged on its own.
 """
 from __future__ import annotations
 
@@ -30,31 +36,68 @@ def cold_start_note() -> str | None:
             "fraytool; about a minute, cached for later runs)")
 
 
+def _user_cache_dir() -> Path | None:
+    """numba's NUMBA_CACHE_DIR, when the environment sets it (numba reads the same variable)."""
+    value = os.environ.get("NUMBA_CACHE_DIR", "")
+    return Path(value) if value else None
+
+
+def cache_folders(package_dir: Path) -> list[Path]:
+    """The folders where numba keeps (or would keep) the compiled kernels of the package's sources."""
+    user = _user_cache_dir()
+    sources = sorted({path.parent for path in package_dir.rglob("*.py")})
+    if user is None:  # beside the sources (and any other __pycache__ of the package: a removed module's)
+        return sorted({folder / "__pycache__" for folder in sources} | set(package_dir.rglob("__pycache__")))
+    return cache_folders_of(sources, user)
+
+
+def cache_folders_of(sources: list[Path], user: Path) -> list[Path]:
+    """numba's NUMBA_CACHE_DIR folder of each source folder (UserProvidedCacheLocator's naming)."""
+    out = []
+    for folder in sources:
+        sub = os.path.dirname(os.path.abspath(folder / "_.py"))
+        out.append(user / f"{os.path.split(sub)[-1]}_{hashlib.sha1(sub.encode()).hexdigest()}")
+    return out
+
+
 def invalidate_stale_numba_cache(package_dir: Path) -> None:
-    """Delete ``package_dir/**/__pycache__/*.nb[ic]`` unless the sources hash matches the stamp.
+    """Delete the package's numba cache files (``cache_folders``) unless the sources hash matches the
+    stamp.
 
     Best effort: an unwritable cache directory is left alone (numba then caches elsewhere).
     """
     global COLD
-    # (a package folder we cannot write to caches elsewhere: nothing to tell then)
-    COLD = os.access(package_dir, os.W_OK) and not any((package_dir / "sim").rglob("*.nbi"))
+    user = _user_cache_dir()
+    folders = cache_folders(package_dir)
+    sim = package_dir.resolve() / "sim"
+    sim_sources = [q for q in sorted({path.parent for path in package_dir.rglob("*.py")})
+                   if q.resolve() == sim or sim in q.resolve().parents]
+    sim_folders = [q / "__pycache__" for q in sim_sources] if user is None else cache_folders_of(sim_sources, user)
+    writable = os.access(user if user is not None and user.exists() else package_dir, os.W_OK)
+    # (a cache we cannot write to caches elsewhere: nothing to tell then)
+    COLD = writable and not any(any(f.glob("*.nbi")) for f in sim_folders if f.is_dir())
     digest = hashlib.sha256()
     for path in sorted(package_dir.rglob("*.py")):
         digest.update(str(path.relative_to(package_dir)).encode())
         digest.update(path.read_bytes())
     want = digest.hexdigest()
-    stamp = package_dir / "__pycache__" / _STAMP
+    if user is None:
+        stamp = package_dir / "__pycache__" / _STAMP
+    else:
+        checkout = hashlib.sha1(os.path.abspath(package_dir).encode()).hexdigest()[:12]
+        stamp = user / f"fraytool-{checkout}-{_STAMP}"
     try:
         if stamp.read_text() == want:
             return
     except OSError:
         pass
-    COLD = os.access(package_dir, os.W_OK)
+    COLD = writable
     try:
-        for cache in package_dir.rglob("__pycache__"):
-            for path in list(cache.glob("*.nbi")) + list(cache.glob("*.nbc")):
-                path.unlink(missing_ok=True)
-        stamp.parent.mkdir(exist_ok=True)
+        for cache in folders:
+            if cache.is_dir():
+                for path in list(cache.glob("*.nbi")) + list(cache.glob("*.nbc")):
+                    path.unlink(missing_ok=True)
+        stamp.parent.mkdir(parents=True, exist_ok=True)
         stamp.write_text(want)
     except OSError:
         pass

@@ -384,7 +384,8 @@ def test_segment_closest_params_matches_oracle():
         assert d <= segment_distance(seg[0], seg[1], seg[2], seg[3]) + 1e-12
 
 
-def test_numba_cache_dropped_when_sources_change(tmp_path):
+def test_numba_cache_dropped_when_sources_change(tmp_path, monkeypatch):
+    monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
     (tmp_path / "mod.py").write_text("x = 1\n")
     cache = tmp_path / "__pycache__"
     cache.mkdir()
@@ -405,3 +406,28 @@ def test_numba_cache_dropped_when_sources_change(tmp_path):
     (tmp_path / "mod.py").write_text("x = 3\n")
     invalidate_stale_numba_cache(tmp_path)  # an edit anywhere drops the caches everywhere
     assert not (sub / "k.g-1.py311.nbc").exists()
+
+
+def test_numba_cache_in_numba_cache_dir_dropped_when_sources_change(tmp_path, monkeypatch):
+    """With NUMBA_CACHE_DIR set, numba keeps the kernels there, one folder per source folder: those
+    are dropped when a source changes (and kept otherwise), and a cold cache is seen there."""
+    import fraytool._numba_cache as numba_cache
+    from numba.core.caching import UserProvidedCacheLocator
+
+    package = tmp_path / "pkg"
+    (package / "sim" / "kernels").mkdir(parents=True)
+    (package / "mod.py").write_text("x = 1\n")
+    (package / "sim" / "kernels" / "k.py").write_text("y = 1\n")
+    user = tmp_path / "numba_cache"
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(user))
+    folder = user / UserProvidedCacheLocator.get_suitable_cache_subpath(str(package / "sim" / "kernels" / "k.py"))
+    invalidate_stale_numba_cache(package)
+    assert numba_cache.COLD                               # nothing compiled there yet
+    folder.mkdir(parents=True)
+    (folder / "k.f-1.py311.nbi").write_text("compiled")
+    invalidate_stale_numba_cache(package)                 # same sources: kept, and not cold
+    assert (folder / "k.f-1.py311.nbi").exists() and not numba_cache.COLD
+    (package / "mod.py").write_text("x = 2\n")           # a file its kernels may call
+    invalidate_stale_numba_cache(package)
+    assert not (folder / "k.f-1.py311.nbi").exists() and numba_cache.COLD
+    assert not (package / "__pycache__").exists()         # the stamp lives in the cache folder too
