@@ -51,6 +51,11 @@ CASES = {
     "key nested too deeply": (GOOD + "\n" + ".".join(["a"] * 20000) + " = 1\n", ["nested 20000 levels deep"]),
     "path far away": (GOOD + '\n[[bodies]]\nname = "b"\nshape = "sphere"\nradius_m = 0.01\nmotion = "kinematic"\n'
                       'path = [[0.0, 0.0, 0.0, 0.0], [0.01, 1e300, 0.2, 0.0]]\n', ["[bodies.0] path", "positions"]),
+    "radius on a plane": (GOOD + '\n[[bodies]]\nname = "floor"\nshape = "plane"\nradius_m = 0.02\n',
+                          ["[bodies.0] radius_m = 0.02", "is for spheres; a plane does not use it"]),
+    "half extents on a sphere": (GOOD + '\n[[bodies]]\nname = "b"\nshape = "sphere"\nradius_m = 0.01\n'
+                                 'half_extents_m = [0.01, 0.01, 0.01]\n',
+                                 ["[bodies.0] half_extents_m = [0.01, 0.01, 0.01]", "is for boxes; a sphere"]),
     "cut outside the cloth": (GOOD + "\n[[cuts]]\nstart = [3.5, 100.0]\nend = [3.5, 2.0]\n",
                               ["[cuts.0] start = [3.5, 100.0]", "-1 <= j <="]),
 }

@@ -79,7 +79,8 @@ def _checked(job, job_dir: Path, stream):
     """The job with every shot's scene, overrides and frame range checked here, before a cluster
     starts: a bad shot is marked invalid (reported in job.json, the others run); when no shot can
     run at all (a bad --set, --frames or --wedge applies to every shot, or no scene exists) this is
-    bad input: each reason on one line, then exit 2 without starting a cluster or writing anything."""
+    bad input: each reason on one line (one shot: that line alone), then exit 2 without starting a
+    cluster or writing anything."""
     from dataclasses import replace
 
     from fraytool.errors import FraytoolError
@@ -94,10 +95,19 @@ def _checked(job, job_dir: Path, stream):
                 shot = replace(shot, error=str(exc))
         shots.append(shot)
     if all(s.error for s in shots):
-        for s in shots:
-            print(f"fraytool: batch: {s.name}: {str(s.error).splitlines()[0]}", file=stream)
+        reasons = [_reason(s) for s in shots]
+        if len(reasons) == 1:
+            raise InputError(f"batch: {reasons[0]}")
+        for reason in reasons:
+            print(f"fraytool: batch: {reason}", file=stream)
         raise InputError(f"batch: none of the {len(shots)} shot(s) can run (the reasons are above)")
     return replace(job, shots=shots)
+
+
+def _reason(shot) -> str:
+    """Why a shot cannot run, on one line, naming the shot unless the message already starts with it."""
+    first = str(shot.error).splitlines()[0]
+    return first if first.startswith((shot.name, shot.scene)) else f"{shot.name}: {first}"
 
 
 def _is_job_file(path: Path, item: str) -> bool:

@@ -125,7 +125,7 @@ def join_task(shot: Shot, out_dir: str, _after=None) -> dict:
     H.264 MP4 from 16-bit PNGs gets them rounded to 8 bits (Pillow's own reading drops the low byte,
     which put a quarter of the values one step below render's; rounded, a value differs only where
     the colour lies within 1/514 of a step's midpoint)."""
-    from fraytool.render.encode import VideoWriter, read_png
+    from fraytool.render.encode import VIDEO_SUFFIX, VideoWriter, read_png
     from fraytool.render.png16 import read_png16
 
     t0 = time.time()
@@ -138,6 +138,9 @@ def join_task(shot: Shot, out_dir: str, _after=None) -> dict:
                      background_srgb=job.spec.render.background, codec=job.codec) as writer:
         for frame in job.frames.frames():
             writer.write(read(job.png_path(frame)))
+    for suffix in set(VIDEO_SUFFIX.values()) - {job.video_path.suffix}:
+        # the other codec's video of an earlier run of this shot no longer matches its PNGs: remove it
+        job.video_path.with_suffix(suffix).unlink(missing_ok=True)
     out = {"task": "join", "seconds": time.time() - t0, "worker": _where(), "video": str(job.video_path),
            "png_dir": str(job.png_dir)}
     if job.exr:

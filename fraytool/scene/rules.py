@@ -82,6 +82,12 @@ def body_problems(b: BodySpec) -> list[Problem]:
             out.append(("normal", b.normal, "must be a non-zero vector"))
     if b.path and b.motion != "kinematic":
         out.append(("path", "[...]", 'a path needs motion = "kinematic"'))
+    # a size key of another shape would be silently ignored: say so instead
+    if b.shape != "sphere" and b.radius_m > 0:
+        out.append(("radius_m", b.radius_m, f'is for spheres; a {b.shape} does not use it'
+                    + (" (its size is half_extents_m)" if b.shape == "box" else "")))
+    if b.shape != "box" and any(b.half_extents_m):
+        out.append(("half_extents_m", list(b.half_extents_m), f"is for boxes; a {b.shape} does not use it"))
     return out
 
 

@@ -139,8 +139,8 @@ class BodySpec:
     motion: str = key("str", "static", choices=MOTION_NAMES,
                       doc="kinematic bodies follow path or velocity_m_s; dynamic ones fly and are pushed by the cloth")
     position_m: Vec3 = key("vec3", (0.0, 0.0, 0.0), lo=-WORLD_M, hi=WORLD_M, doc="centre (sphere, box) or a point of the plane [m]")
-    radius_m: float = key("float", 0.0, lo=0, lo_open=True, hi=100, doc="sphere radius [m]; required for spheres")
-    half_extents_m: Vec3 = key("vec3", (0.0, 0.0, 0.0), lo=-WORLD_M, hi=WORLD_M, doc="box half sizes [m]; required for boxes")
+    radius_m: float = key("float", 0.0, lo=0, lo_open=True, hi=100, doc="sphere radius [m]; required for spheres, an error on other shapes")
+    half_extents_m: Vec3 = key("vec3", (0.0, 0.0, 0.0), lo=-WORLD_M, hi=WORLD_M, doc="box half sizes [m]; required for boxes, an error on other shapes")
     normal: Vec3 = key("vec3", (0.0, 1.0, 0.0), doc="plane normal, pointing to the free side")
     rotation_deg: Vec3 = key("vec3", (0.0, 0.0, 0.0), doc="fixed orientation as x, y, z Euler angles [degrees]")
     velocity_m_s: Vec3 = key("vec3", (0.0, 0.0, 0.0), lo=-1e4, hi=1e4,
