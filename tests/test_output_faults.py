@@ -507,3 +507,14 @@ def test_check_outputs_names_damaged_passes_exrs_and_videos(reference, tmp_path,
     assert "png_beside/frame_000004.png: damaged PNG" in err
     assert "exr_beside/frame_000005.exr: damaged EXR" in err
     assert f"{movie.name}: damaged video (truncated" in err
+
+
+def test_check_outputs_on_a_batch_job_folder_points_to_its_shots(tmp_path, capsys):
+    """A batch job folder holds job.json and one folder per shot: `check --outputs` on it says so and
+    names a shot folder to check, instead of reporting a missing frame store."""
+    job = tmp_path / "job"
+    (job / "shot_a" / "frames").mkdir(parents=True)
+    (job / "job.json").write_text("{}")
+    assert main(["check", "--outputs", str(job)]) == 2
+    err = capsys.readouterr().err
+    assert "a batch job folder" in err and str(job / "shot_a") in err and "topology" not in err

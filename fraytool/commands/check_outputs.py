@@ -23,6 +23,11 @@ def check_outputs(out_dir: Path, spec: Optional[SceneSpec] = None, as_json: bool
     out_dir = Path(out_dir)
     if not out_dir.is_dir():
         raise InputError(f"--outputs {out_dir}: not a folder")
+    if (out_dir / "job.json").is_file() and not (out_dir / "frames").exists():
+        shots = sorted(d.name for d in out_dir.iterdir() if (d / "frames").is_dir())
+        raise InputError(f"--outputs {out_dir}: a batch job folder (job.json); check each shot's folder, "
+                         + (f"e.g. --outputs {out_dir / shots[0]} (shots: {', '.join(shots)})" if shots
+                            else "none has frames yet"))
     store = FrameStore(out_dir)
     survey = store.survey(scene_hash(spec) if spec is not None else None)
     problems = list(survey.problems)
