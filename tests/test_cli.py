@@ -194,3 +194,13 @@ def test_a_misspelled_flag_gets_one_line_and_a_suggestion(capsys):
     err = capsys.readouterr().err
     assert "unrecognized arguments: --frmaes" in err and "did you mean --frames?" in err
     assert len(err.strip().splitlines()) == 1 and "usage:" not in err
+
+
+def test_simulate_resume_says_where_it_resumed(tmp_path, capsys):
+    scene = tmp_path / "s.toml"
+    scene.write_text(small_scene_text(frames=5))
+    out = tmp_path / "out"
+    assert main(["simulate", str(scene), "-o", str(out), "--frames", "3", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["resumed_at_frame"] is None      # a fresh run
+    assert main(["simulate", str(scene), "-o", str(out), "--resume"]) == 0
+    assert "(resumed at frame 3: frames 0-2 verified and kept)" in capsys.readouterr().err

@@ -238,7 +238,9 @@ def cmd_simulate(args) -> int:
     if args.json:
         print(json.dumps(finite_json(summary)))
     else:
-        print(f"wrote {summary['frames']} frames to {out / 'frames'}", file=sys.stderr)
+        at = summary.get("resumed_at_frame")
+        kept = "" if not at else f" (resumed at frame {at}: frames 0-{at - 1} verified and kept)"
+        print(f"wrote {summary['frames']} frames to {out / 'frames'}{kept}", file=sys.stderr)
     return 0
 
 

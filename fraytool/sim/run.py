@@ -121,7 +121,10 @@ def _simulate_locked(spec: SceneSpec, store: FrameStore, frames: Optional[int], 
             store.restore_previous()
             raise
     try:
-        return _advance(spec, sim, store, total, first_write, progress, stream)
+        summary = _advance(spec, sim, store, total, first_write, progress, stream)
+        # with --resume: the first frame this run wrote (the frames before it verified and were kept)
+        summary["resumed_at_frame"] = first_write if point is not None else None
+        return summary
     except OSError:
         if point is None and store.restore_previous():  # a fresh run failed on I/O: the old frames are back
             print(f"fraytool: {store.dir}: the previous frames are back in place", file=stream)
