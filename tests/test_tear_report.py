@@ -35,6 +35,7 @@ def test_json_reports_pieces_and_woven_strain_and_resume_keeps_them(tmp_path, ca
     half = spec.time.frames // 2
     _run(tmp_path, capsys, ["simulate", str(scene), "-o", str(tmp_path / "b"), "--frames", str(half)])
     resumed, err2 = _run(tmp_path, capsys, ["simulate", str(scene), "-o", str(tmp_path / "b"), "--resume", "--json"])
+    assert resumed.pop("resumed_at_frame") == half and whole.pop("resumed_at_frame") is None
     assert resumed == whole
     # the warning appears once, and only when the woven strain passed limit + 0.01
     warned = whole["max_woven_strain"] > whole["strain_limit"] + 0.01
