@@ -42,10 +42,12 @@ def _user_cache_dir() -> Path | None:
     return Path(value) if value else None
 
 
-def cache_folders(package_dir: Path) -> list[Path]:
-    """The folders where numba keeps (or would keep) the compiled kernels of the package's sources."""
+def cache_folders(package_dir: Path, sources: list[Path] | None = None) -> list[Path]:
+    """The folders where numba keeps (or would keep) the compiled kernels of the package's sources
+    (`sources`: the package's folders holding .py files, found when not given)."""
     user = _user_cache_dir()
-    sources = sorted({path.parent for path in package_dir.rglob("*.py")})
+    if sources is None:
+        sources = sorted({path.parent for path in package_dir.rglob("*.py")})
     if user is None:  # beside the sources (and any other __pycache__ of the package: a removed module's)
         return sorted({folder / "__pycache__" for folder in sources} | set(package_dir.rglob("__pycache__")))
     return cache_folders_of(sources, user)
@@ -68,16 +70,17 @@ def invalidate_stale_numba_cache(package_dir: Path) -> None:
     """
     global COLD
     user = _user_cache_dir()
-    folders = cache_folders(package_dir)
+    files = sorted(package_dir.rglob("*.py"))
+    sources = sorted({path.parent for path in files})
+    folders = cache_folders(package_dir, sources)
     sim = package_dir.resolve() / "sim"
-    sim_sources = [q for q in sorted({path.parent for path in package_dir.rglob("*.py")})
-                   if q.resolve() == sim or sim in q.resolve().parents]
+    sim_sources = [q for q in sources if q.resolve() == sim or sim in q.resolve().parents]
     sim_folders = [q / "__pycache__" for q in sim_sources] if user is None else cache_folders_of(sim_sources, user)
     writable = os.access(user if user is not None and user.exists() else package_dir, os.W_OK)
     # (a cache we cannot write to caches elsewhere: nothing to tell then)
     COLD = writable and not any(any(f.glob("*.nbi")) for f in sim_folders if f.is_dir())
     digest = hashlib.sha256()
-    for path in sorted(package_dir.rglob("*.py")):
+    for path in files:
         digest.update(str(path.relative_to(package_dir)).encode())
         digest.update(path.read_bytes())
     want = digest.hexdigest()

@@ -19,6 +19,17 @@ import numba as nb
 
 
 @nb.njit(cache=True, fastmath=False, inline="always")
+def _move_ends(particle_position_m, a, b, k_a, k_b, ux, uy, uz):
+    """x_a += k_a u, x_b -= k_b u: a spring's two ends moved along u, each by its own share."""
+    particle_position_m[a, 0] += k_a * ux
+    particle_position_m[a, 1] += k_a * uy
+    particle_position_m[a, 2] += k_a * uz
+    particle_position_m[b, 0] -= k_b * ux
+    particle_position_m[b, 1] -= k_b * uy
+    particle_position_m[b, 2] -= k_b * uz
+
+
+@nb.njit(cache=True, fastmath=False, inline="always")
 def _project_stretched(s, stretch, spring_rest_length_m, particle_inv_mass, spring_particle_a, spring_particle_b,
                        spring_alive, particle_position_m):
     """Project spring s back to `stretch` x its rest length if it is longer (module docstring); returns
@@ -42,12 +53,7 @@ def _project_stretched(s, stretch, spring_rest_length_m, particle_inv_mass, spri
         return 0.0  # both ends held by bodies: nothing can move
     length = math.sqrt(d2)
     c = (length - max_length) / (length * w)
-    particle_position_m[a, 0] += w_a * c * dx
-    particle_position_m[a, 1] += w_a * c * dy
-    particle_position_m[a, 2] += w_a * c * dz
-    particle_position_m[b, 0] -= w_b * c * dx
-    particle_position_m[b, 1] -= w_b * c * dy
-    particle_position_m[b, 2] -= w_b * c * dz
+    _move_ends(particle_position_m, a, b, w_a * c, w_b * c, dx, dy, dz)
     return (length - max_length) / spring_rest_length_m[s]
 
 
@@ -192,12 +198,7 @@ def damp_overstretched(
             continue
         g = damping_n_s_per_m * dt_s * w
         f = stretched * -math.expm1(-g) / w  # the impulse along u, times dt / m-weights
-        particle_position_m[a, 0] += w_a * f * ux
-        particle_position_m[a, 1] += w_a * f * uy
-        particle_position_m[a, 2] += w_a * f * uz
-        particle_position_m[b, 0] -= w_b * f * ux
-        particle_position_m[b, 1] -= w_b * f * uy
-        particle_position_m[b, 2] -= w_b * f * uz
+        _move_ends(particle_position_m, a, b, w_a * f, w_b * f, ux, uy, uz)
 
 
 @nb.njit(cache=True, fastmath=False)
@@ -278,14 +279,8 @@ def _solve_line(
                 continue
             a = spring_particle_a[s]
             b = spring_particle_b[s]
-            ca = particle_inv_mass[a] * dmu
-            cb = particle_inv_mass[b] * dmu
-            particle_position_m[a, 0] += ca * unit[i, 0]
-            particle_position_m[a, 1] += ca * unit[i, 1]
-            particle_position_m[a, 2] += ca * unit[i, 2]
-            particle_position_m[b, 0] -= cb * unit[i, 0]
-            particle_position_m[b, 1] -= cb * unit[i, 1]
-            particle_position_m[b, 2] -= cb * unit[i, 2]
+            _move_ends(particle_position_m, a, b, particle_inv_mass[a] * dmu, particle_inv_mass[b] * dmu,
+                       unit[i, 0], unit[i, 1], unit[i, 2])
             moved_at[a] = stamp
             moved_at[b] = stamp
         k = end
