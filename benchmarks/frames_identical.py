@@ -50,7 +50,7 @@ DEFAULT_TIMEOUT_S = 900
 
 # Manifest / unstable.json fields that may differ between two versions of the code without any
 # change of the simulation: reported, never counted as a difference.
-IGNORED_FIELDS = {"fraytool_version", "version", "scene_hash", "source_hash", "sources_hash", "git",
+IGNORED_FIELDS = {"fraytool_version", "version", "scene_hash", "checksum", "source_hash", "sources_hash", "git",
                   "git_commit", "commit", "created", "created_at", "timestamp", "host", "hostname",
                   "python", "numba", "numpy", "kernel"}
 IGNORED_PATTERN = re.compile(r"(wall|elapsed|duration|timestamp|runtime|_ms$|ms_per|per_frame_s|seconds_real)")
@@ -197,14 +197,23 @@ def differing_elements(a: np.ndarray, b: np.ndarray) -> int:
     return int((ua != ub).any(axis=1).sum())
 
 
-def compare_npz(pa: Path, pb: Path) -> Optional[str]:
-    """None if the two .npz hold the same arrays bit for bit, else the first difference."""
+VERIFICATION_KEYS = {"checksum", "scene_hash"}
+"""Keys of a verified .npz (fraytool.io.frame_store) that hash the scene's description: a new scene key
+changes them without any change of the arrays they verify, which are compared themselves."""
+
+
+def compare_npz(pa: Path, pb: Path, notes: Optional[list] = None) -> Optional[str]:
+    """None if the two .npz hold the same arrays bit for bit, else the first difference. Arrays only
+    in the work tree (fields a change added) and the verification keys go to `notes`, not counted."""
     with np.load(pa, allow_pickle=False) as za, np.load(pb, allow_pickle=False) as zb:
-        ka, kb = sorted(za.files), sorted(zb.files)
-        if ka != kb:
-            return (f"keys differ: only in rev {sorted(set(ka) - set(kb))}, "
-                    f"only in work {sorted(set(kb) - set(ka))}")
-        for k in ka:
+        ka, kb = set(za.files) - VERIFICATION_KEYS, set(zb.files) - VERIFICATION_KEYS
+        if ka - kb:
+            return f"keys differ: only in rev {sorted(ka - kb)}, only in work {sorted(kb - ka)}"
+        if kb - ka and notes is not None:
+            note = f"{pa.name}: arrays only in work (added by the change): {sorted(kb - ka)}"
+            if note not in notes:
+                notes.append(note)
+        for k in sorted(ka):
             a, b = za[k], zb[k]
             if a.dtype.str != b.dtype.str:
                 return f"array {k}: dtype {a.dtype.str} != {b.dtype.str}"
@@ -283,7 +292,7 @@ def compare_runs(ra: Run, rb: Run) -> Diff:
     for name in sorted(fa & fb, key=file_order):
         pa, pb = da / name, db / name
         if name.endswith(".npz"):
-            r = compare_npz(pa, pb)
+            r = compare_npz(pa, pb, diff.notes)
             if r is None:
                 continue
             if name.startswith("frame_"):

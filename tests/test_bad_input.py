@@ -199,4 +199,4 @@ def test_an_unknown_key_in_a_table_with_sub_tables_lists_them(tmp_path, capsys):
     scene.write_text(small_scene_text())
     assert main(["check", str(scene), "--set", "cloth.sprngs.bend_n_per_m=1"]) == 2
     err = capsys.readouterr().err
-    assert "[cloth] sprngs" in err and "sub-tables: [cloth.springs], [cloth.strain], [cloth.tearing]" in err
+    assert "[cloth] sprngs" in err and "sub-tables: [cloth.multires], [cloth.springs], [cloth.strain], [cloth.tearing]" in err

@@ -32,6 +32,7 @@ from fraytool.scene.spec import (
     SelfCollisionSpec,
     SpringSpec,
     StrainSpec,
+    MultiresSpec,
     TearingSpec,
     TimeSpec,
 )
@@ -182,8 +183,11 @@ def _assemble(values: dict, bodies_raw: list, att_raw: list, cut_raw: list, sour
     problems.extend("cloth", weave_problems)
     strain = StrainSpec(**values["cloth.strain"])
     problems.extend("cloth.strain", rules.strain_problems(strain))
+    multires = MultiresSpec(**values["cloth.multires"])
+    problems.extend("cloth.multires", rules.multires_problems(multires))
     cloth = ClothSpec(**{k: v for k, v in c.items() if k != "table"}, weave_table=table,
-                      springs=SpringSpec(**values["cloth.springs"]), strain=strain, tearing=tear)
+                      springs=SpringSpec(**values["cloth.springs"]), strain=strain, tearing=tear,
+                      multires=multires)
     problems.extend("cloth", rules.cloth_problems(cloth.spacing_m, cloth.thickness_m))
 
     bodies = []

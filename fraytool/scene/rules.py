@@ -12,8 +12,8 @@ import re
 from typing import Any, Iterable, Optional
 
 from fraytool.scene import weave as weaves
-from fraytool.scene.spec import (AttachmentSpec, BodySpec, CameraSpec, CutSpec, RenderSpec, StrainSpec,
-                                 TearingSpec)
+from fraytool.scene.spec import (AttachmentSpec, BodySpec, CameraSpec, CutSpec, MultiresSpec, RenderSpec,
+                                 StrainSpec, TearingSpec)
 
 Problem = tuple[Optional[str], Any, str]
 """(key or None for the whole table, the value, what is allowed)."""
@@ -57,6 +57,13 @@ def tearing_problems(t: TearingSpec) -> list[Problem]:
     if t.enabled and t.yarn_level and t.transition_strain >= t.break_strain:
         return [("transition_strain", t.transition_strain,
                  f"must be below break_strain = {t.break_strain:g} (splitting comes before cutting)")]
+    return []
+
+
+def multires_problems(m: MultiresSpec) -> list[Problem]:
+    """[cloth.multires]: cells of factor x factor yarn spacings, factor a power of two up to 8."""
+    if m.factor not in (1, 2, 4, 8):
+        return [("factor", m.factor, "must be 1, 2, 4 or 8")]
     return []
 
 

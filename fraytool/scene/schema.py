@@ -24,6 +24,7 @@ TOP: dict[str, dict[str, Key]] = {
     "cloth.springs": keys_of(spec.SpringSpec),
     "cloth.strain": keys_of(spec.StrainSpec),
     "cloth.tearing": keys_of(spec.TearingSpec),
+    "cloth.multires": keys_of(spec.MultiresSpec),
     "self_collision": keys_of(spec.SelfCollisionSpec),
     "bodies": keys_of(spec.BodySpec),
     "attachments": keys_of(spec.AttachmentSpec),

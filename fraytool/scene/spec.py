@@ -105,8 +105,27 @@ class TearingSpec:
 
 
 @dataclass(frozen=True, kw_only=True)
+class MultiresSpec:
+    """[cloth.multires]: a coarse base model where the cloth is whole (docs/multires.md)."""
+
+    factor: int = key("int", 1, lo=1, hi=8,
+                      doc="1, 2, 4 or 8: the whole cloth starts as a base model whose cells span factor x factor "
+                          "yarn spacings; cells refine to yarn resolution ahead of any strain that could tear "
+                          "them (1: yarn resolution everywhere, the paper's model)")
+    refine_fraction: float = key("float", 0.5, lo=0, lo_open=True, hi=1, hi_open=True,
+                                 doc="a coarse cell refines when a structural spring in or next to it is strained "
+                                     "past this fraction of the lowest strain that could split or cut a spring")
+    band_cells: int = key("int", 2, lo=1, hi=64,
+                          doc="width of the band of coarse cells refined around a cell past the refine strain "
+                              "(and around a moving body)")
+    refine_near_bodies: bool = key("bool", True,
+                                   doc="cells within band_cells of a moving body's bounding sphere refine before "
+                                       "the body reaches them")
+
+
+@dataclass(frozen=True, kw_only=True)
 class ClothSpec:
-    """[cloth] with its sub-tables [cloth.springs], [cloth.strain] and [cloth.tearing]."""
+    """[cloth] with its sub-tables [cloth.springs], [cloth.strain], [cloth.tearing] and [cloth.multires]."""
 
     warp_yarns: int = key("int", lo=2, hi=4096,
                           doc="number of warp yarns (columns, index i); they run along the cloth's second axis")
@@ -126,6 +145,7 @@ class ClothSpec:
     springs: SpringSpec
     strain: StrainSpec = field(default_factory=StrainSpec)
     tearing: TearingSpec = field(default_factory=TearingSpec)
+    multires: MultiresSpec = field(default_factory=MultiresSpec)
     twill: str = key("str", "2/1", doc='with weave = "twill": floats over/under, e.g. "2/1", "2/2", "3/1"')
     satin_shafts: int = key("int", 5, lo=5, hi=16, doc='with weave = "satin": threads per repeat')
 

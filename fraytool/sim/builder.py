@@ -39,6 +39,7 @@ from fraytool.scene.spec import (
     BodySpec,
     ClothSpec,
     CutSpec,
+    MultiresSpec,
     SceneSpec,
     SelfCollisionSpec,
     SpringSpec,
@@ -53,6 +54,7 @@ _PLANE_AXES = {"xz": (0, 2), "xy": (0, 1), "yz": (2, 1)}
 
 _SCENE, _WORLD, _CLOTH, _SPRINGS = (schema.TOP[t] for t in ("scene", "world", "cloth", "cloth.springs"))
 _STRAIN, _TEARING, _SELF = (schema.TOP[t] for t in ("cloth.strain", "cloth.tearing", "self_collision"))
+_MULTIRES = schema.TOP["cloth.multires"]
 _BODY, _ATTACH, _CUT = schema.TOP["bodies"], schema.TOP["attachments"], schema.TOP["cuts"]
 
 
@@ -172,6 +174,7 @@ class ModelBuilder:
         self.strain = StrainSpec()
         self.tearing = TearingSpec()
         self.self_collision = SelfCollisionSpec()
+        self.multires = MultiresSpec()
         self.bodies: list[BodySpec] = []
         self.attachments: list[AttachmentSpec] = []
         self.cuts: list[CutSpec] = []
@@ -253,6 +256,17 @@ class ModelBuilder:
         t = TearingSpec(**self._check("set_tearing", _TEARING, _given(locals())))
         self._raise("set_tearing", rules.tearing_problems(t))
         self.tearing = t
+
+    @_keys_doc("cloth.multires")
+    def set_multires(self, *, factor: int = _MULTIRES["factor"].default,
+                     refine_fraction: float = _MULTIRES["refine_fraction"].default,
+                     band_cells: int = _MULTIRES["band_cells"].default,
+                     refine_near_bodies: bool = _MULTIRES["refine_near_bodies"].default) -> None:
+        """A coarse base model where the cloth is whole, refined ahead of tearing, as [cloth.multires]
+        (docs/multires.md); without the call (or with factor = 1) the cloth is at yarn resolution everywhere."""
+        m = MultiresSpec(**self._check("set_multires", _MULTIRES, _given(locals())))
+        self._raise("set_multires", rules.multires_problems(m))
+        self.multires = m
 
     @_keys_doc("self_collision")
     def set_self_collision(self, *, enabled: bool = True, iterations: int = _SELF["iterations"].default,
@@ -465,6 +479,13 @@ class ModelBuilder:
 
         t = self.tearing
         strain = self.strain
+        break_strain = self._break_strains(len(kind))
+        # the lowest strain at which a spring could split its crossings or be cut: coarse cells refine
+        # at refine_fraction of it (docs/multires.md "When a cell refines")
+        structural = (kind == STRUCT_WEFT) | (kind == STRUCT_WARP)
+        tear_from = (t.transition_strain if t.yarn_level else float(break_strain[structural].min())) \
+            if t.enabled and structural.any() else math.inf
+        mr = self.multires
         return Model(
             warp_yarns=nx,
             weft_yarns=ny,
@@ -482,7 +503,7 @@ class ModelBuilder:
             spring_crossing_b=b,
             spring_rest_length_m=rest_len,
             spring_base_stiffness_n_per_m=stiff,
-            spring_break_strain=self._break_strains(len(kind)),
+            spring_break_strain=break_strain,
             spring_twin=twin,
             spring_precut=precut,
             weft_structural_spring=weft_struct,
@@ -522,6 +543,10 @@ class ModelBuilder:
             self_collision_iterations=self.self_collision.iterations,
             self_collision_friction=self.self_collision.friction,
             seed=self.seed,
+            coarse_factor=mr.factor,
+            refine_strain=mr.refine_fraction * tear_from,
+            refine_band_cells=mr.band_cells,
+            refine_near_bodies=mr.refine_near_bodies,
         )
 
 
@@ -539,6 +564,7 @@ def build_model(spec: SceneSpec) -> Model:
     builder.set_strain_limit(**dataclasses.asdict(c.strain))
     builder.set_tearing(**dataclasses.asdict(c.tearing))
     builder.set_self_collision(**dataclasses.asdict(spec.self_collision))
+    builder.set_multires(**dataclasses.asdict(c.multires))
     for body in spec.bodies:
         # Each shape's method takes the keys that apply to it (a sphere has no normal, a plane no
         # mass); the others keep their defaults in the Model, where nothing reads them.

@@ -11,6 +11,7 @@ What a step changes (positions, alive flags, spring end points after a split) li
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, fields
 import numpy as np
 
@@ -129,6 +130,14 @@ class Model:
     self_collision_iterations: int
     self_collision_friction: float
     seed: int
+    coarse_factor: int = 1
+    """[cloth.multires] factor: coarse cells of coarse_factor x coarse_factor yarn spacings where the cloth
+    is whole (fraytool.sim.multires); 1: yarn resolution everywhere."""
+    refine_strain: float = math.inf
+    """A coarse cell refines when a structural spring in or next to it passes this strain."""
+    refine_band_cells: int = 2
+    """Coarse cells refined around a cell past refine_strain (and around a moving body)."""
+    refine_near_bodies: bool = True
 
     @property
     def particle_count(self) -> int:
@@ -169,9 +178,15 @@ class Model:
         inv_mass = np.zeros(2 * n)
         inv_mass[:n] = 1.0 / self.crossing_mass_kg
         inv_mass[self.attachment_particle] = 0.0
+        refined = np.zeros(0, bool)
+        if self.coarse_factor > 1:
+            from fraytool.sim import multires
+
+            layout = multires.coarse_layout(self)
+            refined = multires.initial_refined(self, layout)
         # Shear twins are born dead (a split brings them to life); springs on a [[cuts]] line are not there.
         alive = (self.spring_kind != SHEAR_TWIN) & ~self.spring_precut
-        return State(
+        state = State(
             time_s=0.0,
             step_index=0,
             particle_position_m=pos,
@@ -189,7 +204,11 @@ class Model:
             spring_rest_length_m=self.spring_rest_length_m.copy(),
             body_position_m=self.body_initial_position_m.copy(),
             body_velocity_m_s=np.zeros((self.body_count, 3)),
+            coarse_cell_refined=refined,
         )
+        if self.coarse_factor > 1:
+            multires.set_masses(self, layout, refined, state)  # lumped into the nodes, slaved 0
+        return state
 
     def arrays(self) -> dict[str, np.ndarray]:
         """All array fields, for saving (topology.npz)."""

@@ -5,7 +5,7 @@ and a split re-points spring ends (spring_particle_a/b) from the base slot to a 
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
@@ -47,6 +47,9 @@ class State:
     """Shape (body_count, 3), float64."""
     body_velocity_m_s: np.ndarray
     """Shape (body_count, 3), float64."""
+    coarse_cell_refined: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
+    """Multi-resolution model ([cloth.multires] factor > 1): the coarse cells refined to yarn resolution
+    so far, shape (cell_count,), bool (fraytool.sim.multires); empty at yarn resolution everywhere."""
 
     def copy(self) -> "State":
         kw = {f.name: (getattr(self, f.name).copy() if isinstance(getattr(self, f.name), np.ndarray)
@@ -61,6 +64,8 @@ class State:
     def from_arrays(data) -> "State":
         kw = {}
         for f in fields(State):
+            if f.name == "coarse_cell_refined" and f.name not in data:
+                continue  # a checkpoint from before the multi-resolution model: the default (empty)
             v = np.asarray(data[f.name])
             if f.name == "time_s":
                 kw[f.name] = float(v)

@@ -12,6 +12,36 @@ import numba as nb
 from fraytool.kinds import SHEAR, SHEAR_TWIN
 
 
+@nb.njit(cache=True, fastmath=False, inline="always")
+def add_spring_force(s, stiffness_n_per_m, spring_kind, spring_rest_length_m, particle_position_m, spring_particle_a,
+                     spring_particle_b, particle_force_n):
+    """Add spring s's Hooke force, with stiffness `stiffness_n_per_m`, to its two end particles."""
+    a = spring_particle_a[s]
+    b = spring_particle_b[s]
+    dx = particle_position_m[b, 0] - particle_position_m[a, 0]
+    dy = particle_position_m[b, 1] - particle_position_m[a, 1]
+    dz = particle_position_m[b, 2] - particle_position_m[a, 2]
+    d2 = dx * dx + dy * dy + dz * dz
+    kind = spring_kind[s]
+    shear = kind == SHEAR or kind == SHEAR_TWIN
+    rest = spring_rest_length_m[s]
+    if shear and d2 > rest * rest * (1.0 + 1e-9):
+        return  # a stretched shear spring, without the square root (the test below says the same)
+    length = math.sqrt(d2)
+    if length < 1e-12:
+        return  # no direction to push along
+    stretch = length - rest
+    if stretch > 0.0 and shear:
+        return  # shear springs resist compression only (§3.2)
+    f = stiffness_n_per_m * stretch / length
+    particle_force_n[a, 0] += f * dx
+    particle_force_n[a, 1] += f * dy
+    particle_force_n[a, 2] += f * dz
+    particle_force_n[b, 0] -= f * dx
+    particle_force_n[b, 1] -= f * dy
+    particle_force_n[b, 2] -= f * dz
+
+
 @nb.njit(cache=True, fastmath=False)
 def accumulate_spring_forces(
     # model
@@ -26,27 +56,5 @@ def accumulate_spring_forces(
     for s in range(spring_kind.shape[0]):
         if not spring_alive[s]:
             continue  # cut springs and unborn shear twins carry no force
-        a = spring_particle_a[s]
-        b = spring_particle_b[s]
-        dx = particle_position_m[b, 0] - particle_position_m[a, 0]
-        dy = particle_position_m[b, 1] - particle_position_m[a, 1]
-        dz = particle_position_m[b, 2] - particle_position_m[a, 2]
-        d2 = dx * dx + dy * dy + dz * dz
-        kind = spring_kind[s]
-        shear = kind == SHEAR or kind == SHEAR_TWIN
-        rest = spring_rest_length_m[s]
-        if shear and d2 > rest * rest * (1.0 + 1e-9):
-            continue  # a stretched shear spring, without the square root (the test below says the same)
-        length = math.sqrt(d2)
-        if length < 1e-12:
-            continue  # no direction to push along
-        stretch = length - rest
-        if stretch > 0.0 and shear:
-            continue  # shear springs resist compression only (§3.2)
-        f = spring_stiffness_n_per_m[s] * stretch / length
-        particle_force_n[a, 0] += f * dx
-        particle_force_n[a, 1] += f * dy
-        particle_force_n[a, 2] += f * dz
-        particle_force_n[b, 0] -= f * dx
-        particle_force_n[b, 1] -= f * dy
-        particle_force_n[b, 2] -= f * dz
+        add_spring_force(s, spring_stiffness_n_per_m[s], spring_kind, spring_rest_length_m, particle_position_m,
+                         spring_particle_a, spring_particle_b, particle_force_n)

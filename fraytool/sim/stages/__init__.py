@@ -25,16 +25,29 @@ def build_stages(model: Model, speed_limit_m_s: float) -> list:
     """The stages of one step for `model`, in the order of docs/method.md §4 (and its one departure)."""
     from fraytool.sim.stages import core
 
-    stages: list = [core.SpringForces(model), core.VelocityUpdate(model)]
+    runtime = None
+    if model.coarse_factor > 1:
+        from fraytool.sim.stages import multires  # only multi-resolution scenes
+
+        runtime = multires.MultiresRuntime(model)
+        stages: list = [multires.MultiresForces(model, runtime)]
+    else:
+        stages = [core.SpringForces(model)]
+    stages.append(core.VelocityUpdate(model))
     if model.damping > 0.0:
         stages.append(core.Damping(model))
     stages.append(core.PositionUpdate(model))
+    if runtime is not None:
+        stages.append(multires.SyncSlaved(runtime))
     if model.attachment_count > 0:
         stages.append(core.Attachments(model))
     contact = model.body_count > 0 and bool(model.body_collide.any())
     if contact and model.tearing:
         stages.append(core.RigidContactBeforeLimit(model))  # the limit sees a body's push before breaks
-    stages.append(core.StrainLimiting(model))
+    strain = core.StrainLimiting(model)
+    stages.append(strain)
+    if runtime is not None:
+        runtime.strain_stage = strain  # limits only the springs of refined cells
     tearing = None
     if model.tearing:
         from fraytool.sim.stages.tearing import TearingStage, YarnContactStage  # only scenes that tear
@@ -44,10 +57,14 @@ def build_stages(model: Model, speed_limit_m_s: float) -> list:
             stages.append(YarnContactStage(tearing.tearing))
     if contact:
         stages.append(core.RigidContact(model))
+        if runtime is not None:
+            stages.append(multires.SlavedContact(model, runtime))
     if model.self_collision:
         from fraytool.sim.stages.self_collision import SelfCollision  # only scenes with self-collision
 
         stages.append(SelfCollision(model))
+    if runtime is not None:
+        stages.append(multires.Refinement(model, runtime))
     if tearing is not None:
         stages.append(tearing)
     stages.append(core.VelocityPostProcess(model, speed_limit_m_s))

@@ -5,6 +5,8 @@ Each stage unpacks the model's arrays once, at construction, and calls one numba
 (kernels take arrays only; fraytool.sim.kernels)."""
 from __future__ import annotations
 
+from typing import Optional
+
 import numpy as np
 
 from fraytool.kinds import MOTION_DYNAMIC
@@ -52,6 +54,19 @@ def yarn_line_springs(model: Model) -> tuple[np.ndarray, np.ndarray, np.ndarray]
                              weft.size + np.arange(warp.shape[0] + 1) * warp.shape[1]]).astype(np.int64)
     groups = np.array([0, weft.shape[0], weft.shape[0] + warp.shape[0]], np.int64)
     return springs, starts, groups
+
+
+def _working_runs(springs: np.ndarray, starts: np.ndarray, groups: np.ndarray,
+                  keep: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The lines of `yarn_line_springs` cut into maximal runs of consecutive kept springs."""
+    line_of = np.repeat(np.arange(starts.shape[0] - 1), np.diff(starts))
+    kept = np.flatnonzero(keep)
+    first = np.ones(kept.shape[0], bool)
+    first[1:] = (kept[1:] != kept[:-1] + 1) | (line_of[kept[1:]] != line_of[kept[:-1]])
+    run_start = np.flatnonzero(first)
+    run_line = line_of[kept[run_start]]
+    new_groups = np.array([0, np.searchsorted(run_line, groups[1]), run_start.shape[0]], np.int64)
+    return (springs[kept].astype(np.int32), np.append(run_start, kept.shape[0]).astype(np.int64), new_groups)
 
 
 class _NoSummary:
@@ -181,15 +196,36 @@ class StrainLimiting(_NoSummary):
 
     def __init__(self, model: Model):
         self.model = model
-        self.limited_springs, self.colour_start = colour_groups(model)
-        self._worst_of = np.zeros(self.limited_springs.shape[0])
-        self._checked_at = np.zeros(self.limited_springs.shape[0], np.int64)
         self._moved_at = np.zeros(0, np.int64)
         """Per particle (sized on first use: the particle slots): the sweeps' record of moved masses."""
         self.compliant = model.strain_stiffness_n_per_m > 0.0
         self.kernel = "limit_strain_lines" if self.compliant else "limit_strain_groups"
+        self.restrict(None)
+        self.iterations_last = 0
+        self.iterations_max = 0
+        self.cap_hits = 0
+        """Steps where strain limiting stopped at the iteration cap without converging."""
+
+    def restrict(self, working: Optional[np.ndarray]) -> None:
+        """Limit only the structural springs where `working` (a mask over the spring slots) is True; None:
+        all of them. The multi-resolution model (fraytool.sim.stages.multires) limits the springs of its
+        refined cells: a yarn's line then breaks into runs of consecutive working springs (runs of one
+        yarn share no mass, so a group's lines stay independent)."""
+        springs, starts = colour_groups(self.model)
+        if working is not None:
+            keep = working[springs]
+            counts = [int(keep[starts[g]:starts[g + 1]].sum()) for g in range(starts.shape[0] - 1)]
+            springs = springs[keep]
+            starts = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+        self.limited_springs, self.colour_start = springs, starts
+        self._worst_of = np.zeros(self.limited_springs.shape[0])
+        self._checked_at = np.zeros(self.limited_springs.shape[0], np.int64)
         if self.compliant:
-            self.line_springs, self.line_start, self.line_groups = yarn_line_springs(model)
+            line_springs, line_start, line_groups = yarn_line_springs(self.model)
+            if working is not None:
+                line_springs, line_start, line_groups = _working_runs(line_springs, line_start, line_groups,
+                                                                      working[line_springs])
+            self.line_springs, self.line_start, self.line_groups = line_springs, line_start, line_groups
             n = self.line_springs.shape[0]
             self._tension = np.zeros(n)
             self._diag = np.zeros(n)
@@ -198,10 +234,6 @@ class StrainLimiting(_NoSummary):
             self._unit = np.zeros((n, 3))
             self._line_worst = np.zeros(self.line_start.shape[0] - 1)
             self._line_status = np.zeros(self.line_start.shape[0] - 1, np.int64)
-        self.iterations_last = 0
-        self.iterations_max = 0
-        self.cap_hits = 0
-        """Steps where strain limiting stopped at the iteration cap without converging."""
 
     def run(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
         m = self.model

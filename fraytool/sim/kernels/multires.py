@@ -1,0 +1,216 @@
+"""Kernels of the multi-resolution base model (fraytool.sim.multires, docs/multires.md).
+
+All serial, so every sum is in a fixed order and the frames are deterministic.
+"""
+from __future__ import annotations
+
+import math
+
+import numba as nb
+
+from fraytool.kinds import SHAPE_PLANE
+from fraytool.sim.kernels.forces import add_spring_force
+from fraytool.sim.kernels.rigid_contact import bounding_radius, surface_contact
+
+
+@nb.njit(cache=True, fastmath=False)
+def add_listed_spring_forces(
+    listed, share,
+    spring_kind, spring_rest_length_m, particle_position_m, spring_particle_a, spring_particle_b,
+    spring_alive, spring_stiffness_n_per_m,
+    particle_force_n,
+):
+    """Add the forces of the springs `listed` (live ones), each scaled by its `share` of the cells it
+    borders, to particle_force_n (not zeroed): the Hooke springs of fraytool.sim.kernels.forces,
+    shear springs in compression only."""
+    for m in range(listed.shape[0]):
+        s = listed[m]
+        if spring_alive[s]:
+            add_spring_force(s, share[m] * spring_stiffness_n_per_m[s], spring_kind, spring_rest_length_m,
+                             particle_position_m, spring_particle_a, spring_particle_b, particle_force_n)
+
+
+@nb.njit(cache=True, fastmath=False)
+def gather_slaved_forces(slaved, crossing_node, crossing_weight, particle_force_n):
+    """Move the force on each slaved crossing to its nodes with its interpolation weights (the
+    transpose of the interpolation: total force and torque about any point are kept to first order)."""
+    for m in range(slaved.shape[0]):
+        s = slaved[m]
+        fx = particle_force_n[s, 0]
+        fy = particle_force_n[s, 1]
+        fz = particle_force_n[s, 2]
+        if fx == 0.0 and fy == 0.0 and fz == 0.0:
+            continue
+        for q in range(4):
+            w = crossing_weight[s, q]
+            if w != 0.0:
+                node = crossing_node[s, q]
+                particle_force_n[node, 0] += w * fx
+                particle_force_n[node, 1] += w * fy
+                particle_force_n[node, 2] += w * fz
+        particle_force_n[s, 0] = 0.0
+        particle_force_n[s, 1] = 0.0
+        particle_force_n[s, 2] = 0.0
+
+
+@nb.njit(cache=True, fastmath=False)
+def sync_slaved(slaved, crossing_node, crossing_weight, particle_position_m, particle_velocity_m_s):
+    """Position and velocity of each slaved crossing = the weighted sum of its nodes' (in place)."""
+    for m in range(slaved.shape[0]):
+        s = slaved[m]
+        for d in range(3):
+            x = 0.0
+            v = 0.0
+            for q in range(4):
+                node = crossing_node[s, q]
+                x += crossing_weight[s, q] * particle_position_m[node, d]
+                v += crossing_weight[s, q] * particle_velocity_m_s[node, d]
+            particle_position_m[s, d] = x
+            particle_velocity_m_s[s, d] = v
+
+
+@nb.njit(cache=True, fastmath=False)
+def _mark_hot(listed, cells, rest_length_m, particle_position_m, spring_particle_a, spring_particle_b, spring_alive,
+              refine_strain, hot):
+    for m in range(listed.shape[0]):
+        s = listed[m]
+        if not spring_alive[s]:
+            continue
+        a = spring_particle_a[s]
+        b = spring_particle_b[s]
+        dx = particle_position_m[b, 0] - particle_position_m[a, 0]
+        dy = particle_position_m[b, 1] - particle_position_m[a, 1]
+        dz = particle_position_m[b, 2] - particle_position_m[a, 2]
+        limit = rest_length_m[s] * (1.0 + refine_strain)
+        if dx * dx + dy * dy + dz * dz > limit * limit:
+            for q in range(cells.shape[1]):
+                if cells[s, q] >= 0:
+                    hot[cells[s, q]] = True
+
+
+@nb.njit(cache=True, fastmath=False)
+def cells_to_refine(
+    # fine structural springs at work and their cells; coarse structural springs at work and theirs
+    fine_listed, fine_cells, spring_rest_length_m, spring_particle_a, spring_particle_b, spring_alive,
+    coarse_listed, coarse_cells, coarse_a, coarse_b, coarse_rest_length_m, coarse_alive,
+    particle_position_m, refine_strain, band, cells_x, cells_y,
+    # moving bodies: centre and reach (bounding radius + band) of each; nodes of each cell
+    body_centre_m, body_reach_m, cell_nodes,
+    # in: refined cells; scratch: hot; out: new (cells to refine now)
+    refined, hot, new,
+):
+    """Mark in `new` the coarse cells to refine now: those within `band` cells of a cell holding a
+    structural spring strained past refine_strain (fine or coarse), and those with a node within a
+    moving body's reach. Returns how many."""
+    for c in range(hot.shape[0]):
+        hot[c] = False
+        new[c] = False
+    _mark_hot(fine_listed, fine_cells, spring_rest_length_m, particle_position_m, spring_particle_a,
+              spring_particle_b, spring_alive, refine_strain, hot)
+    _mark_hot(coarse_listed, coarse_cells, coarse_rest_length_m, particle_position_m, coarse_a, coarse_b,
+              coarse_alive, refine_strain, hot)
+    count = 0
+    for c in range(hot.shape[0]):
+        if not hot[c]:
+            continue
+        ci = c % cells_x
+        cj = c // cells_x
+        for dj in range(-band, band + 1):
+            for di in range(-band, band + 1):
+                i = ci + di
+                j = cj + dj
+                if 0 <= i < cells_x and 0 <= j < cells_y:
+                    t = j * cells_x + i
+                    if not refined[t] and not new[t]:
+                        new[t] = True
+                        count += 1
+    for k in range(body_centre_m.shape[0]):
+        r2 = body_reach_m[k] * body_reach_m[k]
+        for c in range(refined.shape[0]):
+            if refined[c] or new[c]:
+                continue
+            for q in range(4):
+                p = cell_nodes[c, q]
+                dx = particle_position_m[p, 0] - body_centre_m[k, 0]
+                dy = particle_position_m[p, 1] - body_centre_m[k, 1]
+                dz = particle_position_m[p, 2] - body_centre_m[k, 2]
+                if dx * dx + dy * dy + dz * dz <= r2:
+                    new[c] = True
+                    count += 1
+                    break
+    return count
+
+
+@nb.njit(cache=True, fastmath=False)
+def collide_slaved(
+    slaved, crossing_node, crossing_weight,
+    body_shape, body_rotation, body_radius_m, body_half_extents_m, body_normal, body_friction, body_collide,
+    margin_m, dt_s, body_position_m, body_velocity_m_s, particle_inv_mass, prev_position_m, particle_position_m, point,
+):
+    """Keep the slaved crossings out of the bodies by moving their nodes: where a slaved crossing's
+    interpolated point x = sum w_q x_q lies inside a body by d along normal n, the nodes move by
+    dx_q = w_q inv_q / sum(w^2 inv) (-d n), the smallest mass-weighted move that puts x on the
+    surface (the projection of an embedded point). One Gauss-Seidel pass, crossings in index order,
+    no friction. `point` is a scratch array of 3. Returns the number of contacts."""
+    contacts = 0
+    for k in range(body_shape.shape[0]):
+        if not body_collide[k]:
+            continue
+        reach = bounding_radius(body_shape[k], body_radius_m[k], body_half_extents_m[k], margin_m)
+        reach2 = reach * reach
+        plane = body_shape[k] == SHAPE_PLANE
+        for m in range(slaved.shape[0]):
+            s = slaved[m]
+            for d in range(3):
+                x = 0.0
+                for q in range(4):
+                    x += crossing_weight[s, q] * particle_position_m[crossing_node[s, q], d]
+                point[d] = x
+            if not plane:
+                ex = point[0] - body_position_m[k, 0]
+                ey = point[1] - body_position_m[k, 1]
+                ez = point[2] - body_position_m[k, 2]
+                if ex * ex + ey * ey + ez * ez > reach2:
+                    continue
+            dist, nx, ny, nz = surface_contact(body_shape[k], body_position_m[k], body_rotation[k], body_radius_m[k],
+                                               body_half_extents_m[k], body_normal[k], point, margin_m)
+            if dist >= 0.0:
+                continue
+            norm = 0.0
+            for q in range(4):
+                w = crossing_weight[s, q]
+                norm += w * w * particle_inv_mass[crossing_node[s, q]]
+            if norm <= 0.0:
+                continue  # every node held by a body
+            contacts += 1
+            # the point's correction: out along the normal, then friction on its move over the step
+            cx = -dist * nx
+            cy = -dist * ny
+            cz = -dist * nz
+            rx = point[0] + cx - dt_s * body_velocity_m_s[k, 0]
+            ry = point[1] + cy - dt_s * body_velocity_m_s[k, 1]
+            rz = point[2] + cz - dt_s * body_velocity_m_s[k, 2]
+            for q in range(4):
+                w = crossing_weight[s, q]
+                node = crossing_node[s, q]
+                rx -= w * prev_position_m[node, 0]
+                ry -= w * prev_position_m[node, 1]
+                rz -= w * prev_position_m[node, 2]
+            rn = rx * nx + ry * ny + rz * nz
+            tx = rx - rn * nx
+            ty = ry - rn * ny
+            tz = rz - rn * nz
+            tl = math.sqrt(tx * tx + ty * ty + tz * tz)
+            limit = body_friction[k] * (-dist)
+            if tl > 0.0:
+                scale = 1.0 if tl <= limit else limit / tl
+                cx -= scale * tx
+                cy -= scale * ty
+                cz -= scale * tz
+            for q in range(4):
+                node = crossing_node[s, q]
+                g = crossing_weight[s, q] * particle_inv_mass[node] / norm
+                particle_position_m[node, 0] += g * cx
+                particle_position_m[node, 1] += g * cy
+                particle_position_m[node, 2] += g * cz
+    return contacts

@@ -1,0 +1,289 @@
+"""Multi-resolution base model: a coarse base model where the cloth is whole (docs/multires.md).
+
+The paper (Metaaphanon et al., §7) leaves "simulating the untorn parts at a coarser resolution" as
+future work. Here the cloth's crossings keep their slots, and the grid is cut into **cells** of
+factor x factor yarn spacings by coarse lines at every factor-th yarn (and the last yarn). A cell is
+either *coarse* or *refined*; cells only refine, never coarsen.
+
+- The crossings on coarse lines' intersections are the **nodes**; they are always simulated.
+- A crossing is **free** (simulated) when it is a node or every cell whose closed rectangle holds it
+  is refined; otherwise it is **slaved**: its position and velocity are the bilinear interpolation
+  of its cell's four nodes (on a cell edge this is the linear interpolation of the edge's two nodes,
+  whichever cell is used, so a slaved crossing between a refined and a coarse cell, a *hanging
+  node*, is continuous with both).
+- A slaved crossing's mass is lumped into its nodes with the interpolation weights (so gravity,
+  total mass and momentum are those of the whole cloth), and it has mass and inverse mass 0 in the
+  State (constraints, contacts and damping leave it alone); the forces on it go to its nodes with
+  the same weights (the transpose of the interpolation).
+- Coarse springs (structural, bend, shear) join the nodes with the cloth's stiffnesses; each spring
+  (fine or coarse) counts with the share of the cells it borders (by its midpoint) that are at its
+  own resolution, so that on a border between a refined and a coarse cell the two models each
+  carry the half strip on their side.
+
+This module is plain numpy: the layout of a model's cells (`coarse_layout`) and the bookkeeping of
+a refinement (`apply_refinement`). The per-step kernels are in fraytool.sim.kernels.multires, the
+stages in fraytool.sim.stages.multires.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from fraytool.kinds import BEND_WARP, BEND_WEFT, SHEAR, STRUCT_WARP, STRUCT_WEFT
+
+
+@dataclass(frozen=True, eq=False)
+class CoarseLayout:
+    """The cells of a model with coarse_factor > 1 and everything static about them."""
+
+    factor: int
+    lines_i: np.ndarray
+    """Warp yarns (columns) on coarse lines, ascending, from 0 to warp_yarns - 1, int64."""
+    lines_j: np.ndarray
+    """Weft yarns (rows) on coarse lines, ascending, from 0 to weft_yarns - 1, int64."""
+    crossing_cells: np.ndarray
+    """Cells whose closed rectangle holds each crossing, -1 padded, shape (crossing_count, 4), int32."""
+    crossing_node: np.ndarray
+    """Nodes each crossing interpolates (bilinear in its cell), shape (crossing_count, 4), int32."""
+    crossing_weight: np.ndarray
+    """Their weights (sum 1; a node weighs 1 on itself), shape (crossing_count, 4), float64."""
+    crossing_is_node: np.ndarray
+    """Shape (crossing_count,), bool."""
+    spring_cells: np.ndarray
+    """Cells whose closed rectangle holds each fine spring's midpoint, -1 padded, shape (spring_count, 4)."""
+    coarse_kind: np.ndarray
+    coarse_a: np.ndarray
+    """Crossing (a node) at end a of each coarse spring, int32."""
+    coarse_b: np.ndarray
+    coarse_rest_length_m: np.ndarray
+    coarse_stiffness_n_per_m: np.ndarray
+    coarse_cells: np.ndarray
+    """Cells each coarse spring borders, -1 padded, shape (coarse_spring_count, 4), int32."""
+
+    @property
+    def cells_x(self) -> int:
+        return int(self.lines_i.shape[0] - 1)
+
+    @property
+    def cells_y(self) -> int:
+        return int(self.lines_j.shape[0] - 1)
+
+    @property
+    def cell_count(self) -> int:
+        return self.cells_x * self.cells_y
+
+    def cell_rect(self) -> np.ndarray:
+        """(i0, i1, j0, j1) of every cell in yarn indices, shape (cell_count, 4), int64."""
+        ci, cj = np.meshgrid(np.arange(self.cells_x), np.arange(self.cells_y))
+        ci, cj = ci.ravel(), cj.ravel()
+        return np.stack([self.lines_i[ci], self.lines_i[ci + 1], self.lines_j[cj], self.lines_j[cj + 1]], axis=1)
+
+
+def coarse_lines(yarns: int, factor: int) -> np.ndarray:
+    """Yarn indices of the coarse lines along one axis: every factor-th yarn, and the last."""
+    lines = np.arange(0, yarns, factor, dtype=np.int64)
+    return lines if lines[-1] == yarns - 1 else np.append(lines, yarns - 1)
+
+
+def _intervals(x: np.ndarray, lines: np.ndarray) -> np.ndarray:
+    """Indices of the intervals [lines[q], lines[q+1]] holding each coordinate x (closed): the lower in
+    column 0, the upper in column 1 where x is on an inner line, else -1; shape (len(x), 2)."""
+    count = lines.shape[0] - 1
+    q = np.searchsorted(lines, x, side="right") - 1  # lines[q] <= x
+    on = lines[np.clip(q, 0, count)] == x
+    lower = np.where(on, q - 1, q)
+    upper = np.where(on, q, -1)
+    out = np.stack([lower, upper], axis=1)
+    out[(out < 0) | (out >= count)] = -1
+    # keep the valid one first
+    swap = out[:, 0] < 0
+    out[swap] = out[swap][:, ::-1]
+    return out
+
+
+def _cells_of(xi: np.ndarray, yj: np.ndarray, lines_i: np.ndarray, lines_j: np.ndarray) -> np.ndarray:
+    """Cells (closed rectangles) holding the grid points (xi, yj), -1 padded, shape (N, 4), int32."""
+    cx = lines_i.shape[0] - 1
+    ii, jj = _intervals(xi, lines_i), _intervals(yj, lines_j)
+    out = np.full((xi.shape[0], 4), -1, np.int64)
+    k = 0
+    for a in range(2):
+        for b in range(2):
+            ok = (ii[:, a] >= 0) & (jj[:, b] >= 0)
+            out[:, k] = np.where(ok, jj[:, b] * cx + ii[:, a], -1)
+            k += 1
+    out.sort(axis=1)
+    out = out[:, ::-1]  # valid (>= 0) first, then the -1 padding
+    return out.astype(np.int32)
+
+
+def coarse_layout(model) -> CoarseLayout:
+    """The cells, interpolation weights and coarse springs of a model (coarse_factor > 1)."""
+    k = int(model.coarse_factor)
+    nx, ny = model.warp_yarns, model.weft_yarns
+    li, lj = coarse_lines(nx, k), coarse_lines(ny, k)
+    n = model.crossing_count
+    c = np.arange(n)
+    i, j = c % nx, c // nx
+    crossing_cells = _cells_of(i.astype(float), j.astype(float), li.astype(float), lj.astype(float))
+
+    # bilinear weights in the lowest cell holding each crossing
+    qi = np.clip(np.searchsorted(li, i, side="right") - 1, 0, li.shape[0] - 2)
+    qj = np.clip(np.searchsorted(lj, j, side="right") - 1, 0, lj.shape[0] - 2)
+    t = (i - li[qi]) / (li[qi + 1] - li[qi])
+    u = (j - lj[qj]) / (lj[qj + 1] - lj[qj])
+    node = np.stack([lj[qj] * nx + li[qi], lj[qj] * nx + li[qi + 1],
+                     lj[qj + 1] * nx + li[qi], lj[qj + 1] * nx + li[qi + 1]], axis=1).astype(np.int32)
+    weight = np.stack([(1 - t) * (1 - u), t * (1 - u), (1 - t) * u, t * u], axis=1)
+    is_node = np.isin(i, li) & np.isin(j, lj)
+
+    a, b = model.spring_crossing_a, model.spring_crossing_b
+    mid_x = 0.5 * ((a % nx) + (b % nx))
+    mid_y = 0.5 * ((a // nx) + (b // nx))
+    spring_cells = _cells_of(mid_x, mid_y, li.astype(float), lj.astype(float))
+
+    ck, ca, cb, cs, ccells = _coarse_springs(model, li, lj)
+    rest = model.crossing_rest_position_m
+    coarse_rest = np.linalg.norm(rest[cb] - rest[ca], axis=1)
+    return CoarseLayout(factor=k, lines_i=li, lines_j=lj, crossing_cells=crossing_cells, crossing_node=node,
+                        crossing_weight=weight, crossing_is_node=is_node, spring_cells=spring_cells,
+                        coarse_kind=ck, coarse_a=ca, coarse_b=cb, coarse_rest_length_m=coarse_rest,
+                        coarse_stiffness_n_per_m=cs, coarse_cells=ccells)
+
+
+def _coarse_springs(model, li: np.ndarray, lj: np.ndarray):
+    """Structural, bend and shear springs between the nodes, with the kinds and stiffnesses of the
+    cloth's own springs of those kinds (a spring grid's membrane stiffness does not depend on its
+    spacing: docs/multires.md "Coarse springs"), and the cells each borders."""
+    nx = model.warp_yarns
+    px, py = li.shape[0], lj.shape[0]
+    cx, cy = px - 1, py - 1
+    stiff = {}
+    for kind in (STRUCT_WEFT, STRUCT_WARP, BEND_WEFT, BEND_WARP, SHEAR):
+        sel = model.spring_kind == kind
+        stiff[kind] = float(model.spring_base_stiffness_n_per_m[sel][0]) if sel.any() else 0.0
+
+    def crossing(p, q):
+        return lj[q] * nx + li[p]
+
+    def cell(p, q):
+        ok = (p >= 0) & (p < cx) & (q >= 0) & (q < cy)
+        return np.where(ok, q * cx + p, -1)
+
+    kinds, ends_a, ends_b, cells = [], [], [], []
+
+    def add(kind, pa, qa, pb, qb, cell_list):
+        if stiff[kind] <= 0.0 or pa.size == 0:
+            return
+        kinds.append(np.full(pa.size, kind, np.int8))
+        ends_a.append(crossing(pa, qa))
+        ends_b.append(crossing(pb, qb))
+        cl = np.full((pa.size, 4), -1, np.int64)
+        for m, cc in enumerate(cell_list):
+            cl[:, m] = cc
+        cl.sort(axis=1)
+        cells.append(cl[:, ::-1])
+
+    p, q = (g.ravel() for g in np.meshgrid(np.arange(px - 1), np.arange(py)))
+    add(STRUCT_WEFT, p, q, p + 1, q, [cell(p, q - 1), cell(p, q)])
+    p, q = (g.ravel() for g in np.meshgrid(np.arange(px), np.arange(py - 1)))
+    add(STRUCT_WARP, p, q, p, q + 1, [cell(p - 1, q), cell(p, q)])
+    p, q = (g.ravel() for g in np.meshgrid(np.arange(px - 2), np.arange(py)))
+    add(BEND_WEFT, p, q, p + 2, q, [cell(p, q - 1), cell(p, q), cell(p + 1, q - 1), cell(p + 1, q)])
+    p, q = (g.ravel() for g in np.meshgrid(np.arange(px), np.arange(py - 2)))
+    add(BEND_WARP, p, q, p, q + 2, [cell(p - 1, q), cell(p, q), cell(p - 1, q + 1), cell(p, q + 1)])
+    p, q = (g.ravel() for g in np.meshgrid(np.arange(px - 1), np.arange(py - 1)))
+    add(SHEAR, p, q, p + 1, q + 1, [cell(p, q)])
+    add(SHEAR, p + 1, q, p, q + 1, [cell(p, q)])
+    if not kinds:
+        return (np.zeros(0, np.int8), np.zeros(0, np.int32), np.zeros(0, np.int32), np.zeros(0),
+                np.zeros((0, 4), np.int32))
+    kind = np.concatenate(kinds)
+    return (kind, np.concatenate(ends_a).astype(np.int32), np.concatenate(ends_b).astype(np.int32),
+            _stiff_of(kind, stiff),
+            np.concatenate(cells).astype(np.int32))
+
+
+def _stiff_of(kind: np.ndarray, stiff: dict) -> np.ndarray:
+    table = np.zeros(8)
+    for k_, v in stiff.items():
+        table[k_] = v
+    return table[kind.astype(np.int64)]
+
+
+def initial_refined(model, layout: CoarseLayout) -> np.ndarray:
+    """Cells refined from the first step: those holding a crossing held by a body (it must be free to
+    follow the body) or a spring cut by a [[cuts]] line (a cut cloth is torn there), and a band of
+    refine_band_cells around them."""
+    refined = np.zeros(layout.cell_count, bool)
+    held = layout.crossing_cells[model.attachment_particle].ravel()
+    refined[held[held >= 0]] = True
+    cut = layout.spring_cells[model.spring_precut].ravel()
+    refined[cut[cut >= 0]] = True
+    return dilate(refined, layout.cells_x, layout.cells_y, int(model.refine_band_cells))
+
+
+def dilate(cells: np.ndarray, cells_x: int, cells_y: int, band: int) -> np.ndarray:
+    """Cells within `band` cells (Chebyshev) of a True cell."""
+    grid = cells.reshape(cells_y, cells_x)
+    out = grid.copy()
+    for dj in range(-band, band + 1):
+        for di in range(-band, band + 1):
+            src = grid[max(0, -dj):cells_y - max(0, dj), max(0, -di):cells_x - max(0, di)]
+            out[max(0, dj):cells_y - max(0, -dj), max(0, di):cells_x - max(0, -di)] |= src
+    return out.ravel()
+
+
+def free_crossings(layout: CoarseLayout, refined: np.ndarray) -> np.ndarray:
+    """Crossings that are simulated: nodes, and those whose every holding cell is refined."""
+    cells = layout.crossing_cells
+    valid = cells >= 0
+    all_refined = np.where(valid, refined[np.where(valid, cells, 0)], True).all(axis=1)
+    return layout.crossing_is_node | all_refined
+
+
+def share(cells: np.ndarray, refined: np.ndarray, at_fine: bool) -> np.ndarray:
+    """The share of each spring's bordering cells (rows of `cells`, -1 padded) that are at the spring's
+    own resolution: refined cells for fine springs (at_fine), coarse cells for coarse springs."""
+    valid = cells >= 0
+    ref = np.where(valid, refined[np.where(valid, cells, 0)], False)
+    mine = ref if at_fine else (valid & ~ref)
+    return mine.sum(axis=1) / np.maximum(valid.sum(axis=1), 1)
+
+
+def lumped_masses(model, layout: CoarseLayout, free: np.ndarray) -> np.ndarray:
+    """Mass of each base slot: a free crossing's own mass plus the shares (interpolation weights) of
+    the slaved crossings that interpolate it; 0 for a slaved crossing. Shape (crossing_count,)."""
+    m = model.crossing_mass_kg
+    lumped = np.where(free, m, 0.0)
+    slaved = np.flatnonzero(~free)
+    for q in range(4):
+        np.add.at(lumped, layout.crossing_node[slaved, q], layout.crossing_weight[slaved, q] * m[slaved])
+    return lumped
+
+
+def set_masses(model, layout: CoarseLayout, refined: np.ndarray, state) -> np.ndarray:
+    """Set the base slots' masses and inverse masses of `state` for the refined cells `refined`;
+    returns the free crossings. Held crossings keep inverse mass 0."""
+    free = free_crossings(layout, refined)
+    n = model.crossing_count
+    mass = lumped_masses(model, layout, free)
+    # a split crossing (only ever free) keeps the masses of its couple as tearing set them
+    base = ~state.crossing_yarn_level
+    state.particle_mass_kg[:n][base] = mass[base]
+    inv = np.where(free & (mass > 0.0), 1.0 / np.where(mass > 0.0, mass, 1.0), 0.0)
+    held = np.zeros(n, bool)
+    held[model.attachment_particle] = True
+    inv[held] = 0.0
+    state.particle_inv_mass[:n][base] = inv[base]
+    return free
+
+
+def interpolate_slaved(layout: CoarseLayout, free: np.ndarray, values: np.ndarray) -> None:
+    """values[slaved] = the weighted sum of their nodes' values (positions or velocities), in place."""
+    slaved = np.flatnonzero(~free)
+    acc = np.zeros((slaved.size, 3))
+    for q in range(4):
+        acc += layout.crossing_weight[slaved, q, None] * values[layout.crossing_node[slaved, q]]
+    values[slaved] = acc

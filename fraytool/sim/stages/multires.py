@@ -1,0 +1,207 @@
+"""Stages of the multi-resolution base model ([cloth.multires] factor > 1; docs/multires.md).
+
+- MultiresForces replaces SpringForces: the springs at work (fine springs bordering a refined cell,
+  coarse springs bordering a coarse cell, each with its share), then the forces on slaved crossings
+  handed to their nodes.
+- SyncSlaved (after the position update, and again after the constraints and collisions): slaved
+  crossings are put back on their cells' bilinear interpolation.
+- Refinement (before tearing): coarse cells near a strain that could tear, or near a moving body,
+  refine; the crossings that become free take their mass back from their nodes (total mass and
+  momentum kept exactly: the crossing moves with the interpolated velocity its mass had while lumped).
+
+One MultiresRuntime, shared by these stages, keeps the lists derived from State.coarse_cell_refined;
+it rebuilds them whenever it sees another State or another refined count (cells only refine, so
+within a run the count names the set), which is what a resumed run or a guard's replay needs.
+"""
+from __future__ import annotations
+
+from typing import Optional
+
+import numpy as np
+
+from fraytool.kinds import MOTION_STATIC, STRUCT_WARP, STRUCT_WEFT
+from fraytool.sim import multires
+from fraytool.sim.kernels.multires import (
+    add_listed_spring_forces,
+    cells_to_refine,
+    collide_slaved,
+    gather_slaved_forces,
+    sync_slaved,
+)
+from fraytool.sim.kernels.rigid_contact import bounding_radius
+from fraytool.sim.model import Model
+from fraytool.sim.stages.base import StepBuffers
+from fraytool.sim.state import State
+
+
+class MultiresRuntime:
+    """The layout of a model's cells and the work lists of its current refinement."""
+
+    def __init__(self, model: Model):
+        self.model = model
+        self.layout = multires.coarse_layout(model)
+        lay = self.layout
+        self.strain_stage = None
+        """The StrainLimiting stage, told which structural springs are at work after each rebuild."""
+        structural = (model.spring_kind == STRUCT_WEFT) | (model.spring_kind == STRUCT_WARP)
+        self._structural = structural
+        self._coarse_structural = (lay.coarse_kind == STRUCT_WEFT) | (lay.coarse_kind == STRUCT_WARP)
+        self.coarse_alive = np.ones(lay.coarse_kind.shape[0], bool)
+        rect = lay.cell_rect()
+        nx = model.warp_yarns
+        self.cell_nodes = np.stack([rect[:, 2] * nx + rect[:, 0], rect[:, 2] * nx + rect[:, 1],
+                                    rect[:, 3] * nx + rect[:, 0], rect[:, 3] * nx + rect[:, 1]], axis=1)
+        self._hot = np.zeros(lay.cell_count, bool)
+        self._new = np.zeros(lay.cell_count, bool)
+        moving = (model.body_motion != MOTION_STATIC) & model.body_collide
+        self.moving_bodies = np.flatnonzero(moving) if model.refine_near_bodies else np.zeros(0, np.int64)
+        cell_m = float(np.max(np.linalg.norm(model.crossing_rest_position_m[self.cell_nodes[:, 3]]
+                                             - model.crossing_rest_position_m[self.cell_nodes[:, 0]], axis=1)))
+        self.body_reach_m = np.array([bounding_radius(model.body_shape[k], model.body_radius_m[k],
+                                                      model.body_half_extents_m[k], 0.5 * model.thickness_m)
+                                      + (model.refine_band_cells + 1) * cell_m for k in self.moving_bodies])
+        self._owner: Optional[State] = None
+        self._count = -1
+        self.refinements = 0
+        """Refinements (steps that refined at least one cell) since construction."""
+
+    def ensure(self, state: State) -> None:
+        """Rebuild the work lists if `state` is not the one they were built for."""
+        count = int(np.count_nonzero(state.coarse_cell_refined))
+        if state is not self._owner or count != self._count:
+            self._rebuild(state)
+
+    def _rebuild(self, state: State) -> None:
+        lay, refined = self.layout, state.coarse_cell_refined
+        self._owner, self._count = state, int(np.count_nonzero(refined))
+        free = multires.free_crossings(lay, refined)
+        self.free = free
+        self.slaved = np.flatnonzero(~free).astype(np.int32)
+        fine_share = multires.share(lay.spring_cells, refined, at_fine=True)
+        self.fine_listed = np.flatnonzero(fine_share > 0.0).astype(np.int32)
+        self.fine_share = fine_share[self.fine_listed]
+        coarse_share = multires.share(lay.coarse_cells, refined, at_fine=False)
+        self.coarse_listed = np.flatnonzero(coarse_share > 0.0).astype(np.int32)
+        self.coarse_share = coarse_share[self.coarse_listed]
+        working = np.zeros(self.model.spring_count, bool)
+        working[self.fine_listed] = True
+        working &= self._structural
+        self.fine_structural = np.flatnonzero(working).astype(np.int32)
+        self.coarse_structural = self.coarse_listed[self._coarse_structural[self.coarse_listed]]
+        if self.strain_stage is not None:
+            self.strain_stage.restrict(working)
+
+    def refine(self, state: State, new: np.ndarray) -> None:
+        """Refine the cells `new`: free crossings take their own mass back (set_masses), at the
+        interpolated position and velocity they already have."""
+        state.coarse_cell_refined |= new
+        multires.set_masses(self.model, self.layout, state.coarse_cell_refined, state)
+        self.refinements += 1
+        self._rebuild(state)
+
+
+class MultiresForces:
+    """Step 1 with the multi-resolution model: the springs at work, then slaved forces to the nodes."""
+
+    name = "forces"
+    kernel = "add_listed_spring_forces, gather_slaved_forces"
+
+    def __init__(self, model: Model, runtime: MultiresRuntime):
+        self.model = model
+        self.runtime = runtime
+
+    def run(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
+        rt, m, lay = self.runtime, self.model, self.runtime.layout
+        rt.ensure(state)
+        buffers.force_n[:] = 0.0
+        add_listed_spring_forces(rt.fine_listed, rt.fine_share, m.spring_kind, state.spring_rest_length_m,
+                                 state.particle_position_m, state.spring_particle_a, state.spring_particle_b,
+                                 state.spring_alive, state.spring_stiffness_n_per_m, buffers.force_n)
+        add_listed_spring_forces(rt.coarse_listed, rt.coarse_share, lay.coarse_kind, lay.coarse_rest_length_m,
+                                 state.particle_position_m, lay.coarse_a, lay.coarse_b, rt.coarse_alive,
+                                 lay.coarse_stiffness_n_per_m, buffers.force_n)
+        gather_slaved_forces(rt.slaved, lay.crossing_node, lay.crossing_weight, buffers.force_n)
+
+    def summary(self, state: State) -> dict:
+        return {}
+
+
+class SyncSlaved:
+    """Slaved crossings back on their cells' interpolation (after the position update)."""
+
+    name = "integration"
+    kernel = "sync_slaved"
+
+    def __init__(self, runtime: MultiresRuntime):
+        self.runtime = runtime
+
+    def run(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
+        rt = self.runtime
+        rt.ensure(state)
+        sync_slaved(rt.slaved, rt.layout.crossing_node, rt.layout.crossing_weight, state.particle_position_m,
+                    state.particle_velocity_m_s)
+
+    def summary(self, state: State) -> dict:
+        return {}
+
+
+class SlavedContact:
+    """Step 6, after rigid contact: slaved crossings kept out of the bodies through their nodes
+    (fraytool.sim.kernels.multires.collide_slaved, with the body's friction), so that a coarse cell
+    lying on a body does not sag into it between its nodes. No reaction on dynamic bodies (the nodes'
+    own contacts give that)."""
+
+    name = "collisions"
+    kernel = "collide_slaved"
+
+    def __init__(self, model: Model, runtime: MultiresRuntime):
+        self.model = model
+        self.runtime = runtime
+        self._point = np.zeros(3)
+
+    def run(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
+        rt, m, lay = self.runtime, self.model, self.runtime.layout
+        rt.ensure(state)
+        collide_slaved(rt.slaved, lay.crossing_node, lay.crossing_weight, m.body_shape, m.body_rotation,
+                       m.body_radius_m, m.body_half_extents_m, m.body_normal, m.body_friction, m.body_collide,
+                       0.5 * m.thickness_m, dt_s, state.body_position_m, state.body_velocity_m_s,
+                       state.particle_inv_mass, buffers.prev_position_m, state.particle_position_m, self._point)
+
+    def summary(self, state: State) -> dict:
+        return {}
+
+
+class Refinement:
+    """Before tearing: slaved crossings back on their interpolation (the constraints and collisions
+    moved the nodes), then coarse cells refined ahead of any strain that could tear them."""
+
+    name = "refinement"
+    kernel = "cells_to_refine"
+
+    def __init__(self, model: Model, runtime: MultiresRuntime):
+        self.model = model
+        self.runtime = runtime
+        self._centre = np.zeros((runtime.moving_bodies.shape[0], 3))
+
+    def run(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
+        rt, m, lay = self.runtime, self.model, self.runtime.layout
+        rt.ensure(state)
+        sync_slaved(rt.slaved, lay.crossing_node, lay.crossing_weight, state.particle_position_m,
+                    state.particle_velocity_m_s)
+        if rt.slaved.shape[0] == 0:
+            return  # everything refined
+        self._centre[:] = state.body_position_m[rt.moving_bodies]
+        count = cells_to_refine(rt.fine_structural, lay.spring_cells, state.spring_rest_length_m,
+                                state.spring_particle_a, state.spring_particle_b, state.spring_alive,
+                                rt.coarse_structural, lay.coarse_cells, lay.coarse_a, lay.coarse_b,
+                                lay.coarse_rest_length_m, rt.coarse_alive, state.particle_position_m,
+                                m.refine_strain, m.refine_band_cells, lay.cells_x, lay.cells_y, self._centre,
+                                rt.body_reach_m, rt.cell_nodes, state.coarse_cell_refined, rt._hot, rt._new)
+        if count:
+            rt.refine(state, rt._new)
+
+    def summary(self, state: State) -> dict:
+        refined = state.coarse_cell_refined
+        free = multires.free_crossings(self.runtime.layout, refined)
+        return {"coarse_factor": int(self.model.coarse_factor), "cells": int(refined.shape[0]),
+                "refined_cells": int(np.count_nonzero(refined)), "free_crossings": int(np.count_nonzero(free))}

@@ -1,0 +1,212 @@
+"""The multi-resolution base model ([cloth.multires], fraytool.sim.multires, docs/multires.md).
+
+Checked against things the code does not compute itself: an affine deformation (which bilinear
+interpolation must reproduce exactly), the fine model's own mass and centre of mass, momentum before
+and after a refinement, the yarn-resolution model run side by side (a fully refined coarse model must
+be it, bit for bit), and a tearing run (no split or cut may touch a slaved crossing)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fraytool.errors import SceneError
+from fraytool.kinds import STRUCT_WARP, STRUCT_WEFT
+from fraytool.scene import load_scene
+from fraytool.scene.load import parse_scene
+from fraytool.sim import multires
+from fraytool.sim.builder import ModelBuilder, build_model
+from fraytool.sim.solver import SolverExplicitPBD
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def _cloth(nx=13, ny=11, factor=4, tearing=False, band=1):
+    b = ModelBuilder(seed=3)
+    b.add_cloth(warp_yarns=nx, weft_yarns=ny, spacing_m=0.004, thickness_m=0.0006, mass_per_crossing_kg=1e-5,
+                structural_n_per_m=20.0, bend_n_per_m=0.5, shear_n_per_m=2.0)
+    if tearing:
+        b.set_tearing()
+    b.set_multires(factor=factor, band_cells=band)
+    return b.finalize()
+
+
+def test_lines_cover_the_grid_with_the_last_yarn():
+    assert multires.coarse_lines(13, 4).tolist() == [0, 4, 8, 12]
+    assert multires.coarse_lines(11, 4).tolist() == [0, 4, 8, 10]
+    assert multires.coarse_lines(2, 8).tolist() == [0, 1]
+
+
+def test_interpolation_reproduces_an_affine_deformation_exactly():
+    model = _cloth()
+    lay = multires.coarse_layout(model)
+    rng = np.random.default_rng(0)
+    a, t = rng.normal(size=(3, 3)), rng.normal(size=3)
+    x = model.crossing_rest_position_m @ a.T + t  # any affine map of the flat grid
+    free = lay.crossing_is_node.copy()
+    y = x.copy()
+    y[~free] = 1e9  # forgotten: interpolation must bring them back
+    multires.interpolate_slaved(lay, free, y)
+    assert np.allclose(y, x, atol=1e-12)
+    assert np.allclose(lay.crossing_weight.sum(axis=1), 1.0)
+
+
+def test_hanging_nodes_lie_on_their_edge():
+    """A crossing on a coarse line between two nodes interpolates those two nodes only (so it agrees
+    with both cells beside it: no seam at a refined border)."""
+    model = _cloth()
+    lay = multires.coarse_layout(model)
+    nx = model.warp_yarns
+    for c in range(model.crossing_count):
+        i, j = c % nx, c // nx
+        used = lay.crossing_node[c][lay.crossing_weight[c] != 0.0]
+        ui, uj = used % nx, used // nx
+        if i in lay.lines_i:
+            assert (ui == i).all()
+        if j in lay.lines_j:
+            assert (uj == j).all()
+
+
+def test_lumped_masses_keep_total_mass_and_centre_of_mass():
+    model = _cloth()
+    state = model.state()
+    n = model.crossing_count
+    mass = state.particle_mass_kg[:n]
+    assert mass.sum() == pytest.approx(model.crossing_mass_kg.sum(), rel=1e-13)
+    x = model.crossing_rest_position_m
+    centre_fine = (model.crossing_mass_kg[:, None] * x).sum(0) / model.crossing_mass_kg.sum()
+    centre_lumped = (mass[:, None] * x).sum(0) / mass.sum()
+    assert np.allclose(centre_lumped, centre_fine, atol=1e-15)
+    lay = multires.coarse_layout(model)
+    assert (mass[~lay.crossing_is_node] == 0).all() and (state.particle_inv_mass[:n][~lay.crossing_is_node] == 0).all()
+
+
+def test_refinement_keeps_mass_and_momentum():
+    from fraytool.sim.stages.multires import MultiresRuntime
+
+    model = _cloth()
+    state = model.state()
+    rt = MultiresRuntime(model)
+    rt.ensure(state)
+    rng = np.random.default_rng(1)
+    lay = rt.layout
+    state.particle_velocity_m_s[:] = rng.normal(size=state.particle_velocity_m_s.shape)
+    state.particle_position_m[: model.crossing_count] += 1e-3 * rng.normal(size=(model.crossing_count, 3))
+    free = multires.free_crossings(lay, state.coarse_cell_refined)
+    multires.interpolate_slaved(lay, free, state.particle_velocity_m_s)
+    multires.interpolate_slaved(lay, free, state.particle_position_m)
+
+    def moments():
+        m = state.particle_mass_kg
+        return m.sum(), (m[:, None] * state.particle_velocity_m_s).sum(0)
+
+    mass0, p0 = moments()
+    new = np.zeros(lay.cell_count, bool)
+    new[[0, 4]] = True
+    rt.refine(state, new)
+    mass1, p1 = moments()
+    assert mass1 == pytest.approx(mass0, rel=1e-13)
+    assert np.allclose(p1, p0, rtol=1e-12, atol=1e-18)
+    now_free = multires.free_crossings(lay, state.coarse_cell_refined)
+    assert now_free.sum() > free.sum()
+    born = now_free & ~free
+    assert (state.particle_mass_kg[: model.crossing_count][born] == model.crossing_mass_kg[born]).all()
+
+
+def test_fully_refined_is_the_yarn_resolution_model_bit_for_bit():
+    """Every cell refined: no slaved crossing, no coarse spring at work; the steps must be those of
+    factor 1 exactly (same springs in the same order, same strain-limit lists)."""
+    spec = load_scene(ROOT / "scenes" / "drape.toml")
+    fine = build_model(spec)
+    coarse = build_model(load_scene(ROOT / "scenes" / "drape.toml", [("cloth.multires.factor", 4)]))
+    a, b = fine.state(), coarse.state()
+    b.coarse_cell_refined[:] = True
+    multires.set_masses(coarse, multires.coarse_layout(coarse), b.coarse_cell_refined, b)
+    assert np.array_equal(a.particle_mass_kg, b.particle_mass_kg)
+    sa, sb = SolverExplicitPBD(fine), SolverExplicitPBD(coarse)
+    for _ in range(150):
+        sa.step(a, spec.time.step_s)
+        sb.step(b, spec.time.step_s)
+    assert np.array_equal(a.particle_position_m, b.particle_position_m)
+    assert np.abs(a.particle_position_m - fine.state().particle_position_m).max() > 1e-3  # it moved
+
+
+def test_coarse_drape_rests_on_the_ball_near_the_fine_one():
+    spec = load_scene(ROOT / "scenes" / "drape.toml", [("time.frames", 12)])
+    out = {}
+    for k in (1, 4):
+        model = build_model(load_scene(ROOT / "scenes" / "drape.toml", [("cloth.multires.factor", k)]))
+        state, solver = model.state(), SolverExplicitPBD(model)
+        for _ in range(12 * spec.time.steps_per_frame):
+            solver.step(state, spec.time.step_s)
+        out[k] = state.particle_position_m[: model.crossing_count].copy()
+        centre = model.body_initial_position_m[0]
+        r = np.linalg.norm(out[k] - centre, axis=1)
+        # every crossing, slaved ones too, outside the ball (margin: half the thickness)
+        assert r.min() >= model.body_radius_m[0] + 0.49 * model.thickness_m
+    gap = np.linalg.norm(out[4] - out[1], axis=1)
+    assert gap.mean() < 0.01  # within 2 yarn spacings on average of the fine drape
+
+
+def test_a_tear_never_touches_a_slaved_crossing():
+    """fig6 (a thrown ball tears a plain weave) at factor 4: the cells refine ahead of the tear, so
+    every split crossing and every cut spring is in refined cells, and the cloth still tears."""
+    spec = load_scene(ROOT / "scenes" / "fig6_thrown_ball_plain.toml", [("cloth.multires.factor", 4)])
+    model = build_model(spec)
+    state, solver = model.state(), SolverExplicitPBD(model)
+    lay = multires.coarse_layout(model)
+    frames = spec.time.frames
+    for _ in range(frames * spec.time.steps_per_frame):
+        solver.step(state, spec.time.step_s)
+        free = multires.free_crossings(lay, state.coarse_cell_refined)
+        assert free[state.crossing_yarn_level].all()
+    refined = state.coarse_cell_refined
+    assert 0 < refined.sum() < refined.size  # refined where it tore, coarse elsewhere
+    broken = np.flatnonzero(state.spring_broken)
+    assert broken.size > 0
+    assert (multires.share(lay.spring_cells[broken], refined, at_fine=True) == 1.0).all()
+    n = model.crossing_count
+    assert state.particle_mass_kg.sum() == pytest.approx(model.crossing_mass_kg.sum(), rel=1e-12)
+    assert np.isfinite(state.particle_position_m[:n]).all()
+
+
+def test_resume_from_a_checkpoint_matches_an_unbroken_run():
+    from fraytool.sim.state import State
+
+    spec = load_scene(ROOT / "scenes" / "fig6_thrown_ball_plain.toml", [("cloth.multires.factor", 4)])
+    model = build_model(spec)
+    state, solver = model.state(), SolverExplicitPBD(model)
+    steps = 6 * spec.time.steps_per_frame
+    for _ in range(steps):
+        solver.step(state, spec.time.step_s)
+    saved = State.from_arrays(state.arrays())
+    for _ in range(steps):
+        solver.step(state, spec.time.step_s)
+    resumed, solver2 = saved, SolverExplicitPBD(model)
+    for _ in range(steps):
+        solver2.step(resumed, spec.time.step_s)
+    for name, value in state.arrays().items():
+        assert np.array_equal(value, resumed.arrays()[name]), name
+
+
+def test_factor_must_be_a_power_of_two_up_to_8():
+    text = (ROOT / "scenes" / "drape.toml").read_text() + "\n"
+    with pytest.raises(SceneError, match=r"\[cloth.multires\] factor = 3: must be 1, 2, 4 or 8"):
+        parse_scene(text.replace("[cloth.springs]", "[cloth.multires]\nfactor = 3\n\n[cloth.springs]"), "x.toml")
+
+
+def test_structural_springs_of_refined_cells_are_strain_limited_only():
+    model = _cloth(tearing=True)
+    solver = SolverExplicitPBD(model)
+    state = model.state()
+    solver.step(state, 1e-4)
+    strain = solver._strain
+    assert strain.limited_springs.size == 0  # nothing refined, nothing held: the coarse model only
+    state.coarse_cell_refined[0] = True
+    solver.step(state, 1e-4)
+    lay = multires.coarse_layout(model)
+    limited = strain.limited_springs
+    kinds = model.spring_kind[limited]
+    assert limited.size > 0 and np.isin(kinds, (STRUCT_WEFT, STRUCT_WARP)).all()
+    assert (multires.share(lay.spring_cells[limited], state.coarse_cell_refined, at_fine=True) > 0).all()
