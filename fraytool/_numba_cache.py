@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+import sys
 from pathlib import Path
 
 _STAMP = "numba_sources.sha256"
@@ -104,3 +105,19 @@ def invalidate_stale_numba_cache(package_dir: Path) -> None:
         stamp.write_text(want)
     except OSError:
         pass
+
+
+def kernels_compiled() -> int:
+    """How many times numba compiled a fraytool kernel in this process so far (cache misses of the
+    loaded modules' dispatchers; a load from numba's on-disk cache is not counted)."""
+    from numba.core.registry import CPUDispatcher
+
+    seen, count = set(), 0
+    for name, module in list(sys.modules.items()):
+        if not name.startswith("fraytool.") or module is None:
+            continue
+        for obj in vars(module).values():
+            if isinstance(obj, CPUDispatcher) and id(obj) not in seen:
+                seen.add(id(obj))
+                count += sum(obj.stats.cache_misses.values())
+    return count

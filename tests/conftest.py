@@ -96,6 +96,30 @@ class PosedCloth:
         rec.particle_position_m[self.C:] = x
         return rec
 
+    def multires_border(self, frame: int = 3):
+        """A smooth bump (the cloth lifted by a Gaussian, the ball put away below the ground) as the
+        multi-resolution model ([cloth.multires] factor = 4) shows it with only the centre cell
+        (crossings 4-8 each way) refined: crossings there keep the bump; every other crossing lies on
+        the bilinear interpolation of its cell's four nodes (fraytool.sim.multires), so the border
+        between the refined cell and its coarse neighbours is in the picture."""
+        from fraytool.sim import multires
+        from fraytool.sim.builder import build_model
+
+        cloth = replace(self.spec.cloth, multires=replace(self.spec.cloth.multires, factor=4))
+        layout = multires.coarse_layout(build_model(replace(self.spec, cloth=cloth)))
+        refined = np.zeros(layout.cell_count, bool)
+        refined[layout.cell_count // 2] = True  # the centre cell of 3 x 3
+        rec = self.copy(frame)
+        x = rec.particle_position_m[: self.C].astype(np.float64)
+        centre = x.mean(axis=0)
+        r2 = (x[:, 0] - centre[0]) ** 2 + (x[:, 2] - centre[2]) ** 2
+        x[:, 1] += 0.04 * np.exp(-r2 / (2 * 0.03 ** 2))
+        rec.body_position_m[0] = (0.0, -1.0, 0.0)  # the ball out of sight
+        multires.interpolate_slaved(layout, multires.free_crossings(layout, refined), x)
+        rec.particle_position_m[: self.C] = x
+        rec.particle_position_m[self.C:] = x
+        return rec
+
     def torn(self, frame: int = 2):
         """The draped pose with a tear: weft springs cut across a column, the crossings beside the
         cut at yarn level with their weft and warp masses apart and the cut ends pulled open."""

@@ -210,3 +210,41 @@ def test_structural_springs_of_refined_cells_are_strain_limited_only():
     kinds = model.spring_kind[limited]
     assert limited.size > 0 and np.isin(kinds, (STRUCT_WEFT, STRUCT_WARP)).all()
     assert (multires.share(lay.spring_cells[limited], state.coarse_cell_refined, at_fine=True) > 0).all()
+
+
+def test_study_multires_writes_the_comparison(tmp_path, capsys):
+    """`fraytool study --multires`: one row per factor; k = 1 is the reference (its own distance 0, its
+    tear figures those of a plain run of the scene); the others' relative differences follow from the
+    rows; the report and plot are written."""
+    import csv
+
+    from fraytool.commands.main import main
+    from fraytool.sim.simulation import Simulation
+
+    scene = ROOT / "scenes" / "fig6_thrown_ball_plain.toml"
+    assert main(["study", str(scene), "--multires", "--factors", "2,1", "--duration", "0.125", "-o",
+                 str(tmp_path)]) == 0
+    folder = tmp_path / "study" / "multires"
+    rows = list(csv.DictReader(open(folder / "runs.csv")))
+    assert [r["factor"] for r in rows] == ["1", "2"]
+    ref, k2 = rows
+    assert float(ref["shape_mean_m"]) == 0.0 and float(ref["speedup"]) == 1.0
+    sim = Simulation(load_scene(scene))
+    for _ in range(30 * sim.steps_per_frame):
+        sim.step()
+    assert int(ref["broken_springs"]) == int(sim.state.spring_broken.sum())
+    assert int(ref["yarn_level_crossings"]) == int(sim.state.crossing_yarn_level.sum())
+    b1, b2 = int(ref["broken_springs"]), int(k2["broken_springs"])
+    assert float(k2["broken_springs_rel"]) == pytest.approx((b2 - b1) / b1, abs=1e-6)
+    assert 0.0 < float(k2["refined_fraction"]) <= 1.0
+    assert "| 2 |" in (folder / "report.md").read_text()
+
+
+def test_study_factors_flag_is_checked(tmp_path, capsys):
+    from fraytool.commands.main import main
+
+    scene = str(ROOT / "scenes" / "drape.toml")
+    assert main(["study", scene, "--multires", "--factors", "1,3", "-o", str(tmp_path)]) == 2
+    assert "--factors '1,3': '3' is not a factor; each is 1, 2, 4 or 8" in capsys.readouterr().err
+    assert main(["study", scene, "--factors", "1,2", "-o", str(tmp_path)]) == 2
+    assert "--factors goes with --multires" in capsys.readouterr().err

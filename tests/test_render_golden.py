@@ -4,7 +4,7 @@ Scene: tests/scenes/golden_small.toml (12 x 12 plain weave over a ball, 160 x 12
 analytically by tests/conftest.py at three frames: flat (0), draped (1), draped and torn with
 yarn-level crossings and fading cut ends (2), plus frame 2 with the wireframe beside it, and frame 2
 lit with key-light shadows, the ground plane and a fill light (LIT), and that frame with the yarns
-drawn as ribbons. Regenerate one golden with
+drawn as ribbons; and the drape as the multi-resolution model draws it with one cell refined (f3). Regenerate one golden with
 `pytest tests/test_render_golden.py -k NAME --update-goldens` (all with no -k) and review the image.
 
 Tolerance (fraytool.render.imagecompare): RMS over 8-bit values <= 1.0, and at most 0.2 % of pixels
@@ -39,6 +39,7 @@ CASES = {
     "golden_small_f2_torn_beside": ("torn", "beside"),
     "golden_small_f2_torn_lit": ("torn", "off"),
     "golden_small_f2_torn_lit_ribbon": ("torn", "off"),
+    "golden_small_f3_multires_border": ("multires_border", "off"),
 }
 LIT = {"golden_small_f2_torn_lit": dict(shadows=True, shadow_map_size=1024, fill_intensity=0.3,
                                         light_direction=(0.6, 1.0, 0.2)),
@@ -46,7 +47,9 @@ LIT = {"golden_small_f2_torn_lit": dict(shadows=True, shadow_map_size=1024, fill
                                                light_direction=(0.6, 1.0, 0.2), yarn_shape="ribbon")}
 """Render keys a case turns on over the scene's (which already has the ground plane): the torn frame
 with key-light shadows, the ground and a fill light; and the same with the yarns drawn as ribbons
-(fraytool.render.ribbon)."""
+(fraytool.render.ribbon). The multi-resolution border (f3): the draped pose with only the centre cell
+of a factor-4 coarse model refined, the rest on their cells' bilinear interpolation
+(docs/multires.md): the yarns must run on across the border without a seam."""
 
 
 def render_case(ctx, pc, name: str, render=None, camera=None) -> np.ndarray:

@@ -16,6 +16,7 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
+from fraytool._numba_cache import kernels_compiled
 from fraytool.io.frame_store import FrameStore
 from fraytool.resident_memory import peak_rss_bytes, release_freed_memory, reset_peak, rss_bytes
 from fraytool.scene import load_scene, scene_hash
@@ -34,22 +35,6 @@ def empty_run(spec, out_dir: Path) -> float:
     record = sim.advance_frame()
     store.write_frame(record, sim.checkpoint_arrays())
     return time.perf_counter() - t0
-
-
-def kernels_compiled() -> int:
-    """How many times numba compiled a fraytool kernel in this process so far (cache misses of the
-    loaded modules' dispatchers; a load from numba's on-disk cache is not counted)."""
-    from numba.core.registry import CPUDispatcher
-
-    seen, count = set(), 0
-    for name, module in list(sys.modules.items()):
-        if not name.startswith("fraytool.") or module is None:
-            continue
-        for obj in vars(module).values():
-            if isinstance(obj, CPUDispatcher) and id(obj) not in seen:
-                seen.add(id(obj))
-                count += sum(obj.stats.cache_misses.values())
-    return count
 
 
 def _threads() -> int:

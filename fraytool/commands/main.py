@@ -209,6 +209,11 @@ def build_parser() -> argparse.ArgumentParser:
     _threads_flag(st)
     st.add_argument("--seeds", metavar="LIST", help="tearing scene: seeds every step runs at, compared by their means, "
                     "e.g. 1-4 or 1,3,7 (default: 4 seeds from the scene's; one with --quick)")
+    st.add_argument("--multires", action="store_true", help="compare [cloth.multires] factors k against k = 1: "
+                    "untorn shape, tear figures and run time (docs/multires.md)")
+    st.add_argument("--factors", metavar="LIST", help="with --multires: the factors, e.g. 1,2,4 (default; 1 is always "
+                    "run, as the reference)")
+    _set_flag(st)
     return p
 
 

@@ -92,27 +92,65 @@ def write_accuracy_study(spec: SceneSpec, folder: Path, quick: bool = False, str
     return result, written
 
 
+def _write_files(folder: Path, result, table: tuple, figure: tuple, text: tuple) -> list[Path]:
+    """Write a study's table, its plot (when matplotlib is there) and its report into `folder`:
+    table = (file name, writer(result, path)); figure = (file name, plotter(result, path) -> path or None,
+    what the plot shows); text = (file name, report(result, note) -> str)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    written = [folder / table[0]]
+    table[1](result, written[0])
+    drawn = figure[1](result, folder / figure[0])
+    if drawn is not None:
+        written.append(drawn)
+        note = figure[2]
+    else:
+        note = f"No plot: matplotlib is not installed; {plot.INSTALL_HINT}."
+    written.append(folder / text[0])
+    report.write_text(written[-1], text[1](result, note))
+    return written
+
+
 def write_stability_sweep(spec: SceneSpec, folder: Path, quick: bool = False, stream: Optional[TextIO] = sys.stderr):
     """Run the stability sweep and write its files into `folder`; returns (SweepResult, written paths)."""
     from fraytool.study.stability_sweep import run_stability_sweep
 
     result = run_stability_sweep(spec, quick=quick, stream=stream)
-    folder.mkdir(parents=True, exist_ok=True)
-    written = [folder / "stability.csv"]
-    report.write_sweep_csv(result, written[0])
-    figure = plot.plot_stability(result, folder / "stability.png")
-    if figure is not None:
-        written.append(figure)
-        note = "`stability.png`: each case at its step / bound and largest strain, coloured by outcome."
-    else:
-        note = f"No plot: matplotlib is not installed; {plot.INSTALL_HINT}."
-    written.append(folder / "stability.md")
-    report.write_text(written[-1], report.sweep_report(result, note))
-    return result, written
+    return result, _write_files(folder, result, ("stability.csv", report.write_sweep_csv),
+                                ("stability.png", plot.plot_stability, "`stability.png`: each case at its step / "
+                                 "bound and largest strain, coloured by outcome."),
+                                ("stability.md", report.sweep_report))
+
+
+def parse_factors(text: str) -> tuple[int, ...]:
+    """--factors: a comma list of 1, 2, 4 and 8."""
+    out = []
+    for part in text.split(","):
+        part = part.strip()
+        if part not in ("1", "2", "4", "8"):
+            raise InputError(f"--factors {text!r}: {part!r} is not a factor; each is 1, 2, 4 or 8 (as "
+                             "[cloth.multires] factor), e.g. --factors 1,2,4")
+        if int(part) in out:
+            raise InputError(f"--factors {text!r}: {part} is listed twice")
+        out.append(int(part))
+    return tuple(out)
+
+
+def write_multires_study(spec: SceneSpec, folder: Path, factors: tuple[int, ...], frames: Optional[int],
+                         stream: Optional[TextIO] = sys.stderr):
+    """Run the multi-resolution study and write DIR/study/multires/: runs.csv, report.md, multires.png."""
+    from fraytool.study import multires_study as ms
+
+    result = ms.run_multires_study(spec, factors, frames, stream)
+    return result, _write_files(folder, result, ("runs.csv", ms.write_runs_csv),
+                                ("multires.png", ms.plot, "`multires.png`: the untorn shape's distance from k = 1 "
+                                 "(left) and each tear figure's difference from k = 1 (right), against wall time."),
+                                ("report.md", ms.report))
 
 
 def study_command(args) -> int:
-    spec = load_scene(args.scene)
+    from fraytool.scene.overrides import parse_assignment
+
+    spec = load_scene(args.scene, [parse_assignment(a) for a in getattr(args, "sets", [])])
     from fraytool.commands.bench import _refuse_what_will_not_fit
 
     _refuse_what_will_not_fit(spec)
@@ -125,6 +163,21 @@ def study_command(args) -> int:
 
 def _study(spec: SceneSpec, folder: Path, args) -> int:
     err = sys.stderr
+    if getattr(args, "multires", False):
+        if args.stability or getattr(args, "seeds", None) or getattr(args, "trajectories", False):
+            raise InputError("--multires runs its own comparison: not with --stability, --seeds or --trajectories")
+        factors = parse_factors(args.factors) if getattr(args, "factors", None) else (1, 2, 4)
+        duration = getattr(args, "duration", None)
+        frames = None if duration is None else max(1, round(duration / (spec.time.steps_per_frame * spec.time.step_s)))
+        result, written = write_multires_study(spec, folder / "multires", factors, frames, err)
+        parts = [f"k={r.factor}: {r.wall_s:.1f} s ({r.speedup:.1f}x), shape mean "
+                 f"{r.shape_mean_m / spec.cloth.spacing_m:.2f} spacings" for r in result.runs]
+        print(f"study --multires of {spec.name}: " + "; ".join(parts) + f"; wrote {folder / 'multires'}", file=err)
+        for path in written:
+            print(f"  {path}", file=err)
+        return 0
+    if getattr(args, "factors", None):
+        raise InputError("--factors goes with --multires")
     duration = getattr(args, "duration", None)
     trajectories = getattr(args, "trajectories", False)
     seeds_text = getattr(args, "seeds", None)

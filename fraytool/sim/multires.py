@@ -50,6 +50,8 @@ class CoarseLayout:
     """Their weights (sum 1; a node weighs 1 on itself), shape (crossing_count, 4), float64."""
     crossing_is_node: np.ndarray
     """Shape (crossing_count,), bool."""
+    crossing_weight_cell: np.ndarray
+    """The cell whose nodes crossing_node names, shape (crossing_count,), int32."""
     spring_cells: np.ndarray
     """Cells whose closed rectangle holds each fine spring's midpoint, -1 padded, shape (spring_count, 4)."""
     coarse_kind: np.ndarray
@@ -137,6 +139,7 @@ def coarse_layout(model) -> CoarseLayout:
                      lj[qj + 1] * nx + li[qi], lj[qj + 1] * nx + li[qi + 1]], axis=1).astype(np.int32)
     weight = np.stack([(1 - t) * (1 - u), t * (1 - u), (1 - t) * u, t * u], axis=1)
     is_node = np.isin(i, li) & np.isin(j, lj)
+    weight_cell = (qj * (li.shape[0] - 1) + qi).astype(np.int32)
 
     a, b = model.spring_crossing_a, model.spring_crossing_b
     mid_x = 0.5 * ((a % nx) + (b % nx))
@@ -147,7 +150,7 @@ def coarse_layout(model) -> CoarseLayout:
     rest = model.crossing_rest_position_m
     coarse_rest = np.linalg.norm(rest[cb] - rest[ca], axis=1)
     return CoarseLayout(factor=k, lines_i=li, lines_j=lj, crossing_cells=crossing_cells, crossing_node=node,
-                        crossing_weight=weight, crossing_is_node=is_node, spring_cells=spring_cells,
+                        crossing_weight=weight, crossing_is_node=is_node, crossing_weight_cell=weight_cell, spring_cells=spring_cells,
                         coarse_kind=ck, coarse_a=ca, coarse_b=cb, coarse_rest_length_m=coarse_rest,
                         coarse_stiffness_n_per_m=cs, coarse_cells=ccells)
 
@@ -237,30 +240,31 @@ def dilate(cells: np.ndarray, cells_x: int, cells_y: int, band: int) -> np.ndarr
 
 def free_crossings(layout: CoarseLayout, refined: np.ndarray) -> np.ndarray:
     """Crossings that are simulated: nodes, and those whose every holding cell is refined."""
-    cells = layout.crossing_cells
-    valid = cells >= 0
-    all_refined = np.where(valid, refined[np.where(valid, cells, 0)], True).all(axis=1)
-    return layout.crossing_is_node | all_refined
+    from fraytool.sim.kernels.multires import free_mask
+
+    out = np.empty(layout.crossing_cells.shape[0], bool)
+    free_mask(layout.crossing_cells, layout.crossing_is_node, refined, out)
+    return out
 
 
 def share(cells: np.ndarray, refined: np.ndarray, at_fine: bool) -> np.ndarray:
     """The share of each spring's bordering cells (rows of `cells`, -1 padded) that are at the spring's
     own resolution: refined cells for fine springs (at_fine), coarse cells for coarse springs."""
-    valid = cells >= 0
-    ref = np.where(valid, refined[np.where(valid, cells, 0)], False)
-    mine = ref if at_fine else (valid & ~ref)
-    return mine.sum(axis=1) / np.maximum(valid.sum(axis=1), 1)
+    from fraytool.sim.kernels.multires import cell_shares
+
+    out = np.empty(cells.shape[0])
+    cell_shares(cells, refined, bool(at_fine), out)
+    return out
 
 
 def lumped_masses(model, layout: CoarseLayout, free: np.ndarray) -> np.ndarray:
     """Mass of each base slot: a free crossing's own mass plus the shares (interpolation weights) of
     the slaved crossings that interpolate it; 0 for a slaved crossing. Shape (crossing_count,)."""
-    m = model.crossing_mass_kg
-    lumped = np.where(free, m, 0.0)
-    slaved = np.flatnonzero(~free)
-    for q in range(4):
-        np.add.at(lumped, layout.crossing_node[slaved, q], layout.crossing_weight[slaved, q] * m[slaved])
-    return lumped
+    from fraytool.sim.kernels.multires import lump_masses
+
+    out = np.empty(model.crossing_count)
+    lump_masses(model.crossing_mass_kg, free, layout.crossing_node, layout.crossing_weight, out)
+    return out
 
 
 def set_masses(model, layout: CoarseLayout, refined: np.ndarray, state) -> np.ndarray:

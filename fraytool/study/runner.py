@@ -59,6 +59,11 @@ class RunResult:
     """Tearing statistics: first_break_s [s] (None without a break), broken_springs and torn_length_m
     (lists, one value per frame from frame 0), final (`tear_figures` at the last frame simulated)."""
 
+    final_state: Optional[object] = None
+    """The State after the last step (run_variant with keep_state=True), else None."""
+    final_model: Optional[object] = None
+    """Its Model (with keep_state=True)."""
+
     @property
     def ok(self) -> bool:
         return self.status == "ok"
@@ -118,7 +123,7 @@ def tear_figures(sim: Simulation, structural: Optional[np.ndarray] = None) -> di
 
 
 def run_variant(spec: SceneSpec, frames: Optional[int] = None, record: bool = False,
-                locate_stage: bool = True) -> RunResult:
+                locate_stage: bool = True, keep_state: bool = False) -> RunResult:
     """Simulate `frames` frames (default: the scene's) of `spec`; never raises SimulationUnstable."""
     frames = spec_frames(spec) if frames is None else frames
     sim = Simulation(spec)
@@ -187,4 +192,6 @@ def run_variant(spec: SceneSpec, frames: Optional[int] = None, record: bool = Fa
     if tears:
         out.tearing["final"] = tear_figures(sim, structural)
     out.strain_cap_hits = sim.solver.strain_cap_hits
+    if keep_state:
+        out.final_state, out.final_model = sim.state, sim.model
     return out

@@ -8,9 +8,9 @@ import math
 
 import numba as nb
 
-from fraytool.kinds import SHAPE_PLANE
 from fraytool.sim.kernels.forces import add_spring_force
-from fraytool.sim.kernels.rigid_contact import bounding_radius, surface_contact
+from fraytool.kinds import SHAPE_BOX, SHAPE_PLANE
+from fraytool.sim.kernels.rigid_contact import surface_contact
 
 
 @nb.njit(cache=True, fastmath=False)
@@ -54,19 +54,17 @@ def gather_slaved_forces(slaved, crossing_node, crossing_weight, particle_force_
 
 
 @nb.njit(cache=True, fastmath=False)
-def sync_slaved(slaved, crossing_node, crossing_weight, particle_position_m, particle_velocity_m_s):
-    """Position and velocity of each slaved crossing = the weighted sum of its nodes' (in place)."""
+def sync_slaved(slaved, crossing_node, crossing_weight, particle_position_m):
+    """Position of each slaved crossing = the weighted sum of its nodes' (in place). Velocities need no
+    sync: the velocity post-process makes every velocity from positions, and integration is linear,
+    so a slaved crossing moved by its own velocity lands on its nodes' interpolation up to rounding."""
     for m in range(slaved.shape[0]):
         s = slaved[m]
         for d in range(3):
             x = 0.0
-            v = 0.0
             for q in range(4):
-                node = crossing_node[s, q]
-                x += crossing_weight[s, q] * particle_position_m[node, d]
-                v += crossing_weight[s, q] * particle_velocity_m_s[node, d]
+                x += crossing_weight[s, q] * particle_position_m[crossing_node[s, q], d]
             particle_position_m[s, d] = x
-            particle_velocity_m_s[s, d] = v
 
 
 @nb.njit(cache=True, fastmath=False)
@@ -143,74 +141,189 @@ def cells_to_refine(
 
 @nb.njit(cache=True, fastmath=False)
 def collide_slaved(
-    slaved, crossing_node, crossing_weight,
+    cell_start, cell_slaved, cell_nodes, crossing_node, crossing_weight,
     body_shape, body_rotation, body_radius_m, body_half_extents_m, body_normal, body_friction, body_collide,
     margin_m, dt_s, body_position_m, body_velocity_m_s, particle_inv_mass, prev_position_m, particle_position_m, point,
 ):
     """Keep the slaved crossings out of the bodies by moving their nodes: where a slaved crossing's
     interpolated point x = sum w_q x_q lies inside a body by d along normal n, the nodes move by
     dx_q = w_q inv_q / sum(w^2 inv) (-d n), the smallest mass-weighted move that puts x on the
-    surface (the projection of an embedded point). One Gauss-Seidel pass, crossings in index order,
-    no friction. `point` is a scratch array of 3. Returns the number of contacts."""
+    surface (the projection of an embedded point), with the Coulomb friction of collide_rigid on the
+    point's move relative to the body over the step. One Gauss-Seidel pass, cell by cell and crossings
+    in index order inside a cell. The slaved crossings come grouped by the cell they interpolate
+    (cell_slaved[cell_start[c]:cell_start[c + 1]]); a cell that `_cell_clear` shows cannot touch the
+    body is skipped.
+    `point` is a scratch array of 3. Returns the number of contacts."""
     contacts = 0
     for k in range(body_shape.shape[0]):
         if not body_collide[k]:
             continue
-        reach = bounding_radius(body_shape[k], body_radius_m[k], body_half_extents_m[k], margin_m)
-        reach2 = reach * reach
-        plane = body_shape[k] == SHAPE_PLANE
-        for m in range(slaved.shape[0]):
-            s = slaved[m]
-            for d in range(3):
-                x = 0.0
-                for q in range(4):
-                    x += crossing_weight[s, q] * particle_position_m[crossing_node[s, q], d]
-                point[d] = x
-            if not plane:
-                ex = point[0] - body_position_m[k, 0]
-                ey = point[1] - body_position_m[k, 1]
-                ez = point[2] - body_position_m[k, 2]
-                if ex * ex + ey * ey + ez * ez > reach2:
-                    continue
-            dist, nx, ny, nz = surface_contact(body_shape[k], body_position_m[k], body_rotation[k], body_radius_m[k],
-                                               body_half_extents_m[k], body_normal[k], point, margin_m)
-            if dist >= 0.0:
+        for c in range(cell_start.shape[0] - 1):
+            if cell_start[c] == cell_start[c + 1]:
                 continue
-            norm = 0.0
-            for q in range(4):
-                w = crossing_weight[s, q]
-                norm += w * w * particle_inv_mass[crossing_node[s, q]]
-            if norm <= 0.0:
-                continue  # every node held by a body
-            contacts += 1
-            # the point's correction: out along the normal, then friction on its move over the step
-            cx = -dist * nx
-            cy = -dist * ny
-            cz = -dist * nz
-            rx = point[0] + cx - dt_s * body_velocity_m_s[k, 0]
-            ry = point[1] + cy - dt_s * body_velocity_m_s[k, 1]
-            rz = point[2] + cz - dt_s * body_velocity_m_s[k, 2]
-            for q in range(4):
-                w = crossing_weight[s, q]
-                node = crossing_node[s, q]
-                rx -= w * prev_position_m[node, 0]
-                ry -= w * prev_position_m[node, 1]
-                rz -= w * prev_position_m[node, 2]
-            rn = rx * nx + ry * ny + rz * nz
-            tx = rx - rn * nx
-            ty = ry - rn * ny
-            tz = rz - rn * nz
-            tl = math.sqrt(tx * tx + ty * ty + tz * tz)
-            limit = body_friction[k] * (-dist)
-            if tl > 0.0:
-                scale = 1.0 if tl <= limit else limit / tl
-                cx -= scale * tx
-                cy -= scale * ty
-                cz -= scale * tz
-            for q in range(4):
-                node = crossing_node[s, q]
-                g = crossing_weight[s, q] * particle_inv_mass[node] / norm
-                particle_position_m[node, 0] += g * cx
-                particle_position_m[node, 1] += g * cy
-                particle_position_m[node, 2] += g * cz
+            if _cell_clear(k, c, cell_nodes, body_shape, body_rotation, body_radius_m, body_half_extents_m,
+                           body_normal, margin_m, body_position_m, particle_position_m):
+                continue
+            for m in range(cell_start[c], cell_start[c + 1]):
+                contacts += _collide_slaved_one(cell_slaved[m], k, crossing_node, crossing_weight, body_shape,
+                                                body_rotation, body_radius_m, body_half_extents_m, body_normal,
+                                                body_friction, margin_m, dt_s, body_position_m, body_velocity_m_s,
+                                                particle_inv_mass, prev_position_m, particle_position_m, point)
     return contacts
+
+
+CLEAR_TOLERANCE_M = 1e-9
+"""A node on a face plane to within this [m] counts as outside it: rigid contact leaves resting nodes
+on the surface up to rounding, and a point of their cell is then inside by at most this much."""
+
+
+@nb.njit(cache=True, fastmath=False)
+def _cell_clear(k, c, cell_nodes, body_shape, body_rotation, body_radius_m, body_half_extents_m, body_normal,
+                margin_m, body_position_m, particle_position_m):
+    """True when no point of cell c can be inside body k (margin included). A cell's points are convex
+    combinations of its four nodes (bilinear weights), so they lie in the nodes' convex hull: for a
+    plane, or a box face, all four nodes outside the same (face) plane put every point outside; for
+    any shape, all four nodes farther from the body than the cell's widest node-to-node distance do
+    too (the distance to a body changes by at most the distance moved)."""
+    shape = body_shape[k]
+    if shape == SHAPE_PLANE or shape == SHAPE_BOX:
+        rot = body_rotation[k]
+        for axis in range(3):
+            if shape == SHAPE_PLANE and axis > 0:
+                break
+            for sign in (-1.0, 1.0):
+                if shape == SHAPE_PLANE and sign < 0.0:
+                    continue
+                # outward face normal in the world frame, and the face's offset from the centre
+                if shape == SHAPE_PLANE:
+                    nx = rot[0, 0] * body_normal[k, 0] + rot[0, 1] * body_normal[k, 1] + rot[0, 2] * body_normal[k, 2]
+                    ny = rot[1, 0] * body_normal[k, 0] + rot[1, 1] * body_normal[k, 1] + rot[1, 2] * body_normal[k, 2]
+                    nz = rot[2, 0] * body_normal[k, 0] + rot[2, 1] * body_normal[k, 1] + rot[2, 2] * body_normal[k, 2]
+                    offset = margin_m
+                else:
+                    nx = sign * rot[0, axis]
+                    ny = sign * rot[1, axis]
+                    nz = sign * rot[2, axis]
+                    offset = body_half_extents_m[k, axis] + margin_m
+                clear = True
+                for q in range(4):
+                    p = cell_nodes[c, q]
+                    h = ((particle_position_m[p, 0] - body_position_m[k, 0]) * nx
+                         + (particle_position_m[p, 1] - body_position_m[k, 1]) * ny
+                         + (particle_position_m[p, 2] - body_position_m[k, 2]) * nz)
+                    if h < offset - CLEAR_TOLERANCE_M:
+                        clear = False
+                        break
+                if clear:
+                    return True
+    near = 1e300
+    widest = 0.0
+    for q in range(4):
+        p = cell_nodes[c, q]
+        dq, _, _, _ = surface_contact(shape, body_position_m[k], body_rotation[k], body_radius_m[k],
+                                      body_half_extents_m[k], body_normal[k], particle_position_m[p], margin_m)
+        near = min(near, dq)
+        for r in range(q + 1, 4):
+            o = cell_nodes[c, r]
+            ex = particle_position_m[p, 0] - particle_position_m[o, 0]
+            ey = particle_position_m[p, 1] - particle_position_m[o, 1]
+            ez = particle_position_m[p, 2] - particle_position_m[o, 2]
+            widest = max(widest, ex * ex + ey * ey + ez * ez)
+    return near > math.sqrt(widest)
+
+
+@nb.njit(cache=True, fastmath=False)
+def _collide_slaved_one(s, k, crossing_node, crossing_weight, body_shape, body_rotation, body_radius_m,
+                        body_half_extents_m, body_normal, body_friction, margin_m, dt_s, body_position_m,
+                        body_velocity_m_s, particle_inv_mass, prev_position_m, particle_position_m, point):
+    """collide_slaved for slaved crossing s and body k; returns 1 on a contact, else 0."""
+    for d in range(3):
+        x = 0.0
+        for q in range(4):
+            x += crossing_weight[s, q] * particle_position_m[crossing_node[s, q], d]
+        point[d] = x
+    dist, nx, ny, nz = surface_contact(body_shape[k], body_position_m[k], body_rotation[k], body_radius_m[k],
+                                       body_half_extents_m[k], body_normal[k], point, margin_m)
+    if dist >= 0.0:
+        return 0
+    norm = 0.0
+    for q in range(4):
+        w = crossing_weight[s, q]
+        norm += w * w * particle_inv_mass[crossing_node[s, q]]
+    if norm <= 0.0:
+        return 0  # every node held by a body
+    # the point's correction: out along the normal, then friction on its move over the step
+    cx = -dist * nx
+    cy = -dist * ny
+    cz = -dist * nz
+    rx = point[0] + cx - dt_s * body_velocity_m_s[k, 0]
+    ry = point[1] + cy - dt_s * body_velocity_m_s[k, 1]
+    rz = point[2] + cz - dt_s * body_velocity_m_s[k, 2]
+    for q in range(4):
+        w = crossing_weight[s, q]
+        node = crossing_node[s, q]
+        rx -= w * prev_position_m[node, 0]
+        ry -= w * prev_position_m[node, 1]
+        rz -= w * prev_position_m[node, 2]
+    rn = rx * nx + ry * ny + rz * nz
+    tx = rx - rn * nx
+    ty = ry - rn * ny
+    tz = rz - rn * nz
+    tl = math.sqrt(tx * tx + ty * ty + tz * tz)
+    limit = body_friction[k] * (-dist)
+    if tl > 0.0:
+        scale = 1.0 if tl <= limit else limit / tl
+        cx -= scale * tx
+        cy -= scale * ty
+        cz -= scale * tz
+    for q in range(4):
+        node = crossing_node[s, q]
+        g = crossing_weight[s, q] * particle_inv_mass[node] / norm
+        particle_position_m[node, 0] += g * cx
+        particle_position_m[node, 1] += g * cy
+        particle_position_m[node, 2] += g * cz
+    return 1
+
+
+@nb.njit(cache=True, fastmath=False)
+def cell_shares(cells, refined, at_fine, out):
+    """out[r] = the share of row r's cells (-1 padded) that are at the resolution asked: refined
+    (at_fine) or coarse. fraytool.sim.multires.share."""
+    for r in range(cells.shape[0]):
+        valid = 0
+        mine = 0
+        for q in range(cells.shape[1]):
+            c = cells[r, q]
+            if c < 0:
+                continue
+            valid += 1
+            if refined[c] == at_fine:
+                mine += 1
+        out[r] = mine / valid if valid > 0 else 0.0
+
+
+@nb.njit(cache=True, fastmath=False)
+def free_mask(crossing_cells, crossing_is_node, refined, out):
+    """out[c] = crossing c is a node or every cell holding it is refined. fraytool.sim.multires.free_crossings."""
+    for c in range(crossing_cells.shape[0]):
+        free = True
+        if not crossing_is_node[c]:
+            for q in range(crossing_cells.shape[1]):
+                cell = crossing_cells[c, q]
+                if cell >= 0 and not refined[cell]:
+                    free = False
+                    break
+        out[c] = free
+
+
+@nb.njit(cache=True, fastmath=False)
+def lump_masses(crossing_mass_kg, free, crossing_node, crossing_weight, out):
+    """out = each crossing's own mass where free (0 where slaved), plus the weighted masses of the
+    slaved crossings that interpolate it (crossings in index order). fraytool.sim.multires.lumped_masses."""
+    for c in range(crossing_mass_kg.shape[0]):
+        out[c] = crossing_mass_kg[c] if free[c] else 0.0
+    for c in range(crossing_mass_kg.shape[0]):
+        if free[c]:
+            continue
+        for q in range(4):
+            out[crossing_node[c, q]] += crossing_weight[c, q] * crossing_mass_kg[c]

@@ -37,8 +37,6 @@ def build_stages(model: Model, speed_limit_m_s: float) -> list:
     if model.damping > 0.0:
         stages.append(core.Damping(model))
     stages.append(core.PositionUpdate(model))
-    if runtime is not None:
-        stages.append(multires.SyncSlaved(runtime))
     if model.attachment_count > 0:
         stages.append(core.Attachments(model))
     contact = model.body_count > 0 and bool(model.body_collide.any())
@@ -53,6 +51,8 @@ def build_stages(model: Model, speed_limit_m_s: float) -> list:
         from fraytool.sim.stages.tearing import TearingStage, YarnContactStage  # only scenes that tear
 
         tearing = TearingStage(model)
+        if runtime is not None:
+            runtime.tearing = tearing.tearing  # scans only the springs of refined cells
         if tearing.yarn_level:
             stages.append(YarnContactStage(tearing.tearing))
     if contact:

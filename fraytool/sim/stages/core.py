@@ -200,6 +200,9 @@ class StrainLimiting(_NoSummary):
         """Per particle (sized on first use: the particle slots): the sweeps' record of moved masses."""
         self.compliant = model.strain_stiffness_n_per_m > 0.0
         self.kernel = "limit_strain_lines" if self.compliant else "limit_strain_groups"
+        self._all_groups = colour_groups(model)
+        self._all_lines = yarn_line_springs(model) if self.compliant else None
+        """Every structural spring's colour groups and yarn lines, which `restrict` filters."""
         self.restrict(None)
         self.iterations_last = 0
         self.iterations_max = 0
@@ -211,7 +214,7 @@ class StrainLimiting(_NoSummary):
         all of them. The multi-resolution model (fraytool.sim.stages.multires) limits the springs of its
         refined cells: a yarn's line then breaks into runs of consecutive working springs (runs of one
         yarn share no mass, so a group's lines stay independent)."""
-        springs, starts = colour_groups(self.model)
+        springs, starts = self._all_groups
         if working is not None:
             keep = working[springs]
             counts = [int(keep[starts[g]:starts[g + 1]].sum()) for g in range(starts.shape[0] - 1)]
@@ -221,7 +224,7 @@ class StrainLimiting(_NoSummary):
         self._worst_of = np.zeros(self.limited_springs.shape[0])
         self._checked_at = np.zeros(self.limited_springs.shape[0], np.int64)
         if self.compliant:
-            line_springs, line_start, line_groups = yarn_line_springs(self.model)
+            line_springs, line_start, line_groups = self._all_lines
             if working is not None:
                 line_springs, line_start, line_groups = _working_runs(line_springs, line_start, line_groups,
                                                                       working[line_springs])

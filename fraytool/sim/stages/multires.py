@@ -3,9 +3,9 @@
 - MultiresForces replaces SpringForces: the springs at work (fine springs bordering a refined cell,
   coarse springs bordering a coarse cell, each with its share), then the forces on slaved crossings
   handed to their nodes.
-- SyncSlaved (after the position update, and again after the constraints and collisions): slaved
-  crossings are put back on their cells' bilinear interpolation.
-- Refinement (before tearing): coarse cells near a strain that could tear, or near a moving body,
+- SlavedContact (after rigid contact): slaved crossings kept out of bodies through their nodes.
+- Refinement (before tearing): slaved crossings put back on their cells' bilinear interpolation
+  (the constraints and collisions moved the nodes); then coarse cells near a strain that could tear, or near a moving body,
   refine; the crossings that become free take their mass back from their nodes (total mass and
   momentum kept exactly: the crossing moves with the interpolated velocity its mass had while lumped).
 
@@ -43,6 +43,8 @@ class MultiresRuntime:
         lay = self.layout
         self.strain_stage = None
         """The StrainLimiting stage, told which structural springs are at work after each rebuild."""
+        self.tearing = None
+        """The YarnTearing of a tearing scene, told which structural springs to scan after each rebuild."""
         structural = (model.spring_kind == STRUCT_WEFT) | (model.spring_kind == STRUCT_WARP)
         self._structural = structural
         self._coarse_structural = (lay.coarse_kind == STRUCT_WEFT) | (lay.coarse_kind == STRUCT_WARP)
@@ -77,6 +79,11 @@ class MultiresRuntime:
         free = multires.free_crossings(lay, refined)
         self.free = free
         self.slaved = np.flatnonzero(~free).astype(np.int32)
+        # the slaved crossings grouped by the cell they interpolate (SlavedContact's cell test)
+        order = np.argsort(lay.crossing_weight_cell[self.slaved], kind="stable")
+        self.cell_slaved = self.slaved[order]
+        self.cell_start = np.searchsorted(lay.crossing_weight_cell[self.cell_slaved],
+                                          np.arange(lay.cell_count + 1)).astype(np.int64)
         fine_share = multires.share(lay.spring_cells, refined, at_fine=True)
         self.fine_listed = np.flatnonzero(fine_share > 0.0).astype(np.int32)
         self.fine_share = fine_share[self.fine_listed]
@@ -88,8 +95,16 @@ class MultiresRuntime:
         working &= self._structural
         self.fine_structural = np.flatnonzero(working).astype(np.int32)
         self.coarse_structural = self.coarse_listed[self._coarse_structural[self.coarse_listed]]
+        # slaved crossings that a fine spring at work pulls on (hanging nodes): the only ones with a force
+        m = self.model
+        ends = np.concatenate([m.spring_crossing_a[self.fine_listed], m.spring_crossing_b[self.fine_listed]])
+        loaded = np.zeros(m.crossing_count, bool)
+        loaded[ends] = True
+        self.loaded_slaved = np.flatnonzero(loaded & ~free).astype(np.int32)
         if self.strain_stage is not None:
             self.strain_stage.restrict(working)
+        if self.tearing is not None:
+            self.tearing.restrict_scans(working)
 
     def refine(self, state: State, new: np.ndarray) -> None:
         """Refine the cells `new`: free crossings take their own mass back (set_masses), at the
@@ -120,26 +135,7 @@ class MultiresForces:
         add_listed_spring_forces(rt.coarse_listed, rt.coarse_share, lay.coarse_kind, lay.coarse_rest_length_m,
                                  state.particle_position_m, lay.coarse_a, lay.coarse_b, rt.coarse_alive,
                                  lay.coarse_stiffness_n_per_m, buffers.force_n)
-        gather_slaved_forces(rt.slaved, lay.crossing_node, lay.crossing_weight, buffers.force_n)
-
-    def summary(self, state: State) -> dict:
-        return {}
-
-
-class SyncSlaved:
-    """Slaved crossings back on their cells' interpolation (after the position update)."""
-
-    name = "integration"
-    kernel = "sync_slaved"
-
-    def __init__(self, runtime: MultiresRuntime):
-        self.runtime = runtime
-
-    def run(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
-        rt = self.runtime
-        rt.ensure(state)
-        sync_slaved(rt.slaved, rt.layout.crossing_node, rt.layout.crossing_weight, state.particle_position_m,
-                    state.particle_velocity_m_s)
+        gather_slaved_forces(rt.loaded_slaved, lay.crossing_node, lay.crossing_weight, buffers.force_n)
 
     def summary(self, state: State) -> dict:
         return {}
@@ -149,7 +145,9 @@ class SlavedContact:
     """Step 6, after rigid contact: slaved crossings kept out of the bodies through their nodes
     (fraytool.sim.kernels.multires.collide_slaved, with the body's friction), so that a coarse cell
     lying on a body does not sag into it between its nodes. No reaction on dynamic bodies (the nodes'
-    own contacts give that)."""
+    own contacts give that). Moving bodies are left out when refine_near_bodies is on: the cells within
+    (band_cells + 1) cell diagonals of their bounding sphere are refined a step before they could reach
+    them, so every slaved crossing is farther than that from them."""
 
     name = "collisions"
     kernel = "collide_slaved"
@@ -158,12 +156,19 @@ class SlavedContact:
         self.model = model
         self.runtime = runtime
         self._point = np.zeros(3)
+        # Moving bodies refine the cells within their reach (Refinement, refine_near_bodies) before they
+        # get there, so no slaved crossing is within a cell's width of them: only the other bodies here.
+        self.collide = model.body_collide.copy()
+        self.collide[runtime.moving_bodies] = False
+        self.any = bool(self.collide.any())
 
     def run(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
+        if not self.any:
+            return
         rt, m, lay = self.runtime, self.model, self.runtime.layout
         rt.ensure(state)
-        collide_slaved(rt.slaved, lay.crossing_node, lay.crossing_weight, m.body_shape, m.body_rotation,
-                       m.body_radius_m, m.body_half_extents_m, m.body_normal, m.body_friction, m.body_collide,
+        collide_slaved(rt.cell_start, rt.cell_slaved, rt.cell_nodes, lay.crossing_node, lay.crossing_weight, m.body_shape, m.body_rotation,
+                       m.body_radius_m, m.body_half_extents_m, m.body_normal, m.body_friction, self.collide,
                        0.5 * m.thickness_m, dt_s, state.body_position_m, state.body_velocity_m_s,
                        state.particle_inv_mass, buffers.prev_position_m, state.particle_position_m, self._point)
 
@@ -186,8 +191,7 @@ class Refinement:
     def run(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
         rt, m, lay = self.runtime, self.model, self.runtime.layout
         rt.ensure(state)
-        sync_slaved(rt.slaved, lay.crossing_node, lay.crossing_weight, state.particle_position_m,
-                    state.particle_velocity_m_s)
+        sync_slaved(rt.slaved, lay.crossing_node, lay.crossing_weight, state.particle_position_m)
         if rt.slaved.shape[0] == 0:
             return  # everything refined
         self._centre[:] = state.body_position_m[rt.moving_bodies]

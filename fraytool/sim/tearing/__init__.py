@@ -53,6 +53,9 @@ class YarnTearing:
         self.topology = build_tear_topology(model)
         self.model_in = tear_model(model, self.topology)
         """The kernels' read-only group: the model's arrays and the topology tables (references)."""
+        self.model_scan = self.model_in
+        """model_in for the per-step scans for transitions and cuts: the same, or with the structural
+        springs restricted by `restrict_scans`."""
         self.yarn_level = bool(model.yarn_level)
         self._couples = np.zeros(model.crossing_count, np.int32)
         self._weft_free = np.zeros(model.crossing_count, np.bool_)
@@ -75,6 +78,18 @@ class YarnTearing:
         """Scratch: crossing_yarn_level before this step's transitions (which crossings just split)."""
         self.settle_reverts = 0
         """Settles undone because they would have carried a yarn segment through another."""
+
+    def restrict_scans(self, working: Optional[np.ndarray]) -> None:
+        """Scan only the structural springs where `working` (a mask over spring slots) is True for
+        transitions and cuts (None: all). The multi-resolution model (docs/multires.md) passes the
+        springs of refined cells: the others are slaved, below the refine strain by construction."""
+        m = self.model_in
+        if working is None:
+            self.model_scan = m
+            return
+        keep = working[m.structural_springs]
+        self.model_scan = m._replace(structural_springs=m.structural_springs[keep],
+                                     structural_yarn=m.structural_yarn[keep])
 
     # -- couple list -------------------------------------------------------------------------
     def _rebuild(self, state: State) -> None:
@@ -112,7 +127,7 @@ class YarnTearing:
         splits = 0
         if self.yarn_level:
             np.copyto(self._yarn_level_before, state.crossing_yarn_level)  # no allocation per step
-            splits = transition_overstrained(self.model_in, particles, crossings, springs, prev_position_m)
+            splits = transition_overstrained(self.model_scan, particles, crossings, springs, prev_position_m)
             if splits:
                 self.settle(state, np.flatnonzero(state.crossing_yarn_level & ~self._yarn_level_before),
                             prev_position_m)
@@ -124,7 +139,7 @@ class YarnTearing:
             free_yarn_runs(self.model_in, crossings, springs, self._weft_free, self._warp_free)
             yarn_fragments(self.model_in, springs, self._fragment_left, self._fragment_right)
             self._runs_key = key
-        _, cuts = cut_overstrained(self.model_in, particles, springs, self._weft_free, self._warp_free,
+        _, cuts = cut_overstrained(self.model_scan, particles, springs, self._weft_free, self._warp_free,
                                    self._fragment_left, self._fragment_right)
         self.splits_last = int(splits)
         self.cuts_last = int(cuts)
