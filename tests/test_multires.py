@@ -248,3 +248,17 @@ def test_study_factors_flag_is_checked(tmp_path, capsys):
     assert "--factors '1,3': '3' is not a factor; each is 1, 2, 4 or 8" in capsys.readouterr().err
     assert main(["study", scene, "--factors", "1,2", "-o", str(tmp_path)]) == 2
     assert "--factors goes with --multires" in capsys.readouterr().err
+
+
+def test_check_reports_the_coarse_grid(capsys):
+    import json
+
+    from fraytool.commands.main import main
+
+    assert main(["check", str(ROOT / "scenes" / "tablecloth_tear.toml"), "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    # 512 yarns at factor 4: lines at 0, 4, ..., 508 and 511 -> 129 per axis, 128 x 128 cells
+    assert info["coarse_factor"] == 4 and info["coarse_nodes"] == 129 * 129 and info["coarse_cells"] == 128 * 128
+    # the clip and the bar hold the left and right edges: their cells and a band of 2 refined from the start
+    assert info["cells_refined_at_start"] == 2 * 3 * 128
+    assert info["refine_strain"] == pytest.approx(0.5 * 0.12)

@@ -286,6 +286,16 @@ def cmd_check(args) -> int:
         "memory_estimate_bytes": estimate_bytes(spec),
         "memory_available_bytes": available_bytes(),
     }
+    if model.coarse_factor > 1:
+        from fraytool.sim import multires
+
+        layout = multires.coarse_layout(model)
+        refined = model.state().coarse_cell_refined
+        info.update({"coarse_factor": model.coarse_factor, "coarse_cells": layout.cell_count,
+                     "coarse_nodes": int(layout.crossing_is_node.sum()),
+                     "cells_refined_at_start": int(refined.sum()),
+                     "free_crossings_at_start": int(multires.free_crossings(layout, refined).sum()),
+                     "refine_strain": model.refine_strain})
     if args.run:
         from fraytool.sim.checks import run_scene_checks
 
