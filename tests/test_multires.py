@@ -149,10 +149,12 @@ def test_coarse_drape_rests_on_the_ball_near_the_fine_one():
     assert gap.mean() < 0.01  # within 2 yarn spacings on average of the fine drape
 
 
-def test_a_tear_never_touches_a_slaved_crossing():
-    """fig6 (a thrown ball tears a plain weave) at factor 4: the cells refine ahead of the tear, so
-    every split crossing and every cut spring is in refined cells, and the cloth still tears."""
-    spec = load_scene(ROOT / "scenes" / "fig6_thrown_ball_plain.toml", [("cloth.multires.factor", 4)])
+@pytest.mark.parametrize("scene,factor", [("fig6_thrown_ball_plain", 4), ("fig6_thrown_ball_twill", 2)])
+def test_a_tear_never_touches_a_slaved_crossing(scene, factor):
+    """fig6 (a thrown ball tears a plain / twill weave): the cells refine ahead of the tear, so every
+    split crossing and every cut spring is in refined cells, and the cloth still tears. Twill at factor
+    2 needs the band raised to hold a split's walk along its floats (split_walk_band)."""
+    spec = load_scene(ROOT / "scenes" / f"{scene}.toml", [("cloth.multires.factor", factor)])
     model = build_model(spec)
     state, solver = model.state(), SolverExplicitPBD(model)
     lay = multires.coarse_layout(model)
@@ -262,3 +264,45 @@ def test_check_reports_the_coarse_grid(capsys):
     # the clip and the bar hold the left and right edges: their cells and a band of 2 refined from the start
     assert info["cells_refined_at_start"] == 2 * 3 * 128
     assert info["refine_strain"] == pytest.approx(0.5 * 0.12)
+
+
+def test_coarse_yarn_springs_add_up_to_the_fine_yarns_across_uneven_cells():
+    """Pulling the cloth along a yarn direction, the fine model's stiffness is (number of yarns) x (k /
+    chain length); the coarse structural springs across any section of cells (a last cell one spacing
+    wide included) must add up to the same."""
+    model = _cloth(nx=10, ny=9, factor=4)
+    lay = multires.coarse_layout(model)
+    k = 20.0
+    for kind, lines, along, yarns in ((STRUCT_WARP, lay.lines_i, lay.lines_j, model.warp_yarns),
+                                      (STRUCT_WEFT, lay.lines_j, lay.lines_i, model.weft_yarns)):
+        span = along[1] - along[0]  # the first row (column) of cells
+        sel = lay.coarse_kind == kind
+        a, b = lay.coarse_a[sel], lay.coarse_b[sel]
+        nx = model.warp_yarns
+        first = ((a // nx) == along[0]) & ((b // nx) == along[1]) if kind == STRUCT_WARP else \
+            ((a % nx) == along[0]) & ((b % nx) == along[1])
+        total = lay.coarse_stiffness_n_per_m[sel][first].sum()
+        assert first.sum() == lines.shape[0]
+        assert total == pytest.approx(yarns * k / span)
+
+
+def test_the_band_holds_a_splits_walk_along_the_longest_float():
+    from fraytool.sim.builder import longest_float, split_walk_band
+
+    plain = np.array([[(i + j) % 2 == 0 for i in range(8)] for j in range(8)])
+    twill22 = np.array([[(i + j) % 4 < 2 for i in range(8)] for j in range(8)])
+    satin5 = np.array([[(i - 2 * j) % 5 == 0 for i in range(10)] for j in range(10)])
+    assert [longest_float(w) for w in (plain, twill22, satin5)] == [1, 2, 4]
+    # a walk runs float + 1 crossings past the spring: ceil((float + 1) / factor) cells, plus one
+    assert [split_walk_band(twill22, k) for k in (2, 4, 8)] == [3, 2, 2]
+    assert split_walk_band(satin5, 2) == 4
+    b = ModelBuilder(seed=1)
+    b.add_cloth(warp_yarns=20, weft_yarns=20, spacing_m=0.004, thickness_m=0.0006, mass_per_crossing_kg=1e-5,
+                structural_n_per_m=20.0, weave="satin")
+    b.set_multires(factor=2, band_cells=1)
+    assert b.finalize().refine_band_cells == 4
+
+
+def test_a_grid_without_crossings_between_nodes_starts_refined():
+    model = _cloth(nx=2, ny=2, factor=2, tearing=True)
+    assert model.state().coarse_cell_refined.all()

@@ -295,7 +295,7 @@ def cmd_check(args) -> int:
                      "coarse_nodes": int(layout.crossing_is_node.sum()),
                      "cells_refined_at_start": int(refined.sum()),
                      "free_crossings_at_start": int(multires.free_crossings(layout, refined).sum()),
-                     "refine_strain": model.refine_strain})
+                     "refine_strain": model.refine_strain, "refine_band_cells": model.refine_band_cells})
     if args.run:
         from fraytool.sim.checks import run_scene_checks
 

@@ -545,9 +545,28 @@ class ModelBuilder:
             seed=self.seed,
             coarse_factor=mr.factor,
             refine_strain=mr.refine_fraction * tear_from,
-            refine_band_cells=mr.band_cells,
+            refine_band_cells=max(mr.band_cells, split_walk_band(top.reshape(ny, nx), mr.factor)) if mr.factor > 1 else mr.band_cells,
             refine_near_bodies=mr.refine_near_bodies,
         )
+
+
+def longest_float(weft_on_top: np.ndarray) -> int:
+    """The most consecutive crossings along any yarn where the same yarn stays on top (a float),
+    from the weave pattern (crossing_weft_on_top as (weft_yarns, warp_yarns))."""
+    longest = 1
+    for grid in (weft_on_top, weft_on_top.T):
+        for row in grid:
+            change = np.flatnonzero(np.diff(row.astype(np.int8)) != 0)
+            edges = np.concatenate([[-1], change, [row.size - 1]])
+            longest = max(longest, int(np.diff(edges).max()))
+    return longest
+
+
+def split_walk_band(weft_on_top: np.ndarray, factor: int) -> int:
+    """Fewest coarse cells of band that hold a split's walk (docs/method.md §3.4: a split runs along the
+    yarn up to and including the crossing where the weave flips, up to longest_float + 1 crossings past
+    the spring), plus one so that no crossing the walk reaches sits on the border of a coarse cell."""
+    return -(-(longest_float(weft_on_top) + 1) // factor) + 1
 
 
 _SHAPE_METHOD = {"sphere": "add_sphere", "box": "add_box", "plane": "add_plane"}

@@ -27,6 +27,7 @@ stages in fraytool.sim.stages.multires.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Optional
 
 import numpy as np
 
@@ -62,6 +63,10 @@ class CoarseLayout:
     coarse_stiffness_n_per_m: np.ndarray
     coarse_cells: np.ndarray
     """Cells each coarse spring borders, -1 padded, shape (coarse_spring_count, 4), int32."""
+    coarse_cell_weight: np.ndarray
+    """Weight of each of those cells in the spring's share: a structural spring on a cell edge stands
+    for half of each cell beside it, so its cells weigh their extent across it; 1 for the others
+    (shape (coarse_spring_count, 4), 0 on padding)."""
 
     @property
     def cells_x(self) -> int:
@@ -146,13 +151,13 @@ def coarse_layout(model) -> CoarseLayout:
     mid_y = 0.5 * ((a // nx) + (b // nx))
     spring_cells = _cells_of(mid_x, mid_y, li.astype(float), lj.astype(float))
 
-    ck, ca, cb, cs, ccells = _coarse_springs(model, li, lj)
+    ck, ca, cb, cs, ccells, cweight = _coarse_springs(model, li, lj)
     rest = model.crossing_rest_position_m
     coarse_rest = np.linalg.norm(rest[cb] - rest[ca], axis=1)
     return CoarseLayout(factor=k, lines_i=li, lines_j=lj, crossing_cells=crossing_cells, crossing_node=node,
                         crossing_weight=weight, crossing_is_node=is_node, crossing_weight_cell=weight_cell, spring_cells=spring_cells,
                         coarse_kind=ck, coarse_a=ca, coarse_b=cb, coarse_rest_length_m=coarse_rest,
-                        coarse_stiffness_n_per_m=cs, coarse_cells=ccells)
+                        coarse_stiffness_n_per_m=cs, coarse_cells=ccells, coarse_cell_weight=cweight)
 
 
 def _coarse_springs(model, li: np.ndarray, lj: np.ndarray):
@@ -174,24 +179,45 @@ def _coarse_springs(model, li: np.ndarray, lj: np.ndarray):
         ok = (p >= 0) & (p < cx) & (q >= 0) & (q < cy)
         return np.where(ok, q * cx + p, -1)
 
-    kinds, ends_a, ends_b, cells = [], [], [], []
+    kinds, ends_a, ends_b, cells, weights, scales = [], [], [], [], [], []
+    width = np.diff(li).astype(float)   # cell extents in yarn spacings: along i (columns) ...
+    height = np.diff(lj).astype(float)  # ... and along j (rows)
 
-    def add(kind, pa, qa, pb, qb, cell_list):
+    def add(kind, pa, qa, pb, qb, cell_list, across=None, length=None):
+        """across: per cell of cell_list, its extent across the spring (structural springs); length:
+        the spring's length in spacings."""
         if stiff[kind] <= 0.0 or pa.size == 0:
             return
         kinds.append(np.full(pa.size, kind, np.int8))
         ends_a.append(crossing(pa, qa))
         ends_b.append(crossing(pb, qb))
-        cl = np.full((pa.size, 4), -1, np.int64)
-        for m, cc in enumerate(cell_list):
-            cl[:, m] = cc
-        cl.sort(axis=1)
-        cells.append(cl[:, ::-1])
+        cl = np.stack(cell_list, axis=1).astype(np.int64)
+        wt = np.ones(cl.shape) if across is None else np.stack(across, axis=1)
+        wt = np.where(cl >= 0, wt, 0.0)
+        order = np.argsort(-cl, axis=1, kind="stable")  # valid cells first, then the -1 padding
+        cl = np.take_along_axis(cl, order, axis=1)
+        wt = np.take_along_axis(wt, order, axis=1)
+        pad = 4 - cl.shape[1]
+        cells.append(np.pad(cl, ((0, 0), (0, pad)), constant_values=-1))
+        weights.append(np.pad(wt, ((0, 0), (0, pad))))
+        if across is None:
+            scales.append(np.ones(pa.size))
+        else:
+            # the fine grid's yarns are springs of stiffness k in series, k / L' for a chain of length L'
+            # spacings; a coarse spring of length L standing for S yarns needs K = k S / L. S is half of
+            # each bordering cell's extent, plus half a yarn at the cloth's edge (N yarns span N - 1
+            # spacings), so the coarse springs of a uniform line of cells add up to the fine yarns
+            n = (cl >= 0).sum(axis=1)
+            scales.append((0.5 * wt.sum(axis=1) + np.where(n == 1, 0.5, 0.0)) / length)
+
+    def ext(values, index):
+        ok = (index >= 0) & (index < values.shape[0])
+        return np.where(ok, values[np.clip(index, 0, values.shape[0] - 1)], 0.0)
 
     p, q = (g.ravel() for g in np.meshgrid(np.arange(px - 1), np.arange(py)))
-    add(STRUCT_WEFT, p, q, p + 1, q, [cell(p, q - 1), cell(p, q)])
+    add(STRUCT_WEFT, p, q, p + 1, q, [cell(p, q - 1), cell(p, q)], [ext(height, q - 1), ext(height, q)], width[p])
     p, q = (g.ravel() for g in np.meshgrid(np.arange(px), np.arange(py - 1)))
-    add(STRUCT_WARP, p, q, p, q + 1, [cell(p - 1, q), cell(p, q)])
+    add(STRUCT_WARP, p, q, p, q + 1, [cell(p - 1, q), cell(p, q)], [ext(width, p - 1), ext(width, p)], height[q])
     p, q = (g.ravel() for g in np.meshgrid(np.arange(px - 2), np.arange(py)))
     add(BEND_WEFT, p, q, p + 2, q, [cell(p, q - 1), cell(p, q), cell(p + 1, q - 1), cell(p + 1, q)])
     p, q = (g.ravel() for g in np.meshgrid(np.arange(px), np.arange(py - 2)))
@@ -201,11 +227,11 @@ def _coarse_springs(model, li: np.ndarray, lj: np.ndarray):
     add(SHEAR, p + 1, q, p, q + 1, [cell(p, q)])
     if not kinds:
         return (np.zeros(0, np.int8), np.zeros(0, np.int32), np.zeros(0, np.int32), np.zeros(0),
-                np.zeros((0, 4), np.int32))
+                np.zeros((0, 4), np.int32), np.zeros((0, 4)))
     kind = np.concatenate(kinds)
     return (kind, np.concatenate(ends_a).astype(np.int32), np.concatenate(ends_b).astype(np.int32),
-            _stiff_of(kind, stiff),
-            np.concatenate(cells).astype(np.int32))
+            _stiff_of(kind, stiff) * np.concatenate(scales),
+            np.concatenate(cells).astype(np.int32), np.concatenate(weights))
 
 
 def _stiff_of(kind: np.ndarray, stiff: dict) -> np.ndarray:
@@ -218,13 +244,43 @@ def _stiff_of(kind: np.ndarray, stiff: dict) -> np.ndarray:
 def initial_refined(model, layout: CoarseLayout) -> np.ndarray:
     """Cells refined from the first step: those holding a crossing held by a body (it must be free to
     follow the body) or a spring cut by a [[cuts]] line (a cut cloth is torn there), and a band of
-    refine_band_cells around them."""
+    refine_band_cells around them; with refine_near_bodies, those with a node within a moving body's
+    reach at the start (as the Refinement stage tests every step after). A grid with no crossing
+    between its nodes (cells of one spacing) is refined whole: it is already as coarse as it gets."""
+    if layout.crossing_is_node.all():
+        return np.ones(layout.cell_count, bool)
     refined = np.zeros(layout.cell_count, bool)
     held = layout.crossing_cells[model.attachment_particle].ravel()
     refined[held[held >= 0]] = True
     cut = layout.spring_cells[model.spring_precut].ravel()
     refined[cut[cut >= 0]] = True
-    return dilate(refined, layout.cells_x, layout.cells_y, int(model.refine_band_cells))
+    refined = dilate(refined, layout.cells_x, layout.cells_y, int(model.refine_band_cells))
+    for k, reach in zip(*moving_body_reach(model, layout)):
+        near = np.linalg.norm(model.crossing_rest_position_m - model.body_initial_position_m[k], axis=1) <= reach
+        cells = layout.crossing_cells[layout.crossing_is_node & near].ravel()
+        refined[cells[cells >= 0]] = True
+    return refined
+
+
+def moving_body_reach(model, layout: CoarseLayout) -> tuple[np.ndarray, np.ndarray]:
+    """(moving colliding bodies, their reach [m]) for refine_near_bodies: a body's bounding radius (with
+    the contact margin) plus refine_band_cells + 1 of the widest cell's diagonals at rest; none without
+    refine_near_bodies."""
+    from fraytool.kinds import MOTION_STATIC
+    from fraytool.sim.kernels.rigid_contact import bounding_radius
+
+    if not model.refine_near_bodies:
+        return np.zeros(0, np.int64), np.zeros(0)
+    bodies = np.flatnonzero((model.body_motion != MOTION_STATIC) & model.body_collide)
+    rect = layout.cell_rect()
+    nx = model.warp_yarns
+    rest = model.crossing_rest_position_m
+    diagonal = float(np.max(np.linalg.norm(rest[rect[:, 3] * nx + rect[:, 1]] - rest[rect[:, 2] * nx + rect[:, 0]],
+                                           axis=1)))
+    reach = np.array([bounding_radius(model.body_shape[k], model.body_radius_m[k], model.body_half_extents_m[k],
+                                      0.5 * model.thickness_m) + (model.refine_band_cells + 1) * diagonal
+                      for k in bodies])
+    return bodies, reach
 
 
 def dilate(cells: np.ndarray, cells_x: int, cells_y: int, band: int) -> np.ndarray:
@@ -247,13 +303,14 @@ def free_crossings(layout: CoarseLayout, refined: np.ndarray) -> np.ndarray:
     return out
 
 
-def share(cells: np.ndarray, refined: np.ndarray, at_fine: bool) -> np.ndarray:
+def share(cells: np.ndarray, refined: np.ndarray, at_fine: bool, weight: Optional[np.ndarray] = None) -> np.ndarray:
     """The share of each spring's bordering cells (rows of `cells`, -1 padded) that are at the spring's
-    own resolution: refined cells for fine springs (at_fine), coarse cells for coarse springs."""
+    own resolution: refined cells for fine springs (at_fine), coarse cells for coarse springs; with
+    `weight` (same shape), each cell counts with its weight instead of 1."""
     from fraytool.sim.kernels.multires import cell_shares
 
     out = np.empty(cells.shape[0])
-    cell_shares(cells, refined, bool(at_fine), out)
+    cell_shares(cells, np.zeros((0, 4)) if weight is None else weight, weight is not None, refined, bool(at_fine), out)
     return out
 
 

@@ -286,20 +286,21 @@ def _collide_slaved_one(s, k, crossing_node, crossing_weight, body_shape, body_r
 
 
 @nb.njit(cache=True, fastmath=False)
-def cell_shares(cells, refined, at_fine, out):
+def cell_shares(cells, weight, weighted, refined, at_fine, out):
     """out[r] = the share of row r's cells (-1 padded) that are at the resolution asked: refined
-    (at_fine) or coarse. fraytool.sim.multires.share."""
+    (at_fine) or coarse; each cell counts 1, or weight[r, q] when `weighted`. fraytool.sim.multires.share."""
     for r in range(cells.shape[0]):
-        valid = 0
-        mine = 0
+        valid = 0.0
+        mine = 0.0
         for q in range(cells.shape[1]):
             c = cells[r, q]
             if c < 0:
                 continue
-            valid += 1
+            w = weight[r, q] if weighted else 1.0
+            valid += w
             if refined[c] == at_fine:
-                mine += 1
-        out[r] = mine / valid if valid > 0 else 0.0
+                mine += w
+        out[r] = mine / valid if valid > 0.0 else 0.0
 
 
 @nb.njit(cache=True, fastmath=False)

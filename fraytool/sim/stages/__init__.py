@@ -37,6 +37,8 @@ def build_stages(model: Model, speed_limit_m_s: float) -> list:
     if model.damping > 0.0:
         stages.append(core.Damping(model))
     stages.append(core.PositionUpdate(model))
+    if runtime is not None:
+        stages.append(multires.SyncSlaved(runtime, "integration", hanging_only=True))
     if model.attachment_count > 0:
         stages.append(core.Attachments(model))
     contact = model.body_count > 0 and bool(model.body_collide.any())
@@ -62,6 +64,8 @@ def build_stages(model: Model, speed_limit_m_s: float) -> list:
     if model.self_collision:
         from fraytool.sim.stages.self_collision import SelfCollision  # only scenes with self-collision
 
+        if runtime is not None:
+            stages.append(multires.SyncSlaved(runtime, "self_collision", hanging_only=False))
         stages.append(SelfCollision(model))
     if runtime is not None:
         stages.append(multires.Refinement(model, runtime))

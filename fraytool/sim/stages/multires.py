@@ -3,6 +3,8 @@
 - MultiresForces replaces SpringForces: the springs at work (fine springs bordering a refined cell,
   coarse springs bordering a coarse cell, each with its share), then the forces on slaved crossings
   handed to their nodes.
+- SyncSlaved (after the position update: the hanging nodes; before self-collision: all) puts slaved
+  crossings back on their interpolation mid-step.
 - SlavedContact (after rigid contact): slaved crossings kept out of bodies through their nodes.
 - Refinement (before tearing): slaved crossings put back on their cells' bilinear interpolation
   (the constraints and collisions moved the nodes); then coarse cells near a strain that could tear, or near a moving body,
@@ -19,7 +21,7 @@ from typing import Optional
 
 import numpy as np
 
-from fraytool.kinds import MOTION_STATIC, STRUCT_WARP, STRUCT_WEFT
+from fraytool.kinds import STRUCT_WARP, STRUCT_WEFT
 from fraytool.sim import multires
 from fraytool.sim.kernels.multires import (
     add_listed_spring_forces,
@@ -28,7 +30,6 @@ from fraytool.sim.kernels.multires import (
     gather_slaved_forces,
     sync_slaved,
 )
-from fraytool.sim.kernels.rigid_contact import bounding_radius
 from fraytool.sim.model import Model
 from fraytool.sim.stages.base import StepBuffers
 from fraytool.sim.state import State
@@ -55,13 +56,7 @@ class MultiresRuntime:
                                     rect[:, 3] * nx + rect[:, 0], rect[:, 3] * nx + rect[:, 1]], axis=1)
         self._hot = np.zeros(lay.cell_count, bool)
         self._new = np.zeros(lay.cell_count, bool)
-        moving = (model.body_motion != MOTION_STATIC) & model.body_collide
-        self.moving_bodies = np.flatnonzero(moving) if model.refine_near_bodies else np.zeros(0, np.int64)
-        cell_m = float(np.max(np.linalg.norm(model.crossing_rest_position_m[self.cell_nodes[:, 3]]
-                                             - model.crossing_rest_position_m[self.cell_nodes[:, 0]], axis=1)))
-        self.body_reach_m = np.array([bounding_radius(model.body_shape[k], model.body_radius_m[k],
-                                                      model.body_half_extents_m[k], 0.5 * model.thickness_m)
-                                      + (model.refine_band_cells + 1) * cell_m for k in self.moving_bodies])
+        self.moving_bodies, self.body_reach_m = multires.moving_body_reach(model, lay)
         self._owner: Optional[State] = None
         self._count = -1
         self.refinements = 0
@@ -87,7 +82,7 @@ class MultiresRuntime:
         fine_share = multires.share(lay.spring_cells, refined, at_fine=True)
         self.fine_listed = np.flatnonzero(fine_share > 0.0).astype(np.int32)
         self.fine_share = fine_share[self.fine_listed]
-        coarse_share = multires.share(lay.coarse_cells, refined, at_fine=False)
+        coarse_share = multires.share(lay.coarse_cells, refined, at_fine=False, weight=lay.coarse_cell_weight)
         self.coarse_listed = np.flatnonzero(coarse_share > 0.0).astype(np.int32)
         self.coarse_share = coarse_share[self.coarse_listed]
         working = np.zeros(self.model.spring_count, bool)
@@ -136,6 +131,29 @@ class MultiresForces:
                                  state.particle_position_m, lay.coarse_a, lay.coarse_b, rt.coarse_alive,
                                  lay.coarse_stiffness_n_per_m, buffers.force_n)
         gather_slaved_forces(rt.loaded_slaved, lay.crossing_node, lay.crossing_weight, buffers.force_n)
+
+    def summary(self, state: State) -> dict:
+        return {}
+
+
+class SyncSlaved:
+    """Slaved crossings back on their cells' interpolation, mid-step: after the position update only
+    the hanging nodes (the slaved crossings a working fine spring pulls on: strain limiting reads them
+    as anchors), before self-collision all of them (it reads them as obstacles). Integration skips
+    them (inverse mass 0), so by then they are off their interpolation by this step's node moves."""
+
+    kernel = "sync_slaved"
+
+    def __init__(self, runtime: MultiresRuntime, name: str, hanging_only: bool):
+        self.runtime = runtime
+        self.name = name
+        self.hanging_only = hanging_only
+
+    def run(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
+        rt = self.runtime
+        rt.ensure(state)
+        sync_slaved(rt.loaded_slaved if self.hanging_only else rt.slaved, rt.layout.crossing_node,
+                    rt.layout.crossing_weight, state.particle_position_m)
 
     def summary(self, state: State) -> dict:
         return {}
@@ -192,7 +210,7 @@ class Refinement:
         rt, m, lay = self.runtime, self.model, self.runtime.layout
         rt.ensure(state)
         sync_slaved(rt.slaved, lay.crossing_node, lay.crossing_weight, state.particle_position_m)
-        if rt.slaved.shape[0] == 0:
+        if state.coarse_cell_refined.all():
             return  # everything refined
         self._centre[:] = state.body_position_m[rt.moving_bodies]
         count = cells_to_refine(rt.fine_structural, lay.spring_cells, state.spring_rest_length_m,
