@@ -35,13 +35,23 @@ enabled = true
 stiffness 0) or the figure scenes' compliant one (yarn lines in parallel)."""
 
 
-@pytest.mark.parametrize("stiffness", [0.0, 400.0], ids=["hard limit", "compliant limit"])
-def test_a_tearing_run_is_bit_identical_on_one_and_two_threads(tmp_path, stiffness):
+@pytest.mark.parametrize("stiffness,factor", [(0.0, 1), (400.0, 1), (400.0, 2)],
+                         ids=["hard limit", "compliant limit", "compliant limit, multires factor 2"])
+def test_a_tearing_run_is_bit_identical_on_one_and_two_threads(tmp_path, stiffness, factor):
     """The yarn-level pulled strip with self-collision tears (splits, cuts, couples): every frame and
-    the checkpoint are the same bytes whether numba may use one thread or two."""
+    the checkpoint are the same bytes whether numba may use one thread or two; also as a coarse base
+    model that refines ahead of the tear ([cloth.multires], docs/multires.md)."""
     scene = tmp_path / "strip.toml"
     extra = PARALLEL_STRIP.format(stiffness=stiffness, damping=1.0 if stiffness else 0.0)
+    if factor > 1:
+        extra += f"[cloth.multires]\nfactor = {factor}\n"
     scene.write_text(pulled_strip_text("strip", yarn_level=True, extra=extra))
+    if factor > 1:  # it starts partly coarse
+        from fraytool.scene import load_scene
+        from fraytool.sim.builder import build_model
+
+        refined = build_model(load_scene(scene)).state().coarse_cell_refined
+        assert 0 < refined.sum() < refined.size
     one = _simulate(scene, tmp_path / "one", 1)
     two = _simulate(scene, tmp_path / "two", 2)
     assert one["broken_springs"] > 0 and one["yarn_level_crossings"] > 0  # it tore at the yarn level
