@@ -26,6 +26,7 @@ stages in fraytool.sim.stages.multires.
 """
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass
 from typing import Optional
 
@@ -80,11 +81,12 @@ class CoarseLayout:
     def cell_count(self) -> int:
         return self.cells_x * self.cells_y
 
-    def cell_rect(self) -> np.ndarray:
-        """(i0, i1, j0, j1) of every cell in yarn indices, shape (cell_count, 4), int64."""
-        ci, cj = np.meshgrid(np.arange(self.cells_x), np.arange(self.cells_y))
-        ci, cj = ci.ravel(), cj.ravel()
-        return np.stack([self.lines_i[ci], self.lines_i[ci + 1], self.lines_j[cj], self.lines_j[cj + 1]], axis=1)
+    def cell_nodes(self, warp_yarns: int) -> np.ndarray:
+        """The four nodes of every cell, (i0, j0), (i1, j0), (i0, j1), (i1, j1) as crossings (the order of
+        crossing_node), shape (cell_count, 4), int64."""
+        ci, cj = (g.ravel() for g in np.meshgrid(np.arange(self.cells_x), np.arange(self.cells_y)))
+        i0, i1, j0, j1 = self.lines_i[ci], self.lines_i[ci + 1], self.lines_j[cj], self.lines_j[cj + 1]
+        return np.stack([j0 * warp_yarns + i0, j0 * warp_yarns + i1, j1 * warp_yarns + i0, j1 * warp_yarns + i1], axis=1)
 
 
 def coarse_lines(yarns: int, factor: int) -> np.ndarray:
@@ -125,8 +127,21 @@ def _cells_of(xi: np.ndarray, yj: np.ndarray, lines_i: np.ndarray, lines_j: np.n
     return out.astype(np.int32)
 
 
+_LAYOUTS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+"""coarse_layout of each live Model (a Model never changes; its layout takes most of a second at
+512 x 512, and the initial State, the solver's stages and `check` all need it)."""
+
+
 def coarse_layout(model) -> CoarseLayout:
-    """The cells, interpolation weights and coarse springs of a model (coarse_factor > 1)."""
+    """The cells, interpolation weights and coarse springs of a model (coarse_factor > 1); computed once
+    per Model."""
+    layout = _LAYOUTS.get(model)
+    if layout is None:
+        layout = _LAYOUTS[model] = _build_layout(model)
+    return layout
+
+
+def _build_layout(model) -> CoarseLayout:
     k = int(model.coarse_factor)
     nx, ny = model.warp_yarns, model.weft_yarns
     li, lj = coarse_lines(nx, k), coarse_lines(ny, k)
@@ -272,11 +287,9 @@ def moving_body_reach(model, layout: CoarseLayout) -> tuple[np.ndarray, np.ndarr
     if not model.refine_near_bodies:
         return np.zeros(0, np.int64), np.zeros(0)
     bodies = np.flatnonzero((model.body_motion != MOTION_STATIC) & model.body_collide)
-    rect = layout.cell_rect()
-    nx = model.warp_yarns
+    nodes = layout.cell_nodes(model.warp_yarns)
     rest = model.crossing_rest_position_m
-    diagonal = float(np.max(np.linalg.norm(rest[rect[:, 3] * nx + rect[:, 1]] - rest[rect[:, 2] * nx + rect[:, 0]],
-                                           axis=1)))
+    diagonal = float(np.max(np.linalg.norm(rest[nodes[:, 3]] - rest[nodes[:, 0]], axis=1)))
     reach = np.array([bounding_radius(model.body_shape[k], model.body_radius_m[k], model.body_half_extents_m[k],
                                       0.5 * model.thickness_m) + (model.refine_band_cells + 1) * diagonal
                       for k in bodies])
@@ -342,9 +355,8 @@ def set_masses(model, layout: CoarseLayout, refined: np.ndarray, state) -> np.nd
 
 
 def interpolate_slaved(layout: CoarseLayout, free: np.ndarray, values: np.ndarray) -> None:
-    """values[slaved] = the weighted sum of their nodes' values (positions or velocities), in place."""
-    slaved = np.flatnonzero(~free)
-    acc = np.zeros((slaved.size, 3))
-    for q in range(4):
-        acc += layout.crossing_weight[slaved, q, None] * values[layout.crossing_node[slaved, q]]
-    values[slaved] = acc
+    """values[slaved] = the weighted sum of their nodes' values (positions or velocities), in place
+    (the kernel the step uses, fraytool.sim.kernels.multires.sync_slaved)."""
+    from fraytool.sim.kernels.multires import sync_slaved
+
+    sync_slaved(np.flatnonzero(~free).astype(np.int32), layout.crossing_node, layout.crossing_weight, values)

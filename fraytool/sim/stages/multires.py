@@ -50,17 +50,12 @@ class MultiresRuntime:
         self._structural = structural
         self._coarse_structural = (lay.coarse_kind == STRUCT_WEFT) | (lay.coarse_kind == STRUCT_WARP)
         self.coarse_alive = np.ones(lay.coarse_kind.shape[0], bool)
-        rect = lay.cell_rect()
-        nx = model.warp_yarns
-        self.cell_nodes = np.stack([rect[:, 2] * nx + rect[:, 0], rect[:, 2] * nx + rect[:, 1],
-                                    rect[:, 3] * nx + rect[:, 0], rect[:, 3] * nx + rect[:, 1]], axis=1)
+        self.cell_nodes = lay.cell_nodes(model.warp_yarns)
         self._hot = np.zeros(lay.cell_count, bool)
         self._new = np.zeros(lay.cell_count, bool)
         self.moving_bodies, self.body_reach_m = multires.moving_body_reach(model, lay)
         self._owner: Optional[State] = None
         self._count = -1
-        self.refinements = 0
-        """Refinements (steps that refined at least one cell) since construction."""
 
     def ensure(self, state: State) -> None:
         """Rebuild the work lists if `state` is not the one they were built for."""
@@ -72,7 +67,6 @@ class MultiresRuntime:
         lay, refined = self.layout, state.coarse_cell_refined
         self._owner, self._count = state, int(np.count_nonzero(refined))
         free = multires.free_crossings(lay, refined)
-        self.free = free
         self.slaved = np.flatnonzero(~free).astype(np.int32)
         # the slaved crossings grouped by the cell they interpolate (SlavedContact's cell test)
         order = np.argsort(lay.crossing_weight_cell[self.slaved], kind="stable")
@@ -106,7 +100,6 @@ class MultiresRuntime:
         interpolated position and velocity they already have."""
         state.coarse_cell_refined |= new
         multires.set_masses(self.model, self.layout, state.coarse_cell_refined, state)
-        self.refinements += 1
         self._rebuild(state)
 
 
