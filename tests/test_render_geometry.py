@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from fraytool.render.camera import Camera
-from fraytool.render.lod import choose_detail
+from fraytool.render.lod import choose_detail, segment_samples
 from fraytool.render.spline import catmull_rom, polyline_tangents, sample_counts
 from fraytool.render.tube import (
     fade_alpha,
@@ -55,6 +55,29 @@ def test_centripetal_spline_does_not_backtrack_on_uneven_collinear_points():
     uniform = catmull_rom(pts, off, 16, alpha=0.0).points[:, 0]
     assert np.all(np.diff(centripetal) >= -1e-12)
     assert np.any(np.diff(uniform) < -1e-3)
+
+
+def test_a_segment_with_its_own_sample_count_gives_the_same_curve_points():
+    """Per-segment counts (the level of detail): a segment sampled m times has the points the uniform
+    sampling at 4 gives at the same parameters (u = k / m), and control_index still finds every
+    control point, piece ends included."""
+    a = np.cumsum(RNG.uniform(0.001, 0.03, size=(7, 3)), axis=0)
+    b = np.cumsum(RNG.uniform(-0.01, 0.01, size=(4, 3)), axis=0) + 1.0
+    pts, off = _pieces(a, b)
+    m = np.array([1, 2, 4, 2, 1, 4, 2, 4, 1], dtype=np.int64)               # 6 + 3 segments
+    fine = catmull_rom(pts, off, 4)
+    mixed = catmull_rom(pts, off, m)
+    np.testing.assert_allclose(mixed.points[mixed.control_index], pts, atol=1e-12)
+    assert np.array_equal(np.diff(mixed.offsets), [m[:6].sum() + 1, m[6:].sum() + 1])
+    seg = 0
+    for p in range(2):
+        for i in range(off[p], off[p + 1] - 1):
+            for k in range(m[seg]):
+                want = fine.points[fine.control_index[i] + k * 4 // m[seg]]
+                np.testing.assert_allclose(mixed.points[mixed.control_index[i] + k], want, atol=1e-12)
+            seg += 1
+    with pytest.raises(ValueError):
+        catmull_rom(pts, off, np.zeros(9, np.int64))
 
 
 def test_spline_rejects_single_point_pieces():
@@ -270,3 +293,21 @@ def test_detail_grows_as_the_camera_comes_closer_and_stops_at_the_scene_maximum(
     assert sides == sorted(sides) and samples == sorted(samples)
     assert details[0].sides == 3 and details[0].samples_per_segment == 2
     assert details[-1].sides == 6 and details[-1].samples_per_segment == 4
+
+
+def test_segments_far_from_the_camera_get_fewer_samples_than_near_ones():
+    """A piece running away from the camera: its segments' counts fall with distance, never above the
+    frame's most, never below 2, each sample step at most lod.SAMPLE_PX pixels while the count can grow."""
+    from fraytool.render import lod
+
+    cam = Camera(CameraSpec(position_m=(0.0, 0.0, 0.05), target_m=(0.0, 0.0, 0.0), fov_deg=40.0))
+    z = -np.linspace(0.0, 1.0, 251)
+    pts = np.stack([np.full_like(z, 0.01), np.zeros_like(z), z], axis=1)      # 4 mm segments, going away
+    off = np.array([0, len(z)])
+    m = segment_samples(cam, 720, pts, off, 0.004, max_samples=6)
+    assert m.shape == (250,) and m.dtype == np.int64
+    assert np.all(np.diff(m) <= 0) and m[0] == 6 and m[-1] == 2
+    depth = 0.05 - z[:-1]                                                    # the nearer end of each segment
+    seg_px = 0.004 * 720 / (2.0 * depth * np.tan(np.radians(20.0)))
+    assert np.all((seg_px / m <= lod.SAMPLE_PX + 1e-9) | (m == 6))
+    assert np.all((seg_px / (m - 1) > lod.SAMPLE_PX) | (m == 2))               # one fewer would be too long

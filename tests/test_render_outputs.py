@@ -140,7 +140,9 @@ def test_depth_is_the_distance_along_the_view_axis(gl_ctx, posed_cloth):
     want, on_ball = expected_depth(camera.fov_deg)
     assert z.shape == (48, 64) and z.dtype == np.float32
     np.testing.assert_allclose(z[-6:], want[-6:], rtol=1e-4)              # ground: exact plane
-    assert np.ptp(z[-1]) < 1e-5 * z[-1].mean()                              # constant along a row
+    # constant along a row to a few 24-bit depth steps (each about 3e-7 m here); a distance to the eye
+    # would vary by percents from the row's middle to its ends
+    assert np.ptp(z[-1]) < 1e-4 * z[-1].mean()
     # the ball is a UV sphere of 7.5 degree facets, whose surface lies between the sphere and the sphere
     # of radius r cos(7.5 degrees) inside it
     inner, _ = expected_depth(camera.fov_deg, BALL_RADIUS * math.cos(math.radians(7.5)))

@@ -10,7 +10,7 @@ import numpy as np
 from fraytool.render.geometry import GeometryBuilder, YarnStyle
 from fraytool.render.renderer import Renderer
 from fraytool.render.ribbon import (across, ribbon_shadow_positions, ribbon_triangles, ribbon_vertices,
-                                    translucent_ribbon_triangles)
+                                    shadow_casters, translucent_ribbon_triangles)
 
 
 def test_strips_face_the_eye_and_are_as_wide_as_the_yarn():
@@ -44,6 +44,26 @@ def test_strip_triangles_and_the_fading_ones():
     assert tri.tolist() == [[0, 1, 2], [1, 3, 2], [2, 3, 4], [3, 5, 4], [6, 7, 8], [7, 9, 8]]
     alpha = np.array([1, 1, 0.5, 1, 1], np.float32)
     assert translucent_ribbon_triangles(offsets, alpha).tolist() == [False, False, True, True, False, False]
+
+
+def test_shadow_casters_run_through_every_other_sample_and_leave_out_fading_spans():
+    """Pieces of 5, 2 and 4 samples: kept samples 0, 2, 4 | 5, 6 | 7, 9, 10; strips join kept samples
+    of one piece only; a strip is dropped when a sample on its span fades, the skipped one included."""
+    rng = np.random.default_rng(5)
+    x = rng.normal(size=(11, 3))
+    t = rng.normal(size=(11, 3))
+    t /= np.linalg.norm(t, axis=1, keepdims=True)
+    offsets = np.array([0, 5, 7, 11])
+    light = np.array([0.3, 1.0, 0.2])
+    keep = [0, 2, 4, 5, 6, 7, 9, 10]
+    alpha = np.ones(11, np.float32)
+    pos, tri = shadow_casters(x, t, offsets, alpha, 0.01, light)
+    np.testing.assert_array_equal(pos, ribbon_shadow_positions(x[keep], t[keep], 0.01, light))
+    assert tri.tolist() == ribbon_triangles(np.array([0, 3, 5, 8])).tolist()
+    assert len(tri) == 2 * (2 + 1 + 2)
+    alpha[8] = 0.5                                                # the sample skipped between 7 and 9
+    _, tri = shadow_casters(x, t, offsets, alpha, 0.01, light)
+    assert len(tri) == 2 * (2 + 1 + 1) and [10, 11, 12] not in tri.tolist() and [11, 13, 12] not in tri.tolist()
 
 
 def _draw(ctx, pc, record, shape, shadows=False, size=(160, 120), ground=False, alpha=True, depth=True):

@@ -129,3 +129,53 @@ def test_a_zero_fill_direction_is_refused_naming_the_key():
     scene = Path(__file__).resolve().parent / "scenes" / "golden_small.toml"
     with pytest.raises(SceneError, match="fill_direction"):
         load_scene(scene, [parse_assignment("render.fill_direction=[0,0,0]")])
+
+
+def test_the_shadow_footprint_is_where_the_light_box_meets_the_ground():
+    """The quad drawn with shadow lookups: its corners lie on the ground plane and the light's clip
+    space puts them at (+-1, +-1), so it covers exactly the map; a light along the plane has none."""
+    from fraytool.render.shadow import fit_light, shadow_footprint
+
+    rng = np.random.default_rng(2)
+    up = np.array([0.2, 1.0, -0.1])
+    up /= np.linalg.norm(up)
+    light = fit_light(np.array([0.4, 1.0, 0.3]), rng.normal(size=(50, 3)) * 0.1, np.zeros(50), 1024)
+    model = shadow_footprint(light, up, -0.25)
+    corners = np.array([[x, 0.0, z, 1.0] for x in (-1.0, 1.0) for z in (-1.0, 1.0)]) @ model.T
+    assert np.allclose(corners[:, :3] @ up, -0.25)
+    clip = corners @ light.view_proj.T
+    assert np.allclose(np.abs(clip[:, :2]), 1.0)
+    assert len({tuple(np.sign(c[:2])) for c in clip}) == 4                     # all four corners
+    normal = np.linalg.inv(model[:3, :3]).T @ [0.0, 1.0, 0.0]                  # as the shader's normal matrix
+    assert np.allclose(normal / np.linalg.norm(normal), up)
+    grazing = fit_light(np.cross(up, [1.0, 0.0, 0.0]), rng.normal(size=(50, 3)), np.zeros(50), 1024)
+    assert shadow_footprint(grazing, up, 0.0) is None
+    assert shadow_footprint(None, up, 0.0) is None
+
+
+def test_the_ground_drawn_in_two_parts_matches_one_shadowed_draw(gl_ctx, posed_cloth, monkeypatch):
+    """The ground outside the shadow footprint is drawn without lookups: the picture must be the one
+    the shadowed ground program gives everywhere (the seam invisible), with the ball's and the torn
+    cloth's shadows on it."""
+    import fraytool.render.renderer as renderer_module
+
+    render = dataclasses.replace(posed_cloth.spec.render, light_direction=(0.6, 1.0, 0.2), shadows=True,
+                                 resolution=(320, 240))
+
+    def draw():
+        r = Renderer(gl_ctx, (320, 240), 4, render, posed_cloth.spec.camera, posed_cloth.topology)
+        try:
+            b = GeometryBuilder(posed_cloth.topology, YarnStyle.from_spec(render, posed_cloth.topology), r.camera, 240)
+            return r.render(b.build(posed_cloth.torn())).astype(np.int64)
+        finally:
+            r.release()
+
+    split = draw()
+    monkeypatch.setattr(renderer_module, "shadow_footprint", lambda *a: None)
+    whole = draw()
+    no_shadows = dataclasses.replace(render, shadows=False)
+    render = no_shadows
+    unshadowed = draw()
+    assert (np.abs(whole - unshadowed).max(axis=2) > 24).mean() > 0.01             # there are shadows to keep
+    diff = np.abs(split - whole).max(axis=2)
+    assert diff.max() <= 2, diff.max()

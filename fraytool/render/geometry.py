@@ -15,8 +15,8 @@ import numpy as np
 
 from fraytool.io.frame_record import FrameRecord
 from fraytool.render.camera import Camera
-from fraytool.render.lod import Detail, choose_detail
-from fraytool.render.ribbon import (ribbon_shadow_positions, ribbon_triangles, ribbon_vertices,
+from fraytool.render.lod import Detail, choose_detail, segment_samples
+from fraytool.render.ribbon import (ribbon_triangles, ribbon_vertices, shadow_casters,
                                     translucent_ribbon_triangles)
 from fraytool.render.spline import catmull_rom, polyline_tangents
 from fraytool.render.tube import VERTEX_FLOATS, fade_alpha, sweep_tubes, translucent_triangles, tube_triangles
@@ -75,8 +75,10 @@ class YarnMesh:
     pieces: int
     detail: Detail
     shadow_positions: Optional[np.ndarray] = None
-    """Ribbons only: vertex positions of the strips turned to face the key light [m], (V, 3) float32,
-    drawn into the shadow map instead of `vertices` (fraytool.render.ribbon)."""
+    """Ribbons only: vertex positions of the strips turned to face the key light through every other
+    sample [m], (V', 3) float32, drawn into the shadow map instead of `vertices` (fraytool.render.ribbon)."""
+    shadow_triangles: Optional[np.ndarray] = None
+    """Ribbons only: the opaque triangles over `shadow_positions`, (F', 3) uint32."""
 
 
 @dataclass(frozen=True)
@@ -141,8 +143,11 @@ class GeometryBuilder:
         st = self.style
         if self.camera is None or self.image_height is None:
             return Detail(st.sides, st.samples_per_segment)
-        return choose_detail(self.camera, self.image_height, pieces.points, st.radius_m, st.spacing_m,
-                             st.sides, st.samples_per_segment)
+        frame = choose_detail(self.camera, self.image_height, pieces.points, st.radius_m, st.spacing_m,
+                              st.sides, st.samples_per_segment)
+        per_segment = segment_samples(self.camera, self.image_height, pieces.points, pieces.offsets, st.spacing_m,
+                                  frame.samples_per_segment)
+        return Detail(frame.sides, frame.samples_per_segment, per_segment)
 
     def _triangles(self, offsets: np.ndarray, sides: int) -> np.ndarray:
         key = (self.style.shape, sides, np.diff(offsets).tobytes())
@@ -156,7 +161,7 @@ class GeometryBuilder:
         detail = self.detail(pieces)
         if st.shape == "ribbon":
             return self._ribbon_mesh(pieces, detail)
-        curves = catmull_rom(pieces.points, pieces.offsets, detail.samples_per_segment)
+        curves = catmull_rom(pieces.points, pieces.offsets, _samples(detail))
         tangents = polyline_tangents(curves.points, curves.offsets)
         alpha = fade_alpha(curves.points, curves.offsets, pieces.broken_start, pieces.broken_end,
                            st.fade_length_m)
@@ -175,15 +180,16 @@ class GeometryBuilder:
     def _ribbon_mesh(self, pieces: YarnPieces, detail: Detail) -> YarnMesh:
         """View-facing strips (fraytool.render.ribbon); the eye is the camera's (its origin without one)."""
         st = self.style
-        curves = catmull_rom(pieces.points, pieces.offsets, detail.samples_per_segment)
+        curves = catmull_rom(pieces.points, pieces.offsets, _samples(detail))
         tangents = polyline_tangents(curves.points, curves.offsets)
         alpha = fade_alpha(curves.points, curves.offsets, pieces.broken_start, pieces.broken_end,
                            st.fade_length_m)
         warp = np.repeat(pieces.kind.astype(np.float32), np.diff(curves.offsets))
         eye = self.camera.eye if self.camera is not None else np.zeros(3)
         vertices = ribbon_vertices(curves.points, tangents, st.radius_m, alpha, warp, eye)
-        shadow = (ribbon_shadow_positions(curves.points, tangents, st.radius_m, np.asarray(st.light_direction))
-                  if st.light_direction is not None else None)
+        shadow, shadow_tri = (shadow_casters(curves.points, tangents, curves.offsets, alpha, st.radius_m,
+                                             np.asarray(st.light_direction))
+                              if st.light_direction is not None else (None, None))
         tri = self._triangles(curves.offsets, 2)
         if (alpha < 1.0).any():
             see_through = translucent_ribbon_triangles(curves.offsets, alpha)
@@ -192,8 +198,9 @@ class GeometryBuilder:
             opaque, translucent = tri, tri[:0]
         centroid = (vertices[:, 0:3][translucent].mean(axis=1) if len(translucent)
                     else np.zeros((0, 3), np.float32))
-        return YarnMesh(vertices, opaque, translucent, centroid, pieces.count, Detail(2, detail.samples_per_segment),
-                        shadow_positions=shadow)
+        return YarnMesh(vertices, opaque, translucent, centroid, pieces.count,
+                        Detail(2, detail.samples_per_segment, detail.segment_samples),
+                        shadow_positions=shadow, shadow_triangles=shadow_tri)
 
     def build(self, record: FrameRecord, yarns: bool = True, lines: bool = False) -> FrameGeometry:
         """Geometry of one frame; `yarns` / `lines` choose what the shaded and wireframe views need."""
@@ -209,3 +216,8 @@ class GeometryBuilder:
             body_position_m=np.asarray(record.body_position_m, dtype=np.float32),
             body_rotation=np.asarray(record.body_rotation, dtype=np.float32),
         )
+
+
+def _samples(detail: Detail):
+    """Samples per segment for catmull_rom: per piece when the detail has them."""
+    return detail.samples_per_segment if detail.segment_samples is None else detail.segment_samples

@@ -41,7 +41,7 @@ from fraytool.scene.spec import SceneSpec
 PASS_SUFFIX = {"off": "", "only": "_wireframe", "beside": "_beside"}
 """File-name suffix of each render pass (the --wireframe mode)."""
 
-RENDER_REVISION = 2
+RENDER_REVISION = 3
 """Bump when a change in the Python side of the renderer changes pixels (shader edits count by themselves)."""
 
 

@@ -57,6 +57,7 @@ from fraytool.render.color import (
 from fraytool.errors import RunError
 from fraytool.render.context import check_gl_error
 from fraytool.render.geometry import FrameGeometry
+from fraytool.render.shadow import LightFrame, shadow_footprint
 from fraytool.render.shadow_pass import ShadowPass
 from fraytool.resources import shader_source
 from fraytool.scene.spec import CameraSpec, RenderSpec
@@ -67,6 +68,10 @@ KAJIYA_WEIGHT = 0.35
 WIREFRAME_MODES = ("off", "only", "beside")
 TARGETS = ("srgb8", "float")
 """Colour targets: 8-bit sRGB-encoded (the default) or 32-bit float linear (see the module docstring)."""
+
+GROUND_OFFSET = (1.0, 4.0)
+"""glPolygonOffset of the ground drawn around the shadow footprint: behind the footprint's own depth,
+so it fails the depth test there (the two draws' depths of one plane differ by rounding only)."""
 
 GL_SRGB8_ALPHA8 = 0x8C43
 GL_FRAMEBUFFER_SRGB = 0x8DB9
@@ -187,14 +192,23 @@ class Renderer:
 
         features = (("SHADOWS",) if render.shadows else ()) + (("FILL",) if render.fill_intensity > 0 else ())
         self.ribbons = render.yarn_shape == "ribbon"
-        self._yarn_prog = load_program(ctx, "yarn.vert", "yarn.frag", features + (("RIBBON",) if self.ribbons else ()))
+        yarn_features = features + (("SHADOW_ONE_TAP",) if render.shadows else ()) + (("RIBBON",) if self.ribbons else ())
+        self._yarn_prog = load_program(ctx, "yarn.vert", "yarn.frag", yarn_features)
         self._body_prog = load_program(ctx, "body.vert", "body.frag", features)
         self._ground_prog = load_program(ctx, "body.vert", "ground.frag", features)
+        # With shadows, the ground outside the shadow map's footprint cannot be in shadow: it is
+        # drawn by this program without the shadow lookups (_draw_ground).
+        self._ground_lit_prog = (load_program(ctx, "body.vert", "ground.frag", tuple(f for f in features if f != "SHADOWS"))
+                                 if render.shadows else None)
+        self._ground_progs = (self._ground_prog,) + ((self._ground_lit_prog,) if render.shadows else ())
         self._line_prog = load_program(ctx, "line.vert", "line.frag")
         self.shadow = (ShadowPass(ctx, render.shadow_map_size, topology, load_program(ctx, "depth.vert", "depth.frag"))
                        if render.shadows else None)
 
         self._body_vaos = {}
+        self._ground_lit_vao: Optional[moderngl.VertexArray] = None
+        self._light: Optional[LightFrame] = None
+        """The key light's box of the frame being drawn (None: no shadows, or nothing casts)."""
         self._static = []
         for name, mesh in (("sphere", unit_sphere()), ("cube", unit_cube()), ("quad", unit_quad())):
             vbo = ctx.buffer(mesh.vertices.tobytes())
@@ -206,11 +220,15 @@ class Renderer:
             )
             if self.shadow is not None:
                 self.shadow.add_body_mesh(name, vbo, ibo)
+            if name == "quad" and self._ground_lit_prog is not None:
+                self._ground_lit_vao = ctx.vertex_array(self._ground_lit_prog, [(vbo, "3f 3f", "in_position", "in_normal")],
+                                                        ibo, 4)
 
         self._yarn_vbo = _Stream(ctx)
         self._shadow_vbo = _Stream(ctx)
         """Ribbons: the strips turned to the key light, for the shadow pass (fraytool.render.ribbon)."""
         self._opaque_ibo = _Stream(ctx)
+        self._shadow_ibo = _Stream(ctx)
         self._translucent_ibo = _Stream(ctx)
         self._line_vbo = _Stream(ctx)
         self._yarn_vaos: dict[str, tuple[int, moderngl.VertexArray]] = {}
@@ -245,7 +263,7 @@ class Renderer:
         if r.fill_intensity > 0:
             fill = np.asarray(r.fill_direction, dtype=np.float64)
             common.update(u_fill_intensity=r.fill_intensity, u_fill_dir=fill / np.linalg.norm(fill))
-        for prog in (self._yarn_prog, self._body_prog, self._ground_prog):
+        for prog in (self._yarn_prog, self._body_prog, *self._ground_progs):
             for k, v in common.items():
                 if k in prog:
                     prog[k].value = tuple(np.atleast_1d(v).tolist()) if np.ndim(v) else float(v)
@@ -294,30 +312,53 @@ class Renderer:
             self._body_vaos[d.mesh][0].render(moderngl.TRIANGLES)
 
     def _draw_ground(self, view_proj: bytes) -> None:
+        """The ground plane, out to where it has faded into the background (beyond, the clear colour
+        is the same picture). With shadows it is drawn in two parts: the footprint of the key
+        light's box on the plane (every ground point that can be in shadow: fraytool.render.shadow)
+        with the shadow lookups, then the whole plane without them, pushed back by a polygon offset
+        so that it fails the depth test where the footprint was drawn. Outside the footprint a lookup
+        reads cleared depth and gives full light, so both parts shade alike there; the lookups,
+        about a third of the ground's cost on llvmpipe, are paid only where a shadow can fall."""
         ground = self._ground()
         if ground is None:
             return
         up, height = ground
         centre = self.camera.target - (self.camera.target @ up - height) * up
         Rg = rotation_from_y(up)
-        size = self.bodies.plane_half_size_m
-        model = np.eye(4)
-        model[:3, :3] = Rg @ np.diag([size, 1.0, size])
-        model[:3, 3] = centre
-        g = self._ground_prog
-        g["u_view_proj"].write(view_proj)
-        g["u_model"].write(gl_matrix_bytes(model))
-        g["u_normal_matrix"].write(gl_matrix_bytes(np.linalg.inv(model[:3, :3]).T))
-        g["u_color"].value = tuple(srgb_to_linear(self.render_spec.body_color) * 0.8)
-        g["u_background"].value = self._background
-        g["u_alpha_out"].value = 1.0 if self.alpha else 0.0
-        g["u_centre"].value = tuple(centre)
-        g["u_axis_u"].value = tuple(Rg[:, 0])
-        g["u_axis_v"].value = tuple(Rg[:, 2])
         dist = float(np.linalg.norm(self.camera.target - self.camera.eye))
-        g["u_cell"].value = _nice_cell(dist / 6.0)
-        g["u_fade_radius"].value = 4.0 * dist
-        self._body_vaos["quad"][1].render(moderngl.TRIANGLES)
+        fade_radius_m = 4.0 * dist
+        uniforms = {"u_view_proj": view_proj,
+                    "u_color": tuple(srgb_to_linear(self.render_spec.body_color) * 0.8),
+                    "u_background": self._background, "u_alpha_out": 1.0 if self.alpha else 0.0,
+                    "u_centre": tuple(centre), "u_axis_u": tuple(Rg[:, 0]), "u_axis_v": tuple(Rg[:, 2]),
+                    "u_cell": _nice_cell(dist / 6.0), "u_fade_radius": fade_radius_m}
+        size = min(self.bodies.plane_half_size_m, fade_radius_m)
+        plane = np.eye(4)
+        plane[:3, :3] = Rg @ np.diag([size, 1.0, size])
+        plane[:3, 3] = centre
+        footprint = shadow_footprint(self._light, up, height) if self._ground_lit_vao is not None else None
+        if footprint is None:  # no shadows, nothing casts, or the light grazes the plane: one draw
+            if self.shadow is not None and self._light is None:
+                self._ground_quad(self._ground_lit_prog, self._ground_lit_vao, plane, uniforms)
+            else:
+                self._ground_quad(self._ground_prog, self._body_vaos["quad"][1], plane, uniforms)
+            return
+        self._ground_quad(self._ground_prog, self._body_vaos["quad"][1], footprint, uniforms)
+        self.ctx.polygon_offset = GROUND_OFFSET
+        self._ground_quad(self._ground_lit_prog, self._ground_lit_vao, plane, uniforms)
+        self.ctx.polygon_offset = (0.0, 0.0)
+
+    @staticmethod
+    def _ground_quad(prog: moderngl.Program, vao: moderngl.VertexArray, model: np.ndarray, uniforms: dict) -> None:
+        """Draw the unit quad placed by `model` (its normal matrix makes the quad's +y the plane's up)."""
+        for name, value in uniforms.items():
+            if isinstance(value, bytes):
+                prog[name].write(value)
+            else:
+                prog[name].value = value
+        prog["u_model"].write(gl_matrix_bytes(model))
+        prog["u_normal_matrix"].write(gl_matrix_bytes(np.linalg.inv(model[:3, :3]).T))
+        vao.render(moderngl.TRIANGLES)
 
     def _draw_shaded(self, geom: FrameGeometry, view_proj: bytes) -> None:
         ctx = self.ctx
@@ -383,12 +424,14 @@ class Renderer:
         have_yarns = mesh is not None and len(mesh.opaque) > 0
         casters = self._yarn_vbo if have_yarns else None
         positions = mesh.vertices[:, :3] if have_yarns else None
-        packed = False
+        triangles, count, packed = self._opaque_ibo, mesh.opaque.size if have_yarns else 0, False
         if have_yarns and mesh.shadow_positions is not None:  # ribbons: the strips turned to the light
             self._shadow_vbo.write(mesh.shadow_positions)
+            self._shadow_ibo.write(mesh.shadow_triangles)
             casters, positions, packed = self._shadow_vbo, mesh.shadow_positions, True
-        light = self.shadow.draw(self._light_dir, positions, casters, self._opaque_ibo if have_yarns else None,
-                                 mesh.opaque.size if have_yarns else 0, self.bodies, geom, packed=packed)
+            triangles, count = self._shadow_ibo, mesh.shadow_triangles.size
+        light = self._light = self.shadow.draw(self._light_dir, positions, casters, triangles if have_yarns else None,
+                                               count, self.bodies, geom, packed=packed)
         for prog in (self._yarn_prog, self._body_prog, self._ground_prog):
             self.shadow.bind(prog, light)
 
@@ -487,7 +530,11 @@ class Renderer:
         for vaos in self._body_vaos.values():
             for vao in vaos:
                 vao.release()
-        for s in (self._yarn_vbo, self._shadow_vbo, self._opaque_ibo, self._translucent_ibo, self._line_vbo):
+        if self._ground_lit_vao is not None:
+            self._ground_lit_vao.release()
+            self._ground_lit_prog.release()
+        for s in (self._yarn_vbo, self._shadow_vbo, self._shadow_ibo, self._opaque_ibo, self._translucent_ibo,
+                  self._line_vbo):
             s.release()
         if self.shadow is not None:
             self.shadow.release()

@@ -14,7 +14,10 @@ sample's left edge, 2 k + 1 its right edge, seen with the tangent pointing right
 holds the unit direction across the strip, signed (-S on the left, +S on the right), which the
 rasteriser interpolates to v S, v in [-1, 1] across the strip; triangles 2 per consecutive sample
 pair inside a piece; no caps (broken ends fade out; ends at the border are cut square).
-The shadow pass draws the same strips turned to face the light (`shadow_positions`).
+The shadow pass draws the same strips turned to face the light (`shadow_positions`), through every
+other sample (`shadow_casters`): half the triangles for a shape the map cannot tell apart at a
+texel of about a pixel; a skipped sample lies within the chord's sagitta, far less than the
+receivers' normal offset (fraytool.render.shadow).
 """
 from __future__ import annotations
 
@@ -110,3 +113,26 @@ def translucent_ribbon_triangles(offsets: np.ndarray, alpha: np.ndarray) -> np.n
     a = np.asarray(alpha) < 1.0
     r = body_pairs(offsets)
     return np.repeat(a[r] | a[r + 1], 2)
+
+
+def shadow_casters(points: np.ndarray, tangents: np.ndarray, offsets: np.ndarray, alpha: np.ndarray,
+                   radius_m: float, light_dir: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The strips turned to the light through every other sample of each piece (and its last):
+    positions (2 M', 3) float32 as ribbon_shadow_positions, and the opaque triangles over them
+    (F', 3) uint32 -- a strip between two kept samples is left out when any sample from the one to
+    the other fades (alpha < 1), as fading ends cast no shadow."""
+    off = np.asarray(offsets, dtype=np.int64)
+    M = int(off[-1]) if len(off) else 0
+    if M == 0:
+        return np.zeros((0, 3), np.float32), np.zeros((0, 3), np.uint32)
+    piece = np.repeat(np.arange(len(off) - 1), np.diff(off))
+    local = np.arange(M) - off[:-1][piece]
+    last = np.zeros(M, dtype=bool)
+    last[off[1:] - 1] = True
+    keep = np.nonzero((local % 2 == 0) | last)[0]
+    kept_off = np.concatenate([[0], np.cumsum(np.bincount(piece[keep], minlength=len(off) - 1))])
+    positions = ribbon_shadow_positions(np.asarray(points)[keep], np.asarray(tangents)[keep], radius_m, light_dir)
+    fading = np.concatenate([[0], np.cumsum(np.asarray(alpha) < 1.0)])   # fading samples before each
+    r = body_pairs(kept_off)                                              # strips: kept r -> r + 1
+    see_through = fading[keep[r + 1] + 1] - fading[keep[r]] > 0
+    return positions, ribbon_triangles(kept_off)[~np.repeat(see_through, 2)]

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from fraytool.kinds import SHAPE_BOX, SHAPE_SPHERE
+from fraytool.render.bodies import rotation_from_y
 
 MARGIN_TEXELS = 4
 """Empty texels kept around the casters, so the PCF footprint at their edge reads cleared depth."""
@@ -98,3 +99,30 @@ def fit_light(direction: np.ndarray, points: np.ndarray, radii: np.ndarray, map_
     ortho[2, 2] = 2.0 / (far_z - near_z)                             # view z = near_z -> -1, far_z -> +1
     ortho[2, 3] = -(far_z + near_z) / (far_z - near_z)
     return LightFrame(ortho @ view, texel)
+
+
+def shadow_footprint(light: LightFrame | None, up: np.ndarray, height_m: float) -> np.ndarray | None:
+    """Where the light's box meets the plane {p : up . p = height_m}: a model matrix (4, 4) taking the
+    unit quad ([-1, 1]^2 in its xz plane, normal +y) to that parallelogram, its +y along `up`. The box
+    is orthographic, so clip x, y are affine in the plane's coordinates; the quad's corners are the
+    plane points at clip (+-1, +-1). None without a light, or when the light grazes the plane (the
+    footprint would be unbounded)."""
+    if light is None:
+        return None
+    axes3 = rotation_from_y(up)
+    e1, n, e2 = axes3[:, 0], axes3[:, 1], axes3[:, 2]
+    origin = height_m * n
+    A = np.asarray(light.view_proj, dtype=np.float64)[:2]
+    J = np.stack([A[:, :3] @ e1, A[:, :3] @ e2], axis=1)          # d(clip x, y) / d(s, t)
+    if abs(np.linalg.det(J)) < 1e-6 * np.abs(J).max() ** 2:
+        return None
+    base = A[:, :3] @ origin + A[:, 3]                             # clip x, y at the origin
+    Jinv = np.linalg.inv(J)
+    st0 = Jinv @ -base                                             # plane coordinates of clip (0, 0)
+    axes = np.stack([e1, e2], axis=1)                              # (3, 2)
+    model = np.eye(4)
+    model[:3, 0] = axes @ Jinv[:, 0]                               # clip x: -1 -> +1 across the quad
+    model[:3, 1] = n
+    model[:3, 2] = axes @ Jinv[:, 1]
+    model[:3, 3] = origin + axes @ st0
+    return model

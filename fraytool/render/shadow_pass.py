@@ -45,7 +45,7 @@ class ShadowPass:
         self._body_vaos[name] = self.ctx.vertex_array(self.program, [(vbo, "3f 12x", "in_position")], ibo, 4)
 
     def _yarns(self, vbo_stream, ibo_stream, packed: bool) -> moderngl.VertexArray:
-        key = (id(vbo_stream), vbo_stream.generation, ibo_stream.generation, packed)
+        key = (id(vbo_stream), vbo_stream.generation, id(ibo_stream), ibo_stream.generation, packed)
         if self._yarn_vao is None or self._yarn_vao[0] != key:
             if self._yarn_vao is not None:
                 self._yarn_vao[1].release()
@@ -97,7 +97,8 @@ class ShadowPass:
         else:
             prog["u_light_view_proj"].write(gl_matrix_bytes(light.view_proj))
             prog["u_shadow_offset_m"].value = NORMAL_OFFSET_TEXELS * light.texel_m
-        prog["u_shadow_texel"].value = 1.0 / self.size
+        if "u_shadow_texel" in prog:
+            prog["u_shadow_texel"].value = 1.0 / self.size
 
     def release(self) -> None:
         for vao in self._body_vaos.values():

@@ -7,13 +7,14 @@ all the time at a tear (Yuksel, Schaefer, Keyser 2011, "Parameterization and app
 Catmull-Rom curves", CAD 43(7)). Evaluation uses the Barry-Goldman pyramid.
 
 All pieces are evaluated together: the input is one (N, 3) array of points with piece offsets,
-so there is no Python loop over pieces or samples. End segments use a reflected phantom point
+sampled by one compiled loop (numba) with no Python loop over pieces or samples. End segments use a reflected phantom point
 (P_-1 = 2 P_0 - P_1), which makes the curve leave its first point towards the second.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 ALPHA = 0.5
@@ -39,7 +40,7 @@ def sample_counts(control_counts: np.ndarray, samples_per_segment: int) -> np.nd
     return (n - 1) * samples_per_segment + 1
 
 
-def catmull_rom(points: np.ndarray, offsets: np.ndarray, samples_per_segment: int,
+def catmull_rom(points: np.ndarray, offsets: np.ndarray, samples_per_segment,
                 alpha: float = ALPHA) -> SampledCurves:
     """Sample the centripetal Catmull-Rom spline of every piece.
 
@@ -47,68 +48,83 @@ def catmull_rom(points: np.ndarray, offsets: np.ndarray, samples_per_segment: in
     points[offsets[p]:offsets[p+1]]; every piece needs at least 2 points. Each segment is sampled
     at u = 0, 1/m, ..., (m-1)/m, and each piece ends with its last control point, so a piece of
     n points gives (n - 1) m + 1 samples and sample k m of a piece is its control point k.
+    samples_per_segment: m for every segment, or an array (N - K,) with each segment's own m, segments
+    in piece order (fraytool.render.lod); a piece then has sum(m) + 1 samples and control_index says
+    where each control point is.
     """
-    if samples_per_segment < 1:
-        raise ValueError(f"samples_per_segment must be >= 1, got {samples_per_segment}")
     P = np.asarray(points, dtype=np.float64)
     off = np.asarray(offsets, dtype=np.int64)
     counts = np.diff(off)
     if counts.size and counts.min() < 2:
         raise ValueError("every piece needs at least 2 control points")
-    m = int(samples_per_segment)
     k_count = counts.size
     seg_count = int((counts - 1).sum())
+    m = np.broadcast_to(np.asarray(samples_per_segment, dtype=np.int64), (seg_count,)).copy()
+    if m.size and m.min() < 1:
+        raise ValueError(f"samples_per_segment must be >= 1, got {int(m.min())}")
     if seg_count == 0:
         return SampledCurves(np.zeros((0, 3)), np.zeros(k_count + 1, np.int64), np.zeros(0, np.int64))
 
-    # Segment s joins control points i and i+1 of its piece; seg_piece[s] is the piece.
-    seg_piece = np.repeat(np.arange(k_count), counts - 1)
-    seg_first = off[:-1][seg_piece]                      # first control point of the piece
-    seg_last = off[1:][seg_piece] - 1                    # last control point of the piece
-    i1 = np.arange(seg_count) + seg_piece                # control index of the segment start
-    i2 = i1 + 1
-    p1, p2 = P[i1], P[i2]
-    at_start = i1 == seg_first
-    at_end = i2 == seg_last
-    p0 = np.where(at_start[:, None], 2.0 * p1 - p2, P[np.maximum(i1 - 1, 0)])
-    p3 = np.where(at_end[:, None], 2.0 * p2 - p1, P[np.minimum(i2 + 1, len(P) - 1)])
-
-    def step(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        d2 = np.einsum("ij,ij->i", b - a, b - a)
-        return np.maximum(d2 ** (0.5 * alpha), _MIN_KNOT_STEP)
-
-    t0 = np.zeros(seg_count)
-    t1 = t0 + step(p0, p1)
-    t2 = t1 + step(p1, p2)
-    t3 = t2 + step(p2, p3)
-    u = np.arange(m, dtype=np.float64) / m
-    t = t1[:, None] + u[None, :] * (t2 - t1)[:, None]    # (S, m)
-
-    a1 = _lerp_pts(p0[:, None, :], p1[:, None, :], t, t0, t1)
-    a2 = _lerp_pts(p1[:, None, :], p2[:, None, :], t, t1, t2)
-    a3 = _lerp_pts(p2[:, None, :], p3[:, None, :], t, t2, t3)
-    b1 = _lerp_pts(a1, a2, t, t0, t2)
-    b2 = _lerp_pts(a2, a3, t, t1, t3)
-    c = _lerp_pts(b1, b2, t, t1, t2)                     # (S, m, 3)
-
-    # Output rows: piece p's samples start at seg_start(p) * m + p (each earlier piece adds its
-    # end point), and its last control point follows its last segment.
-    out_off = np.zeros(k_count + 1, dtype=np.int64)
-    out_off[1:] = np.cumsum((counts - 1) * m + 1)
-    out = np.empty((out_off[-1], 3))
-    rows = (np.arange(seg_count) * m + seg_piece)[:, None] + np.arange(m)[None, :]
-    out[rows.ravel()] = c.reshape(-1, 3)
-    out[out_off[1:] - 1] = P[off[1:] - 1]
+    # Row of control point i: the samples of every segment before it, plus one end row per earlier piece.
     point_piece = np.repeat(np.arange(k_count), counts)
-    control_index = (np.arange(len(P)) - point_piece) * m + point_piece
+    seg_before = np.arange(len(P)) - point_piece                   # segments (all pieces) before point i
+    rows_before = np.concatenate([[0], np.cumsum(m)])
+    control_index = rows_before[seg_before] + point_piece
+    out_off = np.zeros(k_count + 1, dtype=np.int64)
+    out_off[1:] = control_index[off[1:] - 1] + 1
+    out = np.empty((out_off[-1], 3))
+    _sample_pieces(P, off, m, float(alpha), out)
     return SampledCurves(out, out_off, control_index)
 
 
-def _lerp_pts(pa: np.ndarray, pb: np.ndarray, t: np.ndarray, ta: np.ndarray, tb: np.ndarray) -> np.ndarray:
-    """Barry-Goldman blend of two point sets ((S, m, 3) or (S, 1, 3)) at parameters t (S, m)
-    between knots ta and tb (S,)."""
-    w = ((t - ta[:, None]) / (tb - ta)[:, None])[..., None]
-    return pa * (1.0 - w) + pb * w
+@numba.njit(cache=True, inline="always")
+def _knot_step(a, b, alpha):  # pragma: no cover - numba
+    """|b - a|^alpha, floored at _MIN_KNOT_STEP (a and b: 3-vectors)."""
+    d0, d1, d2 = b[0] - a[0], b[1] - a[1], b[2] - a[2]
+    return max((d0 * d0 + d1 * d1 + d2 * d2) ** (0.5 * alpha), _MIN_KNOT_STEP)
+
+
+@numba.njit(cache=True)
+def _sample_pieces(P, off, m, alpha, out):  # pragma: no cover - numba
+    """The samples of catmull_rom into `out`, piece after piece: segment s gives m[s] rows and each
+    piece ends with its last control point. End segments
+    use the reflected phantom points 2 P_0 - P_1 and 2 P_n - P_{n-1}; Barry-Goldman pyramid."""
+    p0 = np.empty(3)
+    p3 = np.empty(3)
+    row = 0
+    seg = 0
+    for piece in range(off.shape[0] - 1):
+        first, last = off[piece], off[piece + 1] - 1
+        for i1 in range(first, last):
+            mp = m[seg]
+            seg += 1
+            i2 = i1 + 1
+            p1, p2 = P[i1], P[i2]
+            for c in range(3):
+                p0[c] = 2.0 * p1[c] - p2[c] if i1 == first else P[i1 - 1, c]
+                p3[c] = 2.0 * p2[c] - p1[c] if i2 == last else P[i2 + 1, c]
+            t0 = 0.0
+            t1 = t0 + _knot_step(p0, p1, alpha)
+            t2 = t1 + _knot_step(p1, p2, alpha)
+            t3 = t2 + _knot_step(p2, p3, alpha)
+            for j in range(mp):
+                t = t1 + (j / mp) * (t2 - t1)
+                w01 = (t - t0) / (t1 - t0)
+                w12 = (t - t1) / (t2 - t1)
+                w23 = (t - t2) / (t3 - t2)
+                w02 = (t - t0) / (t2 - t0)
+                w13 = (t - t1) / (t3 - t1)
+                for c in range(3):
+                    a1 = p0[c] * (1.0 - w01) + p1[c] * w01
+                    a2 = p1[c] * (1.0 - w12) + p2[c] * w12
+                    a3 = p2[c] * (1.0 - w23) + p3[c] * w23
+                    b1 = a1 * (1.0 - w02) + a2 * w02
+                    b2 = a2 * (1.0 - w13) + a3 * w13
+                    out[row, c] = b1 * (1.0 - w12) + b2 * w12
+                row += 1
+        for c in range(3):
+            out[row, c] = P[last, c]
+        row += 1
 
 
 def polyline_tangents(points: np.ndarray, offsets: np.ndarray) -> np.ndarray:
@@ -119,27 +135,33 @@ def polyline_tangents(points: np.ndarray, offsets: np.ndarray) -> np.ndarray:
     """
     X = np.asarray(points, dtype=np.float64)
     off = np.asarray(offsets, dtype=np.int64)
-    M = len(X)
-    if M == 0:
-        return np.zeros((0, 3))
-    nxt = np.minimum(np.arange(M) + 1, M - 1)
-    prv = np.maximum(np.arange(M) - 1, 0)
-    first = np.zeros(M, dtype=bool)
-    last = np.zeros(M, dtype=bool)
-    first[off[:-1]] = True
-    last[off[1:] - 1] = True
-    nxt[last] = np.arange(M)[last]
-    prv[first] = np.arange(M)[first]
-    d = X[nxt] - X[prv]
-    length = np.linalg.norm(d, axis=1)
-    bad = length < 1e-15
-    if bad.any():
-        fwd = X[nxt] - X[np.arange(M)]
-        bwd = X[np.arange(M)] - X[prv]
-        alt = np.where((np.linalg.norm(fwd, axis=1) > 1e-15)[:, None], fwd, bwd)
-        d[bad] = alt[bad]
-        length = np.linalg.norm(d, axis=1)
-        still = length < 1e-15
-        d[still] = (1.0, 0.0, 0.0)
-        length[still] = 1.0
-    return d / length[:, None]
+    out = np.empty((len(X), 3))
+    _tangents(X, off, out)
+    return out
+
+
+@numba.njit(cache=True, inline="always")
+def _length(x, y, z):  # pragma: no cover - numba
+    return np.sqrt(x * x + y * y + z * z)
+
+
+@numba.njit(cache=True)
+def _tangents(X, off, out):  # pragma: no cover - numba
+    """polyline_tangents into `out`."""
+    for piece in range(off.shape[0] - 1):
+        first, last = off[piece], off[piece + 1] - 1
+        for i in range(first, last + 1):
+            nxt = i + 1 if i < last else i
+            prv = i - 1 if i > first else i
+            dx, dy, dz = X[nxt, 0] - X[prv, 0], X[nxt, 1] - X[prv, 1], X[nxt, 2] - X[prv, 2]
+            length = _length(dx, dy, dz)
+            if length < 1e-15:
+                dx, dy, dz = X[nxt, 0] - X[i, 0], X[nxt, 1] - X[i, 1], X[nxt, 2] - X[i, 2]
+                if not _length(dx, dy, dz) > 1e-15:
+                    dx, dy, dz = X[i, 0] - X[prv, 0], X[i, 1] - X[prv, 1], X[i, 2] - X[prv, 2]
+                length = _length(dx, dy, dz)
+                if length < 1e-15:
+                    dx, dy, dz, length = 1.0, 0.0, 0.0, 1.0
+            out[i, 0] = dx / length
+            out[i, 1] = dy / length
+            out[i, 2] = dz / length
