@@ -17,6 +17,8 @@ uniform vec3 u_fill_dir;
 in vec3 v_position;
 in vec3 v_normal;
 
+#include "output.glsl"
+
 out vec4 f_color;
 
 void main() {
@@ -36,5 +38,5 @@ void main() {
     ambient += u_fill_intensity * (0.5 + 0.5 * dot(N, u_fill_dir));
 #endif
     vec3 color = u_color * (ambient + key * diffuse) + vec3(key * highlight);
-    f_color = vec4(color, 1.0);
+    f_color = to_target(vec4(color, 1.0));
 }

@@ -24,6 +24,8 @@ uniform vec3 u_fill_dir;
 in vec3 v_position;
 in vec3 v_normal;
 
+#include "output.glsl"
+
 out vec4 f_color;
 
 void main() {
@@ -44,8 +46,8 @@ void main() {
     vec3 color = albedo * (ambient + key * diffuse);
     float fade = smoothstep(0.35 * u_fade_radius, u_fade_radius, length(d));
     if (u_alpha_out > 0.5) {
-        f_color = vec4(color * (1.0 - fade), 1.0 - fade);
+        f_color = to_target(vec4(color * (1.0 - fade), 1.0 - fade));
     } else {
-        f_color = vec4(mix(color, u_background, fade), 1.0);
+        f_color = to_target(vec4(mix(color, u_background, fade), 1.0));
     }
 }

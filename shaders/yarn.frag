@@ -44,6 +44,8 @@ in vec4 v_albedo;
 in vec3 v_position;
 #endif
 
+#include "output.glsl"
+
 out vec4 f_color;
 
 void main() {
@@ -81,5 +83,5 @@ void main() {
     // Clamped as a fixed-point target clamps before blending, so a float target blends the same:
     // with MSAA, attributes are evaluated at the pixel centre, which may lie outside the triangle,
     // and the fade alpha extrapolated there can leave [0, 1].
-    f_color = vec4(max(color, 0.0), clamp(v_albedo.a, 0.0, 1.0));
+    f_color = to_target(vec4(max(color, 0.0), clamp(v_albedo.a, 0.0, 1.0)));
 }

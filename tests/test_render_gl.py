@@ -72,9 +72,9 @@ def test_image_is_top_row_first_with_exact_srgb_background(gl_ctx, posed_cloth):
 
 
 def test_msaa_resolve_averages_in_linear_light(gl_ctx):
-    """The renderer's target set-up (SRGB8_ALPHA8 multisampled, GL_FRAMEBUFFER_SRGB on during the
-    draw and the resolve blit): a pixel half covered by white over black resolves to sRGB(0.5) = 188,
-    not 128 as averaging the encoded values would give."""
+    """The renderer's target set-up (SRGB8_ALPHA8 multisampled; shaders write encoded colour with
+    GL_FRAMEBUFFER_SRGB off, and it is on for the resolve blit): a pixel half covered by white over
+    black resolves to sRGB(0.5) = 188, not 128 as averaging the encoded values would give."""
     from fraytool.render.renderer import GL_FRAMEBUFFER_SRGB, GL_SRGB8_ALPHA8
 
     ctx = gl_ctx
@@ -86,10 +86,10 @@ def test_msaa_resolve_averages_in_linear_light(gl_ctx):
     buf = ctx.buffer(np.array([-1, -1, -1, 1, 1, 1], "f4"))         # the half above the diagonal
     vao = ctx.vertex_array(prog, [(buf, "2f", "p")])
     try:
-        ctx.enable_direct(GL_FRAMEBUFFER_SRGB)
         fbo_ms.use()
         fbo_ms.clear(0, 0, 0, 1)
         vao.render(moderngl.TRIANGLES)
+        ctx.enable_direct(GL_FRAMEBUFFER_SRGB)
         ctx.copy_framebuffer(fbo_out, fbo_ms)
         ctx.disable_direct(GL_FRAMEBUFFER_SRGB)
         a = np.frombuffer(fbo_out.read(components=1), np.uint8).reshape(8, 8)

@@ -2,24 +2,25 @@
 
 Pipeline per frame
 1. Draw into a multisampled SRGB8_ALPHA8 colour + depth framebuffer (samples clamped to
-   ctx.max_samples) with GL_FRAMEBUFFER_SRGB enabled: shaders compute linear RGB, and GL encodes
-   to sRGB on write and decodes for blending, so blending happens in linear light and the stored
-   bytes are already display-ready (IEC 61966-2-1). Order: ground plane and bodies, opaque yarn
-   triangles, then the translucent (fading) yarn triangles sorted back to front, depth writes off.
-2. Resolve the samples with a framebuffer blit into a single-sample sRGB texture (averaging in
-   linear light as GL_FRAMEBUFFER_SRGB is on).
+   ctx.max_samples) with GL_FRAMEBUFFER_SRGB off: shaders light in linear RGB and encode to sRGB
+   once per fragment (shaders/output.glsl, IEC 61966-2-1), and GL stores the bytes as they come.
+   (With GL_FRAMEBUFFER_SRGB on during the draw, GL would encode instead, per sample of every
+   write: about a tenth of the draw on llvmpipe.) Order: opaque yarn triangles, bodies, the ground
+   plane, then the translucent (fading) yarn triangles sorted back to front, depth writes off.
+2. Resolve the samples with a framebuffer blit into a single-sample sRGB texture with
+   GL_FRAMEBUFFER_SRGB on: the samples are decoded, averaged in linear light and the mean encoded,
+   so anti-aliased edges are exact (tests/test_render_gl.py).
 3. Read back and flip vertically (GL's first row is the bottom one).
-An RGBA16F target plus a separate linear -> sRGB pass gives the same image but costs about three
-times as much fill and resolve time on llvmpipe; 8-bit sRGB storage has no visible banding, so it is
-the default target ("srgb8").
+The fading ends are drawn with GL_FRAMEBUFFER_SRGB on and the shader's encoding off (u_encode = 0):
+GL decodes the target, blends in linear light and encodes, on the few pixels they cover.
 
 The "float" target (16-bit PNGs, EXR, ProRes: `fraytool render --depth 16 / --exr / --codec prores`)
-draws the same way into RGBA32F colour instead: GL_FRAMEBUFFER_SRGB does not encode float
-attachments, so the buffer holds linear colour premultiplied by alpha, unclamped, averaged in linear
-light by the resolve, and the CPU encodes it (fraytool.render.color.encode_premultiplied_linear). With
-`depth`, the resolve also copies the depth buffer into a depth texture, read as the distance along
-the view axis (`read_depth_m`; the resolve of depth keeps one of each pixel's samples, which one is
-up to the GL implementation).
+draws the same way into RGBA32F colour instead, without the encoding: the buffer holds linear colour
+premultiplied by alpha, unclamped, blended and averaged by the resolve in linear light, and the CPU
+encodes it (fraytool.render.color.encode_premultiplied_linear). With `depth`, the resolve also
+copies the depth buffer into a depth texture, read as the distance along the view axis
+(`read_depth_m`; the resolve of depth keeps one of each pixel's samples, which one is up to the GL
+implementation).
 
 Transparency: broken yarn ends fade out over a few yarn spacings, so the translucent surface is a
 small share of the mesh (only triangles touching a fading stretch). Those triangles are depth-sorted
@@ -51,6 +52,7 @@ from fraytool.render.color import (
     WIREFRAME_BASE_SRGB,
     WIREFRAME_YARN_SRGB,
     encode_premultiplied_linear,
+    linear_to_srgb,
     srgb_to_linear,
     straight_alpha_srgb,
 )
@@ -69,12 +71,13 @@ WIREFRAME_MODES = ("off", "only", "beside")
 TARGETS = ("srgb8", "float")
 """Colour targets: 8-bit sRGB-encoded (the default) or 32-bit float linear (see the module docstring)."""
 
+GL_SRGB8_ALPHA8 = 0x8C43
+GL_FRAMEBUFFER_SRGB = 0x8DB9
+
 GROUND_OFFSET = (1.0, 4.0)
 """glPolygonOffset of the ground drawn around the shadow footprint: behind the footprint's own depth,
 so it fails the depth test there (the two draws' depths of one plane differ by rounding only)."""
 
-GL_SRGB8_ALPHA8 = 0x8C43
-GL_FRAMEBUFFER_SRGB = 0x8DB9
 
 
 @dataclass(frozen=True)
@@ -190,7 +193,8 @@ class Renderer:
         self._depth_out = ctx.depth_texture((W, H)) if depth else None
         self._fbo_out = ctx.framebuffer(color_attachments=[self._resolved], depth_attachment=self._depth_out)
 
-        features = (("SHADOWS",) if render.shadows else ()) + (("FILL",) if render.fill_intensity > 0 else ())
+        encode = ("ENCODE_SRGB",) if target == "srgb8" else ()
+        features = (("SHADOWS",) if render.shadows else ()) + (("FILL",) if render.fill_intensity > 0 else ()) + encode
         self.ribbons = render.yarn_shape == "ribbon"
         yarn_features = features + (("SHADOW_ONE_TAP",) if render.shadows else ()) + (("RIBBON",) if self.ribbons else ())
         self._yarn_prog = load_program(ctx, "yarn.vert", "yarn.frag", yarn_features)
@@ -201,7 +205,7 @@ class Renderer:
         self._ground_lit_prog = (load_program(ctx, "body.vert", "ground.frag", tuple(f for f in features if f != "SHADOWS"))
                                  if render.shadows else None)
         self._ground_progs = (self._ground_prog,) + ((self._ground_lit_prog,) if render.shadows else ())
-        self._line_prog = load_program(ctx, "line.vert", "line.frag")
+        self._line_prog = load_program(ctx, "line.vert", "line.frag", encode)
         self.shadow = (ShadowPass(ctx, render.shadow_map_size, topology, load_program(ctx, "depth.vert", "depth.frag"))
                        if render.shadows else None)
 
@@ -263,6 +267,9 @@ class Renderer:
         if r.fill_intensity > 0:
             fill = np.asarray(r.fill_direction, dtype=np.float64)
             common.update(u_fill_intensity=r.fill_intensity, u_fill_dir=fill / np.linalg.norm(fill))
+        for prog in (self._yarn_prog, self._body_prog, *self._ground_progs, self._line_prog):
+            if "u_encode" in prog:
+                prog["u_encode"].value = 1.0
         for prog in (self._yarn_prog, self._body_prog, *self._ground_progs):
             for k, v in common.items():
                 if k in prog:
@@ -278,7 +285,8 @@ class Renderer:
         y["u_warp_color"].value = tuple(srgb_to_linear(r.warp_color))
         self._body_prog["u_color"].value = tuple(srgb_to_linear(r.body_color))
         self._background = tuple(srgb_to_linear(r.background))
-        self._clear = (0.0, 0.0, 0.0, 0.0) if self.alpha else (*self._background, 1.0)
+        stored = linear_to_srgb(self._background) if self.target == "srgb8" else np.asarray(self._background)
+        self._clear = (0.0, 0.0, 0.0, 0.0) if self.alpha else (*stored.tolist(), 1.0)
         self._line_prog["u_base_color"].value = tuple(srgb_to_linear(WIREFRAME_BASE_SRGB))
         self._line_prog["u_yarn_color"].value = tuple(srgb_to_linear(WIREFRAME_YARN_SRGB))
 
@@ -393,9 +401,16 @@ class Renderer:
             ctx.blend_func = (moderngl.SRC_ALPHA, moderngl.ONE_MINUS_SRC_ALPHA, moderngl.ONE,
                               moderngl.ONE_MINUS_SRC_ALPHA)
             self._fbo_ms.depth_mask = False
+            encoded = self.target == "srgb8"
+            if encoded:  # blend in linear light: GL decodes the target, blends and encodes (a few pixels)
+                self._yarn_prog["u_encode"].value = 0.0
+                ctx.enable_direct(GL_FRAMEBUFFER_SRGB)
             with self._part("yarns"):
                 self._yarn_vao("translucent", self._translucent_ibo).render(
                     moderngl.TRIANGLES, vertices=mesh.translucent.size)
+            if encoded:
+                ctx.disable_direct(GL_FRAMEBUFFER_SRGB)
+                self._yarn_prog["u_encode"].value = 1.0
             self._fbo_ms.depth_mask = True
             ctx.disable(moderngl.BLEND)
         ctx.disable(moderngl.CULL_FACE)
@@ -451,7 +466,6 @@ class Renderer:
     def draw(self, geom: FrameGeometry) -> None:
         """Draw one frame into the multisampled framebuffer and resolve it (no read-back)."""
         W, H = self.size
-        self.ctx.enable_direct(GL_FRAMEBUFFER_SRGB)
         self._fbo_ms.use()
         if geom.yarns is not None:
             self._upload_yarns(geom)
@@ -479,8 +493,9 @@ class Renderer:
         self._fbo_ms.viewport = (0, 0, W, H)
         self._fbo_ms.scissor = None
         with self._part("resolve"):
+            self.ctx.enable_direct(GL_FRAMEBUFFER_SRGB)     # decode, average in linear light, encode
             self.ctx.copy_framebuffer(self._fbo_out, self._fbo_ms)
-        self.ctx.disable_direct(GL_FRAMEBUFFER_SRGB)      # leave the context as we found it
+            self.ctx.disable_direct(GL_FRAMEBUFFER_SRGB)    # leave the context as we found it
 
     def read(self) -> np.ndarray:
         """The presented image, top row first: (H, W, 3) uint8 sRGB, or with `alpha` (H, W, 4) uint8

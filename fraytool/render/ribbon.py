@@ -102,10 +102,12 @@ def ribbon_shadow_positions(points: np.ndarray, tangents: np.ndarray, radius_m: 
 def ribbon_triangles(offsets: np.ndarray) -> np.ndarray:
     """Index buffer (F, 3) uint32 of the strips: for each consecutive sample pair r, r + 1 of a piece,
     (2r, 2r+1, 2r+2) and (2r+1, 2r+3, 2r+2). Depends only on the piece sample counts (cache it)."""
-    r = body_pairs(offsets)
-    a = 2 * r
-    return np.stack([np.stack([a, a + 1, a + 2], -1), np.stack([a + 1, a + 3, a + 2], -1)],
-                    axis=1).reshape(-1, 3).astype(np.uint32)
+    a = (2 * body_pairs(offsets)).astype(np.uint32)
+    tri = np.empty((len(a), 2, 3), dtype=np.uint32)
+    for k, (first, second) in enumerate(((0, 1), (1, 3), (2, 2))):
+        tri[:, 0, k] = a + first
+        tri[:, 1, k] = a + second
+    return tri.reshape(-1, 3)
 
 
 def translucent_ribbon_triangles(offsets: np.ndarray, alpha: np.ndarray) -> np.ndarray:
