@@ -10,7 +10,7 @@
 // tube of many fibres, so Lambert on the tube normal adds the round shape (one side lit, one in
 // shade); the two diffuse terms are mixed by u_kajiya_weight, and the highlight fades out on the
 // side facing away from the light (a self-shadowing term, as in Scheuermann 2004). All maths in
-// linear RGB; the sRGB framebuffer encodes on write.
+// linear RGB; output.glsl encodes to sRGB for the 8-bit target.
 
 uniform vec3 u_light_dir;        // unit vector towards the key light
 uniform float u_light_intensity;

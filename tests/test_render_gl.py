@@ -101,6 +101,40 @@ def test_msaa_resolve_averages_in_linear_light(gl_ctx):
     assert a[7, 0] == 255 and a[0, 7] == 0
 
 
+def test_the_shaders_encoding_is_srgb(gl_ctx):
+    """shaders/output.glsl with ENCODE_SRGB (what the 8-bit target stores): a ramp of linear values,
+    drawn into an 8-bit buffer, reads back as linear_to_srgb of them to rounding; with u_encode = 0
+    (the blended pass) the values pass through as they are."""
+    from fraytool.render.renderer import _preprocess
+
+    ctx = gl_ctx
+    frag = _preprocess("#version 330 core\n#include \"output.glsl\"\nout vec4 c;\n"
+                       "void main() { c = to_target(vec4(vec3(floor(gl_FragCoord.x) / 63.0), 1.0)); }\n",
+                       ("ENCODE_SRGB",))
+    prog = ctx.program(vertex_shader="#version 330 core\nin vec2 p; void main() { gl_Position = vec4(p, 0, 1); }",
+                       fragment_shader=frag)
+    out = ctx.texture((64, 1), 4)
+    fbo = ctx.framebuffer([out])
+    buf = ctx.buffer(np.array([-1, -1, 3, -1, -1, 3], "f4"))
+    vao = ctx.vertex_array(prog, [(buf, "2f", "p")])
+    linear = np.arange(64) / 63.0
+    try:
+        fbo.use()
+        got = {}
+        for encode in (1.0, 0.0):
+            prog["u_encode"].value = encode
+            fbo.clear(0, 0, 0, 0)
+            vao.render(moderngl.TRIANGLES)
+            got[encode] = np.frombuffer(fbo.read(components=1), np.uint8).astype(int)
+    finally:
+        ctx.detect_framebuffer(0).use()
+        for obj in (vao, buf, prog, fbo, out):
+            obj.release()
+    assert np.abs(got[1.0] - np.rint(255 * linear_to_srgb(linear))).max() <= 1
+    assert np.abs(got[0.0] - np.rint(255 * linear)).max() <= 1
+    assert got[1.0][16] - got[0.0][16] > 60                   # encoded mid-greys are much lighter
+
+
 def test_srgb_helpers_round_trip():
     c = np.linspace(0, 1, 101)
     np.testing.assert_allclose(linear_to_srgb(srgb_to_linear(c)), c, atol=1e-12)

@@ -129,12 +129,14 @@ def test_16bit_straight_alpha_composites_back_to_the_opaque_render(gl_ctx, posed
     assert np.abs(a.astype(int) / 257.0 - a8).max() <= 1.01
 
 
-def test_depth_is_the_distance_along_the_view_axis(gl_ctx, posed_cloth):
+@pytest.mark.parametrize("shadows", [False, True], ids=["plain", "shadows"])
+def test_depth_is_the_distance_along_the_view_axis(gl_ctx, posed_cloth, shadows):
     """Z of the ground plane and of the ball against ray casts: on the ground every pixel of a row has
     the same Z (a distance along the view axis, not to the eye), the ball's front its known distance,
-    the sky +inf. One sample per pixel, so Z is that of the pixel centre."""
+    the sky +inf. One sample per pixel, so Z is that of the pixel centre. With shadows the ground is
+    drawn as for an EXR (one piece: no polygon offset moves its depth)."""
     camera = dataclasses.replace(posed_cloth.spec.camera, position_m=EYE, target_m=TARGET)
-    render = dataclasses.replace(posed_cloth.spec.render, samples=0)
+    render = dataclasses.replace(posed_cloth.spec.render, samples=0, shadows=shadows)
     z = _render(gl_ctx, posed_cloth, posed_cloth.copy(), camera=camera, render=render, size=SIZE,
                 target="float", depth=True)["depth"]
     want, on_ball = expected_depth(camera.fov_deg)

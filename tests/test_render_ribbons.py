@@ -47,12 +47,12 @@ def test_strip_triangles_and_the_fading_ones():
 
 
 def test_shadow_casters_run_through_every_other_sample_and_leave_out_fading_spans():
-    """Pieces of 5, 2 and 4 samples: kept samples 0, 2, 4 | 5, 6 | 7, 9, 10; strips join kept samples
-    of one piece only; a strip is dropped when a sample on its span fades, the skipped one included."""
-    rng = np.random.default_rng(5)
-    x = rng.normal(size=(11, 3))
-    t = rng.normal(size=(11, 3))
-    t /= np.linalg.norm(t, axis=1, keepdims=True)
+    """Straight pieces of 5, 2 and 4 samples: kept samples 0, 2, 4 | 5, 6 | 7, 9, 10; strips join kept
+    samples of one piece only; a strip is dropped when a sample on its span fades, the skipped one
+    included; a sample bent off the chord by more than a quarter radius is kept."""
+    x = np.zeros((11, 3))
+    x[:, 0] = 0.01 * np.arange(11)
+    t = np.tile([1.0, 0.0, 0.0], (11, 1))
     offsets = np.array([0, 5, 7, 11])
     light = np.array([0.3, 1.0, 0.2])
     keep = [0, 2, 4, 5, 6, 7, 9, 10]
@@ -60,10 +60,16 @@ def test_shadow_casters_run_through_every_other_sample_and_leave_out_fading_span
     pos, tri = shadow_casters(x, t, offsets, alpha, 0.01, light)
     np.testing.assert_array_equal(pos, ribbon_shadow_positions(x[keep], t[keep], 0.01, light))
     assert tri.tolist() == ribbon_triangles(np.array([0, 3, 5, 8])).tolist()
-    assert len(tri) == 2 * (2 + 1 + 2)
     alpha[8] = 0.5                                                # the sample skipped between 7 and 9
     _, tri = shadow_casters(x, t, offsets, alpha, 0.01, light)
     assert len(tri) == 2 * (2 + 1 + 1) and [10, 11, 12] not in tri.tolist() and [11, 13, 12] not in tri.tolist()
+    alpha[:] = 1.0
+    x[3, 1] = 0.0024                                              # within a quarter radius: still skipped
+    assert len(shadow_casters(x, t, offsets, alpha, 0.01, light)[0]) == 2 * 8
+    x[3, 1] = 0.0026                                              # a kink: sample 3 casts too
+    pos, tri = shadow_casters(x, t, offsets, alpha, 0.01, light)
+    np.testing.assert_array_equal(pos, ribbon_shadow_positions(x[[0, 2, 3, 4] + keep[3:]], t[:9], 0.01, light))
+    assert tri.tolist() == ribbon_triangles(np.array([0, 4, 6, 9])).tolist()
 
 
 def _draw(ctx, pc, record, shape, shadows=False, size=(160, 120), ground=False, alpha=True, depth=True):

@@ -135,6 +135,7 @@ def bench_command(args) -> int:
         result["render_stages_ms_per_frame"] = render_stage_timings(spec, frames=min(frames, 10), parts=parts,
                                                                     video=video)
         result["render_video_start_finish_ms"] = video["start_finish_ms"]
+        result["render_encode_estimate"] = video["encode_estimate"]
         result["render_ms_per_frame"] = sum(result["render_stages_ms_per_frame"].values())
         result["render_draw_parts_ms_per_frame"] = parts
         result["render_resolution"] = list(spec.render.resolution)
@@ -169,6 +170,9 @@ def bench_command(args) -> int:
                           file=out)
         print(f"  once per video: {result['render_video_start_finish_ms']:.0f} ms (starting ffmpeg, flushing and "
               "closing the MP4; not in the per-frame figure)", file=out)
+        if result["render_encode_estimate"] != "marginal":
+            print("  note: encode is the whole video's average per frame (the timing noise exceeded the extra "
+                  "frames' cost)", file=out)
     return 0
 
 

@@ -79,7 +79,6 @@ GROUND_OFFSET = (1.0, 4.0)
 so it fails the depth test there (the two draws' depths of one plane differ by rounding only)."""
 
 
-
 @dataclass(frozen=True)
 class Panel:
     view: str
@@ -117,7 +116,7 @@ def _preprocess(source: str, defines: tuple[str, ...]) -> str:
 
 def load_program(ctx: moderngl.Context, vertex: str, fragment: str, defines: tuple[str, ...] = ()) -> moderngl.Program:
     """Compile a program from shader files in shaders/ (see fraytool.resources), with the optional
-    features named in `defines` (SHADOWS, FILL) switched on; a missing file or a compile error is a
+    features named in `defines` (SHADOWS, FILL, SHADOW_ONE_TAP, RIBBON, ENCODE_SRGB) switched on; a missing file or a compile error is a
     RunError naming the files (a broken installation, not a user mistake)."""
     try:
         sources = _preprocess(shader_source(vertex), defines), _preprocess(shader_source(fragment), defines)
@@ -202,9 +201,10 @@ class Renderer:
         self._ground_prog = load_program(ctx, "body.vert", "ground.frag", features)
         # With shadows, the ground outside the shadow map's footprint cannot be in shadow: it is
         # drawn by this program without the shadow lookups (_draw_ground).
+        split_ground = render.shadows and render.ground_plane
         self._ground_lit_prog = (load_program(ctx, "body.vert", "ground.frag", tuple(f for f in features if f != "SHADOWS"))
-                                 if render.shadows else None)
-        self._ground_progs = (self._ground_prog,) + ((self._ground_lit_prog,) if render.shadows else ())
+                                 if split_ground else None)
+        self._ground_progs = (self._ground_prog,) + ((self._ground_lit_prog,) if split_ground else ())
         self._line_prog = load_program(ctx, "line.vert", "line.frag", encode)
         self.shadow = (ShadowPass(ctx, render.shadow_map_size, topology, load_program(ctx, "depth.vert", "depth.frag"))
                        if render.shadows else None)
@@ -326,7 +326,9 @@ class Renderer:
         with the shadow lookups, then the whole plane without them, pushed back by a polygon offset
         so that it fails the depth test where the footprint was drawn. Outside the footprint a lookup
         reads cleared depth and gives full light, so both parts shade alike there; the lookups,
-        about a third of the ground's cost on llvmpipe, are paid only where a shadow can fall."""
+        about a third of the ground's cost on llvmpipe, are paid only where a shadow can fall. The
+        offset also moves the depth the lit part stores, so a renderer that keeps the depth (EXR Z)
+        draws the ground in one shadowed piece."""
         ground = self._ground()
         if ground is None:
             return
@@ -344,9 +346,12 @@ class Renderer:
         plane = np.eye(4)
         plane[:3, :3] = Rg @ np.diag([size, 1.0, size])
         plane[:3, 3] = centre
-        footprint = shadow_footprint(self._light, up, height) if self._ground_lit_vao is not None else None
-        if footprint is None:  # no shadows, nothing casts, or the light grazes the plane: one draw
-            if self.shadow is not None and self._light is None:
+        # Split only where the depth is not kept: the offset moves the depth the lit part stores, and
+        # the EXR's Z must be the plane's (read_depth_m).
+        split = self._ground_lit_vao is not None and self._depth_out is None
+        footprint = shadow_footprint(self._light, up, height) if split else None
+        if footprint is None:  # no shadows, nothing casts, the light grazes the plane, or depth kept: one draw
+            if self._ground_lit_vao is not None and self._light is None:
                 self._ground_quad(self._ground_lit_prog, self._ground_lit_vao, plane, uniforms)
             else:
                 self._ground_quad(self._ground_prog, self._body_vaos["quad"][1], plane, uniforms)
@@ -405,13 +410,15 @@ class Renderer:
             if encoded:  # blend in linear light: GL decodes the target, blends and encodes (a few pixels)
                 self._yarn_prog["u_encode"].value = 0.0
                 ctx.enable_direct(GL_FRAMEBUFFER_SRGB)
-            with self._part("yarns"):
-                self._yarn_vao("translucent", self._translucent_ibo).render(
-                    moderngl.TRIANGLES, vertices=mesh.translucent.size)
-            if encoded:
-                ctx.disable_direct(GL_FRAMEBUFFER_SRGB)
-                self._yarn_prog["u_encode"].value = 1.0
-            self._fbo_ms.depth_mask = True
+            try:
+                with self._part("yarns"):
+                    self._yarn_vao("translucent", self._translucent_ibo).render(
+                        moderngl.TRIANGLES, vertices=mesh.translucent.size)
+            finally:
+                if encoded:
+                    ctx.disable_direct(GL_FRAMEBUFFER_SRGB)
+                    self._yarn_prog["u_encode"].value = 1.0
+                self._fbo_ms.depth_mask = True
             ctx.disable(moderngl.BLEND)
         ctx.disable(moderngl.CULL_FACE)
 

@@ -15,9 +15,10 @@ holds the unit direction across the strip, signed (-S on the left, +S on the rig
 rasteriser interpolates to v S, v in [-1, 1] across the strip; triangles 2 per consecutive sample
 pair inside a piece; no caps (broken ends fade out; ends at the border are cut square).
 The shadow pass draws the same strips turned to face the light (`shadow_positions`), through every
-other sample (`shadow_casters`): half the triangles for a shape the map cannot tell apart at a
-texel of about a pixel; a skipped sample lies within the chord's sagitta, far less than the
-receivers' normal offset (fraytool.render.shadow).
+other sample where the yarn runs nearly straight (`shadow_casters`): about half the triangles. A
+sample is skipped only when it lies within CASTER_SAGITTA_RADII yarn radii of the chord between its
+neighbours (about a texel of the figure scenes' maps); at kinks and tight bends every sample casts,
+so the shadow's edge follows the drawn yarn there.
 """
 from __future__ import annotations
 
@@ -99,6 +100,11 @@ def ribbon_shadow_positions(points: np.ndarray, tangents: np.ndarray, radius_m: 
     return out
 
 
+CASTER_SAGITTA_RADII = 0.25
+"""An odd spline sample is left out of the shadow casters only when it lies within this many yarn
+radii of the chord between its neighbours (the golden torn cloth: 0.3 mm, about a texel of a 1024 map)."""
+
+
 def ribbon_triangles(offsets: np.ndarray) -> np.ndarray:
     """Index buffer (F, 3) uint32 of the strips: for each consecutive sample pair r, r + 1 of a piece,
     (2r, 2r+1, 2r+2) and (2r+1, 2r+3, 2r+2). Depends only on the piece sample counts (cache it)."""
@@ -119,7 +125,8 @@ def translucent_ribbon_triangles(offsets: np.ndarray, alpha: np.ndarray) -> np.n
 
 def shadow_casters(points: np.ndarray, tangents: np.ndarray, offsets: np.ndarray, alpha: np.ndarray,
                    radius_m: float, light_dir: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The strips turned to the light through every other sample of each piece (and its last):
+    """The strips turned to the light through the even samples of each piece, its last, and every odd
+    sample farther than CASTER_SAGITTA_RADII x `radius_m` from the chord between its neighbours:
     positions (2 M', 3) float32 as ribbon_shadow_positions, and the opaque triangles over them
     (F', 3) uint32 -- a strip between two kept samples is left out when any sample from the one to
     the other fades (alpha < 1), as fading ends cast no shadow."""
@@ -131,7 +138,12 @@ def shadow_casters(points: np.ndarray, tangents: np.ndarray, offsets: np.ndarray
     local = np.arange(M) - off[:-1][piece]
     last = np.zeros(M, dtype=bool)
     last[off[1:] - 1] = True
-    keep = np.nonzero((local % 2 == 0) | last)[0]
+    X = np.asarray(points, dtype=np.float64)
+    inner = np.nonzero((local % 2 == 1) & ~last)[0]               # an odd sample has both neighbours
+    off_chord = np.linalg.norm(X[inner] - 0.5 * (X[inner - 1] + X[inner + 1]), axis=1)
+    bent = np.zeros(M, dtype=bool)
+    bent[inner] = off_chord > CASTER_SAGITTA_RADII * radius_m
+    keep = np.nonzero((local % 2 == 0) | last | bent)[0]
     kept_off = np.concatenate([[0], np.cumsum(np.bincount(piece[keep], minlength=len(off) - 1))])
     positions = ribbon_shadow_positions(np.asarray(points)[keep], np.asarray(tangents)[keep], radius_m, light_dir)
     fading = np.concatenate([[0], np.cumsum(np.asarray(alpha) < 1.0)])   # fading samples before each

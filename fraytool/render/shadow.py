@@ -12,8 +12,11 @@ rounded up to a step of 2^(1/4) and its centre snapped to whole texels (Williams
 method; texel snapping as commonly done for cascaded maps).
 
 Shaders sample the map with hardware 2x2 depth comparison (GL_LINEAR on a depth texture with
-compare mode) at four offsets a texel and a half apart (`shaders/shadow.glsl`): percentage-closer
-filtering (Reeves, Salesin & Cook 1987) over 4 x 4 texels at the cost of four lookups.
+compare mode): the ground and bodies at four offsets a texel and a half apart (`shaders/shadow.glsl`),
+percentage-closer filtering (Reeves, Salesin & Cook 1987) over 4 x 4 texels, the yarns, to which the
+map is fitted, with one lookup (2 x 2 texels). `shadow_footprint` is where the light's box meets the
+ground plane: the only part of the ground a shadow can reach (fraytool.render.renderer draws the
+rest without lookups).
 """
 from __future__ import annotations
 

@@ -59,9 +59,10 @@ def catmull_rom(points: np.ndarray, offsets: np.ndarray, samples_per_segment,
         raise ValueError("every piece needs at least 2 control points")
     k_count = counts.size
     seg_count = int((counts - 1).sum())
-    m = np.broadcast_to(np.asarray(samples_per_segment, dtype=np.int64), (seg_count,)).copy()
-    if m.size and m.min() < 1:
-        raise ValueError(f"samples_per_segment must be >= 1, got {int(m.min())}")
+    given = np.asarray(samples_per_segment, dtype=np.int64)
+    if given.size and given.min() < 1:
+        raise ValueError(f"samples_per_segment must be >= 1, got {int(given.min())}")
+    m = np.broadcast_to(given, (seg_count,)).copy()
     if seg_count == 0:
         return SampledCurves(np.zeros((0, 3)), np.zeros(k_count + 1, np.int64), np.zeros(0, np.int64))
 
