@@ -61,6 +61,8 @@ def test_frame_range_names_the_mp4_and_continues_a_shorter_simulation(tmp_path, 
     assert main(["render", str(SCENE), "-o", str(out), "--no-mp4", "--png", "--wireframe", "only",
                  "--resolution", "33x25"]) == 0                  # odd sizes are fine without an MP4
     assert len(list((out / "png_wireframe").glob("*.png"))) == 4
+    assert main(["render", str(SCENE), "-o", str(out), "--no-mp4", "--png", "--frames", "0:1",
+                 "--set", "render.resolution=[33,25]"]) == 0   # and so is an odd size from the scene
 
 
 def test_passes_never_overwrite_each_other(tmp_path):
@@ -92,6 +94,9 @@ def test_passes_never_overwrite_each_other(tmp_path):
     (["--samples", "-2"], "--samples -2"),
     (["--camera-target", "a,b,c"], "--camera-target 'a,b,c'"),
     (["--no-mp4"], "nothing to write"),
+    (["--set", "render.resolution=[33,25]"], "[render] resolution = [33, 25]: the MP4 (H.264, yuv420p) needs"),
+    (["--codec", "prores", "--no-mp4"], "--codec prores chooses the video codec, but no video is written"),
+    (["--exr", "--depth", "16"], "no PNGs are written: add --png\n"),
 ])
 def test_bad_flags_exit_2_with_a_clear_message(tmp_path, capsys, flags, needle):
     assert main(["render", str(SCENE), "-o", str(tmp_path), *flags]) == 2

@@ -119,6 +119,7 @@ def _render(args, stream: Optional[TextIO]) -> int:
     folders = [f"{d}/" for d in (result.png_dir, result.exr_dir) if d]
     if folders:
         wrote.append(f"{', '.join(folders)} ({result.rendered} rendered, {result.reused} kept from an earlier run)")
-    print(f"fraytool: rendered {result.frames} frame{'' if result.frames == 1 else 's'}: " + "; ".join(wrote),
+    verb = "rendered" if result.rendered else "finished"  # every frame kept: nothing drawn, the video rebuilt
+    print(f"fraytool: {verb} {result.frames} frame{'' if result.frames == 1 else 's'}: " + "; ".join(wrote),
           file=stream)
     return 0

@@ -169,21 +169,22 @@ def build_job(spec: SceneSpec, args, out: Path) -> RenderJob:
     if codec not in VIDEO_SUFFIX:
         raise InputError(f"--codec {codec!r}: expected one of {', '.join(VIDEO_SUFFIX)}")
     png_bits = parse_depth(getattr(args, "depth", None) or 8)
-    if not png and not video and not exr:
-        raise InputError("--no-mp4 without --png or --exr (and the scene's [output] png = false): nothing to write")
     if codec == "prores" and not video:
         raise InputError("--codec prores chooses the video codec, but no video is written (--no-mp4, or the "
                          "scene's [output] mp4 = false): drop one of them")
+    if not png and not video and not exr:
+        raise InputError("--no-mp4 without --png or --exr (and the scene's [output] png = false): nothing to write")
     if png_bits == 16 and not png:
-        raise InputError("--depth 16 sets the bit depth of the PNG sequence, and no PNGs are written: add --png "
-                         "(or use --exr for float frames)")
+        raise InputError("--depth 16 sets the bit depth of the PNG sequence, and no PNGs are written: add --png"
+                         + ("" if exr else " (or use --exr for float frames)"))
     h264 = video and codec == "h264"
     resolution = parse_resolution(args.resolution, need_even=h264) if args.resolution else None
     if resolution is None and h264:
         w, h = spec.render.resolution
         if w % 2 or h % 2:
             raise InputError(f"{spec.source}: [render] resolution = [{w}, {h}]: the MP4 (H.264, yuv420p) needs "
-                             "an even width and height; fix the scene or pass --resolution WxH")
+                             "an even width and height; fix the scene, pass --resolution WxH, or write PNGs or "
+                             "EXRs only (--no-mp4) or ProRes (--codec prores)")
     position = parse_vec3("--camera-position", args.camera_position) if args.camera_position else None
     target = parse_vec3("--camera-target", args.camera_target) if args.camera_target else None
     spec = with_overrides(spec, resolution=resolution, samples=check_samples(args.samples),

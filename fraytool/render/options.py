@@ -62,7 +62,7 @@ def parse_resolution(text: str, need_even: bool, no_mp4_hint: bool = True) -> tu
         raise InputError(f"--resolution {text!r}: {allowed}")
     if need_even and (w % 2 or h % 2):
         raise InputError(f"--resolution {text!r}: the MP4 (H.264, yuv420p) needs an even width and height; "
-                         f"use e.g. {w + w % 2}x{h + h % 2}" + (", or --no-mp4 for PNGs only" if no_mp4_hint else ""))
+                         f"use e.g. {w + w % 2}x{h + h % 2}" + (", or --no-mp4 for PNGs only, or --codec prores" if no_mp4_hint else ""))
     return w, h
 
 

@@ -153,9 +153,6 @@ def cut_problems(c: CutSpec, warp_yarns: int, weft_yarns: int) -> list[Problem]:
 
 def render_problems(r: RenderSpec) -> list[Problem]:
     out: list[Problem] = []
-    if r.resolution[0] % 2 or r.resolution[1] % 2:
-        out.append(("resolution", list(r.resolution),
-                    "width and height must be even (H.264 with yuv420p needs even sizes)"))
     for name in ("light_direction", "fill_direction"):
         if math.hypot(*getattr(r, name)) < 1e-9:
             out.append((name, list(getattr(r, name)), "must not be the zero vector (it is a direction)"))
