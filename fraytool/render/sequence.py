@@ -128,9 +128,21 @@ def _kept_video_image(files: list, frame: int, bits: int) -> Optional[np.ndarray
     return None
 
 
+@dataclass
+class _FramePlan:
+    """One frame of a render: its files' digest, the files to write, and either the video image from
+    kept files or the geometry to draw."""
+    file_digest: str
+    stale: list
+    image: Optional[np.ndarray]
+    geom: Optional[object]
+
+
 def render_job(job: RenderJob, ctx: moderngl.Context, store: FrameStore, stream: TextIO = sys.stderr,
                progress: Optional[bool] = None) -> RenderResult:
-    """Render job.frames from the frame records in `store`; returns counts and stage times."""
+    """Render job.frames from the frame records in `store`; returns counts and stage times. The next
+    frame's geometry is built while the GL draws the current one (llvmpipe rasterises on its own
+    threads until the read-back waits for it), and ffmpeg encodes in its own process."""
     topology = store.load_topology()
     files: list = []
     if job.png:
@@ -156,31 +168,47 @@ def render_job(job: RenderJob, ctx: moderngl.Context, store: FrameStore, stream:
         if job.video:
             writer = VideoWriter(job.video_path, job.size, job.spec.time.fps, crf=job.spec.output.crf,
                                  background_srgb=job.spec.render.background, codec=job.codec)
+        plans: dict[int, _FramePlan] = {}
+
+        def plan(i: int) -> _FramePlan:
+            """What frame i needs (kept files or a draw), its geometry built ahead when drawn."""
+            if i not in plans:
+                frame = frames[i]
+                file_digest = frame_digest(digest, store, frame) if files else ""
+                stale = [f for f in files if not f.reusable(frame, file_digest)]
+                image = None
+                kept = bool(files) and not stale
+                if kept and writer is not None:
+                    image = _kept_video_image(files, frame, video_bits)
+                    kept = image is not None
+                geom = None
+                if not kept:
+                    t = time.perf_counter()
+                    geom = builder.build(store.load_frame(frame), yarns=want_yarns, lines=want_lines)
+                    result.stage_s["geometry"] += time.perf_counter() - t
+                plans[i] = _FramePlan(file_digest, stale, image, geom)
+            return plans[i]
+
         for i, frame in enumerate(frames):
-            t0 = time.perf_counter()
-            file_digest = frame_digest(digest, store, frame) if files else ""
-            stale = [f for f in files if not f.reusable(frame, file_digest)]
-            image = None
-            kept = bool(files) and not stale
-            if kept and writer is not None:
-                image = _kept_video_image(files, frame, video_bits)
-                kept = image is not None
-            if kept:
+            p = plan(i)
+            image = p.image
+            if p.geom is None:
                 result.reused += 1
-                t2 = time.perf_counter()
             else:
-                record = store.load_frame(frame)
-                geom = builder.build(record, yarns=want_yarns, lines=want_lines)
                 t1 = time.perf_counter()
-                renderer.draw(geom)
+                renderer.draw(p.geom)                  # llvmpipe rasterises on its own threads ...
+                if i + 1 < len(frames):
+                    t = time.perf_counter()
+                    plan(i + 1)                        # ... while the next frame's geometry is built
+                    t1 += time.perf_counter() - t      # (counted as geometry, not as drawing)
                 drawn = _Drawn(renderer, depth=job.exr)
                 image = drawn.image(video_bits) if writer is not None else None
-                t2 = time.perf_counter()
-                result.stage_s["geometry"] += t1 - t0
-                result.stage_s["draw_readback"] += t2 - t1
-                for f in stale:
-                    f.write(frame, drawn, file_digest)
+                result.stage_s["draw_readback"] += time.perf_counter() - t1
+                for f in p.stale:
+                    f.write(frame, drawn, p.file_digest)
                 result.rendered += 1
+            del plans[i]
+            t2 = time.perf_counter()
             if writer is not None:
                 writer.write(image)
             result.stage_s["encode"] += time.perf_counter() - t2
