@@ -39,9 +39,10 @@ class Detail:
     samples_per_segment for all."""
 
 
-def pixels_per_metre(camera: Camera, image_height: int, depth_m: float) -> float:
-    """On-screen size of one metre seen at view depth `depth_m` (vertical field of view)."""
-    depth = max(depth_m, camera.near)
+def pixels_per_metre(camera: Camera, image_height: int, depth_m):
+    """On-screen size of one metre seen at view depth `depth_m` (a number or an array; depths nearer
+    than the camera's near plane, behind the eye included, count as the near plane)."""
+    depth = np.maximum(depth_m, camera.near)
     return image_height / (2.0 * depth * math.tan(math.radians(camera.spec.fov_deg) / 2.0))
 
 
@@ -65,11 +66,11 @@ def segment_samples(camera: Camera, image_height: int, points: np.ndarray, offse
     off = np.asarray(offsets, dtype=np.int64)
     if len(points) == 0:
         return np.zeros(0, dtype=np.int64)
-    depth = np.maximum(-camera.view_depth(points), camera.near)      # behind the eye: as near as can be
+    depth = -camera.view_depth(points)                                # behind the eye: as near as can be
     starts = np.ones(len(points), dtype=bool)
     starts[off[1:] - 1] = False                                       # a piece's last point starts no segment
     i = np.nonzero(starts)[0]
     nearest = np.minimum(depth[i], depth[i + 1])
-    ppm = image_height / (2.0 * nearest * math.tan(math.radians(camera.spec.fov_deg) / 2.0))
+    ppm = pixels_per_metre(camera, image_height, nearest)
     samples = np.ceil(spacing_m * ppm / SAMPLE_PX).astype(np.int64)
     return np.clip(samples, min(2, max_samples), max_samples)
