@@ -1,13 +1,21 @@
 """How many threads the simulation kernels use (`--threads N`; numba's NUMBA_NUM_THREADS sets the most).
 
-The parallel kernels (numba prange: strain limiting yarn by yarn, `limit_strain_lines`, or colour group
-by colour group, `limit_strain_groups`) give the same result, bit for bit, on any number of threads:
-every thread moves its own particles, and the largest residual is taken after each group. The thread
-count therefore changes only the speed. The command line runs one thread unless asked for more (DEFAULT_THREADS). The other kernels run on one thread: spring forces sum into
-shared particles in spring order (a parallel order-keeping version, per particle or per chunk, was
-measured 1.5-2x slower per thread than the serial loop, so no faster on two cores), the explicit
-Euler updates are too cheap for a parallel region to pay, and self-collision and tearing are
-sequential by design (Gauss-Seidel over pairs and couples). The farm's workers run one thread each (fraytool.farm.runner.WORKER_ENV)."""
+The parallel kernels give the same result, bit for bit, on any number of threads, so the thread
+count changes only the speed:
+- strain limiting, yarn by yarn (`limit_strain_lines`) or colour group by colour group
+  (`limit_strain_groups`): every thread moves its own particles, and the largest residual of a group
+  is a maximum (exact in any order);
+- the per-particle kernels (velocity and position updates, the velocity post-process, the last pass
+  of damping, contact with bodies that do not take the cloth's push): in units of particles cut to
+  equal numbers of active particles (fraytool.sim.kernels.work_split), each particle's arithmetic
+  inside one unit.
+The command line runs one thread unless asked for more (DEFAULT_THREADS). Still on one thread:
+spring forces sum into shared particles in spring order (parallel order-keeping versions were
+measured slower per thread than the serial loop: a gather per particle, 2.5x, units of particles
+each walking their springs, 1.6-2.3x, so no faster on two cores), damping's sums and the contact
+impulses on dynamic bodies (a parallel sum rounds differently with the thread count), and
+self-collision and tearing (Gauss-Seidel over pairs and couples). The farm's workers run one
+thread each (fraytool.farm.runner.WORKER_ENV)."""
 from __future__ import annotations
 
 import os
@@ -23,6 +31,15 @@ where another process keeps one core busy, fig6's strain limiting went from 3.0 
 little at the figure scenes' size (fig7: strain limiting 8.6 -> 6.7 ms per frame) and more on big
 cloths (256 x 256 drape: 814 -> 476). So more threads are asked for, not assumed: --threads N, or
 NUMBA_NUM_THREADS=N in the environment."""
+
+
+WAIT_POLICY = "ACTIVE"
+"""OMP_WAIT_POLICY of a run asked for more than one thread (unless the environment sets one): the
+OpenMP threads spin between parallel regions instead of sleeping. A step alternates parallel
+kernels with serial ones (spring forces, damping's sums) that outlast the runtime's default spin, so
+with sleeping waits every region paid a wake-up: on the 256 x 256 drape at two threads the velocity
+and position updates took 117 ms per frame (69 on one thread); spinning, 51, and the frame
+703 -> 589 ms. The cost: a spinning thread holds its core while the main thread runs serial code."""
 
 
 def thread_limit() -> int:
@@ -44,6 +61,8 @@ def set_up_threads(count: int | None) -> None:
         use_threads(count)
     elif "NUMBA_NUM_THREADS" not in os.environ:
         use_threads(min(DEFAULT_THREADS, thread_limit()))
+    elif thread_limit() > 1:
+        os.environ.setdefault("OMP_WAIT_POLICY", WAIT_POLICY)
 
 
 def use_threads(count: int) -> None:
@@ -54,4 +73,7 @@ def use_threads(count: int) -> None:
     if not 1 <= count <= limit:
         raise InputError(f"--threads {count}: allowed 1 to {limit} on this machine (NUMBA_NUM_THREADS or the "
                          "number of cores sets the most)")
+    if count > 1:
+        # before numba starts its OpenMP threads (the runtime reads it once): see WAIT_POLICY
+        os.environ.setdefault("OMP_WAIT_POLICY", WAIT_POLICY)
     numba.set_num_threads(count)

@@ -1,5 +1,6 @@
 """Analytic and conservation checks of the base-model step: free fall, attachments, contact."""
 import numpy as np
+from fraytool.sim.kernels.work_split import whole_range
 
 from fraytool.scene import load_scene
 from fraytool.sim import Simulation
@@ -84,7 +85,7 @@ def test_damping_preserves_linear_and_angular_momentum():
     free = w > 0
     p0, L0 = _momenta(x[free], v[free], m[free])
     v2 = v.copy()
-    pbd_damping(x, v2, m, w, 0.3)
+    pbd_damping(whole_range(len(x)), x, v2, m, w, 0.3)
     p1, L1 = _momenta(x[free], v2[free], m[free])
     np.testing.assert_allclose(p1, p0, rtol=1e-12, atol=1e-12 * np.abs(p0).max())
     np.testing.assert_allclose(L1, L0, rtol=1e-12, atol=1e-12 * np.abs(L0).max())
@@ -95,5 +96,21 @@ def test_damping_preserves_linear_and_angular_momentum():
     omega = np.array([0.3, -1.0, 0.5])
     vr = np.array([1.0, 2.0, 3.0]) + np.cross(omega, x - (m[:, None] * x).sum(0) / m.sum())
     vr_all = vr.copy()
-    pbd_damping(x, vr_all, m, np.ones(n), 0.5)
+    pbd_damping(whole_range(len(x)), x, vr_all, m, np.ones(n), 0.5)
     np.testing.assert_allclose(vr_all, vr, atol=1e-12)
+
+
+def test_units_split_the_active_particles_evenly():
+    """`split_by_weight` cuts the slots into contiguous units of about equal weight: the active half
+    of a model's slots (the second half holds the inactive yarn-level partners) spread over all
+    units, not over the first half of them; with no weight every slot is still covered."""
+    from fraytool.sim.kernels.work_split import split_by_weight
+
+    weight = np.zeros(2000, np.uint8)
+    weight[:1000] = 1
+    bounds = np.zeros(9, np.int64)
+    split_by_weight(weight, bounds)
+    assert bounds[0] == 0 and bounds[-1] == 2000 and (np.diff(bounds) >= 0).all()
+    assert [int(weight[bounds[u]:bounds[u + 1]].sum()) for u in range(8)] == [125] * 8
+    split_by_weight(np.zeros(5, np.uint8), bounds)
+    assert bounds[0] == 0 and bounds[-1] == 5 and (np.diff(bounds) >= 0).all()

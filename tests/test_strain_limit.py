@@ -300,7 +300,7 @@ def _serial_and_grouped(model, state, springs, starts, x0, w, tolerance, sweeps)
     a, b, alive = state.spring_particle_a, state.spring_particle_b, state.spring_alive
     got_serial = limit_strain(springs, model.spring_rest_length_m, 0.05, tolerance, sweeps, w, a, b, alive, serial)
     got_grouped = limit_strain_groups(springs, starts, model.spring_rest_length_m, 0.05, tolerance, sweeps, w, a, b,
-                                      alive, np.zeros(springs.shape[0]), np.zeros(springs.shape[0], np.int64),
+                                      alive, np.zeros(springs.shape[0], np.int64),
                                       np.zeros(len(grouped), np.int64), grouped)
     return (serial, got_serial), (grouped, got_grouped)
 

@@ -56,7 +56,7 @@ def make_stage_check(solver: SolverExplicitPBD, state: State, dt_s: float) -> Ca
     moved = {"positions": False, "forces": False}
 
     def check(stage: str, kernel: str) -> None:
-        if kernel == "accumulate_spring_forces":
+        if stage == "forces":
             moved["forces"] = True
         if kernel == "integrate_positions":
             moved["positions"] = True

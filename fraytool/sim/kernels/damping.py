@@ -5,6 +5,11 @@
     v_i += k (v_cm + ω × r_i - v_i)
 
 It removes only the non-rigid part of the motion: linear and angular momentum are unchanged.
+
+The sums run in particle order on one thread (a parallel sum would round differently with the
+thread count); the last pass, each particle's own update, runs in parallel over units of particles
+(`unit_bounds`, fraytool.sim.kernels.work_split), so the result is the same, bit for bit, on any
+number of threads.
 """
 from __future__ import annotations
 
@@ -12,8 +17,8 @@ import numba as nb
 import numpy as np
 
 
-@nb.njit(cache=True, fastmath=False)
-def pbd_damping(particle_position_m, particle_velocity_m_s, particle_mass_kg, particle_inv_mass, k_damping):
+@nb.njit(cache=True, fastmath=False, parallel=True)
+def pbd_damping(unit_bounds, particle_position_m, particle_velocity_m_s, particle_mass_kg, particle_inv_mass, k_damping):
     """Damp the velocities of all free particles (inverse mass > 0) together, in place."""
     n = particle_position_m.shape[0]
     m_sum = 0.0
@@ -55,15 +60,16 @@ def pbd_damping(particle_position_m, particle_velocity_m_s, particle_mass_kg, pa
     I[2, 0] = I[0, 2]
     I[2, 1] = I[1, 2]
     w = _solve3(I, L)
-    for p in range(n):
-        if particle_inv_mass[p] == 0.0:
-            continue
-        rx = particle_position_m[p, 0] - xc[0]
-        ry = particle_position_m[p, 1] - xc[1]
-        rz = particle_position_m[p, 2] - xc[2]
-        particle_velocity_m_s[p, 0] += k_damping * (vc[0] + w[1] * rz - w[2] * ry - particle_velocity_m_s[p, 0])
-        particle_velocity_m_s[p, 1] += k_damping * (vc[1] + w[2] * rx - w[0] * rz - particle_velocity_m_s[p, 1])
-        particle_velocity_m_s[p, 2] += k_damping * (vc[2] + w[0] * ry - w[1] * rx - particle_velocity_m_s[p, 2])
+    for u in nb.prange(unit_bounds.shape[0] - 1):
+        for p in range(unit_bounds[u], unit_bounds[u + 1]):
+            if particle_inv_mass[p] == 0.0:
+                continue
+            rx = particle_position_m[p, 0] - xc[0]
+            ry = particle_position_m[p, 1] - xc[1]
+            rz = particle_position_m[p, 2] - xc[2]
+            particle_velocity_m_s[p, 0] += k_damping * (vc[0] + w[1] * rz - w[2] * ry - particle_velocity_m_s[p, 0])
+            particle_velocity_m_s[p, 1] += k_damping * (vc[1] + w[2] * rx - w[0] * rz - particle_velocity_m_s[p, 1])
+            particle_velocity_m_s[p, 2] += k_damping * (vc[2] + w[0] * ry - w[1] * rx - particle_velocity_m_s[p, 2])
 
 
 @nb.njit(cache=True, fastmath=False)
@@ -90,8 +96,8 @@ def _solve3(A, b):
     return x
 
 
-@nb.njit(cache=True, fastmath=False)
-def pbd_damping_pieces(particle_position_m, particle_velocity_m_s, particle_mass_kg, particle_inv_mass,
+@nb.njit(cache=True, fastmath=False, parallel=True)
+def pbd_damping_pieces(unit_bounds, particle_position_m, particle_velocity_m_s, particle_mass_kg, particle_inv_mass,
                        particle_piece, piece_count, k_damping):
     """The same damping applied to each piece of a torn cloth on its own (fraytool.sim.kernels.pieces):
     every piece keeps its own linear and angular momentum, so pieces moving apart rigidly keep their
@@ -140,13 +146,17 @@ def pbd_damping_pieces(particle_position_m, particle_velocity_m_s, particle_mass
         I[k, 2, 0] = I[k, 0, 2]
         I[k, 2, 1] = I[k, 1, 2]
         w[k] = _solve3(I[k], L[k])
-    for p in range(n):
-        k = particle_piece[p]
-        if k < 0 or particle_inv_mass[p] == 0.0:
-            continue
-        rx = particle_position_m[p, 0] - xc[k, 0]
-        ry = particle_position_m[p, 1] - xc[k, 1]
-        rz = particle_position_m[p, 2] - xc[k, 2]
-        particle_velocity_m_s[p, 0] += k_damping * (vc[k, 0] + w[k, 1] * rz - w[k, 2] * ry - particle_velocity_m_s[p, 0])
-        particle_velocity_m_s[p, 1] += k_damping * (vc[k, 1] + w[k, 2] * rx - w[k, 0] * rz - particle_velocity_m_s[p, 1])
-        particle_velocity_m_s[p, 2] += k_damping * (vc[k, 2] + w[k, 0] * ry - w[k, 1] * rx - particle_velocity_m_s[p, 2])
+    for u in nb.prange(unit_bounds.shape[0] - 1):
+        for p in range(unit_bounds[u], unit_bounds[u + 1]):
+            k = particle_piece[p]
+            if k < 0 or particle_inv_mass[p] == 0.0:
+                continue
+            rx = particle_position_m[p, 0] - xc[k, 0]
+            ry = particle_position_m[p, 1] - xc[k, 1]
+            rz = particle_position_m[p, 2] - xc[k, 2]
+            particle_velocity_m_s[p, 0] += k_damping * (vc[k, 0] + w[k, 1] * rz - w[k, 2] * ry
+                                                        - particle_velocity_m_s[p, 0])
+            particle_velocity_m_s[p, 1] += k_damping * (vc[k, 1] + w[k, 2] * rx - w[k, 0] * rz
+                                                        - particle_velocity_m_s[p, 1])
+            particle_velocity_m_s[p, 2] += k_damping * (vc[k, 2] + w[k, 0] * ry - w[k, 1] * rx
+                                                        - particle_velocity_m_s[p, 2])

@@ -100,7 +100,78 @@ def project_out_of_body(k, body_shape, body_rotation, body_radius_m, body_half_e
 
 
 @nb.njit(cache=True, fastmath=False)
+def _contact_range(lo, hi, k, plane, sphere, pnx, pny, pnz, cx, cy, cz, reach2, step_x, step_y, step_z, friction,
+                   dynamic, dt_s, body_shape, body_rotation, body_radius_m, body_half_extents_m, body_normal,
+                   body_position_m, margin_m, particle_inv_mass, particle_mass_kg, prev_position_m,
+                   particle_position_m, body_impulse_out):
+    """Particles lo .. hi - 1 against body k (the body's constants passed in): each one in contact is
+    moved out with friction, and for a dynamic body its impulse m dx / dt is added to
+    body_impulse_out[k] in index order. Returns the number of contacts."""
+    hits = 0
+    for p in range(lo, hi):
+        if particle_inv_mass[p] == 0.0:
+            continue  # inactive or held: held particles follow their body, not contacts
+        ex = particle_position_m[p, 0] - cx
+        ey = particle_position_m[p, 1] - cy
+        ez = particle_position_m[p, 2] - cz
+        if plane:
+            if ex * pnx + ey * pny + ez * pnz - margin_m >= 0.0:
+                continue  # above the plane: the signed distance `surface_contact` computes
+        elif ex * ex + ey * ey + ez * ez > reach2:
+            continue  # beyond the body's bounding sphere: no contact (the test below would say so)
+        x0 = particle_position_m[p, 0]
+        x1 = particle_position_m[p, 1]
+        x2 = particle_position_m[p, 2]
+        if plane:  # `surface_contact` for a plane, inlined: the same expressions
+            d = ex * pnx + ey * pny + ez * pnz - margin_m
+            nx, ny, nz = pnx, pny, pnz
+        elif sphere:  # likewise for a sphere
+            r = math.sqrt(ex * ex + ey * ey + ez * ez)
+            if r < 1e-15:
+                d, nx, ny, nz = -(body_radius_m[k] + margin_m), 0.0, 1.0, 0.0
+            else:
+                d, nx, ny, nz = r - body_radius_m[k] - margin_m, ex / r, ey / r, ez / r
+        else:
+            d, nx, ny, nz = surface_contact(body_shape[k], body_position_m[k], body_rotation[k], body_radius_m[k],
+                                            body_half_extents_m[k], body_normal[k], particle_position_m[p],
+                                            margin_m)
+        if d >= 0.0:
+            continue
+        # out along the normal (`project_out_of_body`), in registers until written back
+        px = x0 - d * nx
+        py = x1 - d * ny
+        pz = x2 - d * nz
+        hits += 1
+        # friction on the displacement relative to the body over the step
+        rx = px - prev_position_m[p, 0] - step_x
+        ry = py - prev_position_m[p, 1] - step_y
+        rz = pz - prev_position_m[p, 2] - step_z
+        rn = rx * nx + ry * ny + rz * nz
+        tx = rx - rn * nx
+        ty = ry - rn * ny
+        tz = rz - rn * nz
+        tl = math.sqrt(tx * tx + ty * ty + tz * tz)
+        limit = friction * (-d)
+        if tl > 0.0:
+            scale = 1.0 if tl <= limit else limit / tl
+            px -= scale * tx
+            py -= scale * ty
+            pz -= scale * tz
+        particle_position_m[p, 0] = px
+        particle_position_m[p, 1] = py
+        particle_position_m[p, 2] = pz
+        if dynamic:
+            m = particle_mass_kg[p] / dt_s
+            body_impulse_out[k, 0] += m * (px - x0)
+            body_impulse_out[k, 1] += m * (py - x1)
+            body_impulse_out[k, 2] += m * (pz - x2)
+    return hits
+
+
+@nb.njit(cache=True, fastmath=False, parallel=True)
 def collide_rigid(
+    # units of particles (fraytool.sim.kernels.work_split)
+    unit_bounds,
     # model
     body_shape, body_rotation, body_radius_m, body_half_extents_m, body_normal, body_friction, body_collide,
     body_dynamic, margin_m, dt_s,
@@ -111,12 +182,17 @@ def collide_rigid(
     # out
     body_impulse_out,
 ):
-    """Push particles out of bodies with friction; returns the number of contacts."""
+    """Push particles out of bodies with friction; returns the number of contacts.
+
+    Body by body (each particle still meets the bodies in index order: the same arithmetic as
+    particle by particle), so the body's constants are computed once per call. Against a body that
+    does not move with the cloth (scripted or static) the particles are independent and run in
+    parallel over the units (numba prange; the contact count is an integer sum); against a dynamic
+    body they run in index order on one thread, so that the body's impulse m dx / dt sums in the same
+    order on any number of threads."""
     contacts = 0
     body_impulse_out[:] = 0.0
-    # Body by body (each particle still meets the bodies in index order, and each body's impulse
-    # sums the particles in index order: the same arithmetic as particle by particle), so the
-    # body's constants are computed once per call.
+    n = particle_position_m.shape[0]
     for k in range(body_shape.shape[0]):
         if not body_collide[k]:
             continue
@@ -136,63 +212,21 @@ def collide_rigid(
         step_y = dt_s * body_velocity_m_s[k, 1]
         step_z = dt_s * body_velocity_m_s[k, 2]
         friction = body_friction[k]
-        dynamic = body_dynamic[k]
-        for p in range(particle_position_m.shape[0]):
-            if particle_inv_mass[p] == 0.0:
-                continue  # inactive or held: held particles follow their body, not contacts
-            ex = particle_position_m[p, 0] - cx
-            ey = particle_position_m[p, 1] - cy
-            ez = particle_position_m[p, 2] - cz
-            if plane:
-                if ex * pnx + ey * pny + ez * pnz - margin_m >= 0.0:
-                    continue  # above the plane: the signed distance `surface_contact` computes
-            elif ex * ex + ey * ey + ez * ez > reach2:
-                continue  # beyond the body's bounding sphere: no contact (the test below would say so)
-            x0 = particle_position_m[p, 0]
-            x1 = particle_position_m[p, 1]
-            x2 = particle_position_m[p, 2]
-            if plane:  # `surface_contact` for a plane, inlined: the same expressions
-                d = ex * pnx + ey * pny + ez * pnz - margin_m
-                nx, ny, nz = pnx, pny, pnz
-            elif sphere:  # likewise for a sphere
-                r = math.sqrt(ex * ex + ey * ey + ez * ez)
-                if r < 1e-15:
-                    d, nx, ny, nz = -(body_radius_m[k] + margin_m), 0.0, 1.0, 0.0
-                else:
-                    d, nx, ny, nz = r - body_radius_m[k] - margin_m, ex / r, ey / r, ez / r
-            else:
-                d, nx, ny, nz = surface_contact(body_shape[k], body_position_m[k], rotation, body_radius_m[k],
-                                                body_half_extents_m[k], normal, particle_position_m[p], margin_m)
-            if d >= 0.0:
-                continue
-            # out along the normal (`project_out_of_body`), in registers until written back
-            px = x0 - d * nx
-            py = x1 - d * ny
-            pz = x2 - d * nz
-            contacts += 1
-            # friction on the displacement relative to the body over the step
-            rx = px - prev_position_m[p, 0] - step_x
-            ry = py - prev_position_m[p, 1] - step_y
-            rz = pz - prev_position_m[p, 2] - step_z
-            rn = rx * nx + ry * ny + rz * nz
-            tx = rx - rn * nx
-            ty = ry - rn * ny
-            tz = rz - rn * nz
-            tl = math.sqrt(tx * tx + ty * ty + tz * tz)
-            limit = friction * (-d)
-            if tl > 0.0:
-                scale = 1.0 if tl <= limit else limit / tl
-                px -= scale * tx
-                py -= scale * ty
-                pz -= scale * tz
-            particle_position_m[p, 0] = px
-            particle_position_m[p, 1] = py
-            particle_position_m[p, 2] = pz
-            if dynamic:
-                m = particle_mass_kg[p] / dt_s
-                body_impulse_out[k, 0] += m * (px - x0)
-                body_impulse_out[k, 1] += m * (py - x1)
-                body_impulse_out[k, 2] += m * (pz - x2)
+        if body_dynamic[k]:
+            contacts += _contact_range(0, n, k, plane, sphere, pnx, pny, pnz, cx, cy, cz, reach2, step_x, step_y,
+                                       step_z, friction, True, dt_s, body_shape, body_rotation, body_radius_m,
+                                       body_half_extents_m, body_normal, body_position_m, margin_m,
+                                       particle_inv_mass, particle_mass_kg, prev_position_m, particle_position_m,
+                                       body_impulse_out)
+        else:
+            hits = 0
+            for u in nb.prange(unit_bounds.shape[0] - 1):
+                hits += _contact_range(unit_bounds[u], unit_bounds[u + 1], k, plane, sphere, pnx, pny, pnz, cx, cy,
+                                       cz, reach2, step_x, step_y, step_z, friction, False, dt_s, body_shape,
+                                       body_rotation, body_radius_m, body_half_extents_m, body_normal,
+                                       body_position_m, margin_m, particle_inv_mass, particle_mass_kg,
+                                       prev_position_m, particle_position_m, body_impulse_out)
+            contacts += hits
     return contacts
 
 

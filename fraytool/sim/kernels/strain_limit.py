@@ -89,7 +89,7 @@ def limit_strain_groups(
     # state in
     particle_inv_mass, spring_particle_a, spring_particle_b, spring_alive,
     # scratch: per limited spring (overwritten), per particle (zeroed here)
-    worst_of, checked_at, moved_at,
+    checked_at, moved_at,
     # state in/out
     particle_position_m,
 ):
@@ -108,10 +108,11 @@ def limit_strain_groups(
     where it meets the table). ``moved_at[p]``: the stamp (1, 2, ... in the order the group updates
     run) of the update that last moved particle p; ``checked_at[k]``: that of spring k's last
     projection, negative when it moved its ends. A particle is moved by one spring per group at most,
-    so the stamps are written race-free."""
+    so the stamps are written race-free. The group's largest excess is a parallel maximum (exact, so
+    the same whatever the threads' shares; NaN excesses count as 0, as in the serial sweep)."""
     stretch = 1.0 + strain_limit
     groups = group_start.shape[0] - 1
-    for p in range(moved_at.shape[0]):
+    for p in nb.prange(moved_at.shape[0]):
         moved_at[p] = 0
     for it in range(max_iterations):
         worst = 0.0
@@ -120,26 +121,25 @@ def limit_strain_groups(
             lo = group_start[g]
             hi = group_start[g + 1]
             stamp = it * groups + step + 1
+            group_worst = 0.0
             for k in nb.prange(lo, hi):
                 s = limited_springs[k]
                 a = spring_particle_a[s]
                 b = spring_particle_b[s]
                 since = checked_at[k]
                 if it > 0 and since > 0 and moved_at[a] <= since and moved_at[b] <= since:
-                    worst_of[k] = 0.0
-                    continue
+                    continue  # left alone: an excess of 0
                 excess = _project_stretched(s, stretch, spring_rest_length_m, particle_inv_mass, spring_particle_a,
                                             spring_particle_b, spring_alive, particle_position_m)
-                worst_of[k] = excess
                 if excess > 0.0:
                     moved_at[a] = stamp
                     moved_at[b] = stamp
                     checked_at[k] = -stamp
+                    group_worst = max(group_worst, excess)  # a maximum: exact in any order
                 else:
                     checked_at[k] = stamp
-            for k in range(lo, hi):
-                if worst_of[k] > worst:
-                    worst = worst_of[k]
+            if group_worst > worst:
+                worst = group_worst
         if worst <= tolerance:
             return it + 1, True
     return max_iterations, max_iterations == 0

@@ -75,7 +75,8 @@ class _NoSummary:
 
 
 class SpringForces(_NoSummary):
-    """Step 1: spring forces (structural, bend, compression-only shear; §3.2) into buffers.force_n."""
+    """Step 1: spring forces (structural, bend, compression-only shear; §3.2) into buffers.force_n,
+    on one thread (fraytool/threads.py says why)."""
 
     name = "forces"
     kernel = "accumulate_spring_forces"
@@ -100,8 +101,8 @@ class VelocityUpdate(_NoSummary):
         self.gravity_m_s2 = model.gravity_m_s2
 
     def run(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
-        integrate_velocities(state.particle_velocity_m_s, buffers.force_n, state.particle_inv_mass,
-                             self.gravity_m_s2, dt_s)
+        integrate_velocities(buffers.unit_bounds(state), state.particle_velocity_m_s, buffers.force_n,
+                             state.particle_inv_mass, self.gravity_m_s2, dt_s)
 
 
 class Damping(_NoSummary):
@@ -127,8 +128,8 @@ class Damping(_NoSummary):
 
     def run(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
         if not self.per_piece:
-            pbd_damping(state.particle_position_m, state.particle_velocity_m_s, state.particle_mass_kg,
-                        state.particle_inv_mass, self.damping)
+            pbd_damping(buffers.unit_bounds(state), state.particle_position_m, state.particle_velocity_m_s,
+                        state.particle_mass_kg, state.particle_inv_mass, self.damping)
             return
         key = (int(np.count_nonzero(state.spring_alive)), int(np.count_nonzero(state.couple_connected)),
                int(np.count_nonzero(state.particle_active)))
@@ -139,8 +140,9 @@ class Damping(_NoSummary):
                                              state.spring_particle_a, state.spring_particle_b,
                                              state.spring_alive, self._labels)
             self._topology_key = key
-        pbd_damping_pieces(state.particle_position_m, state.particle_velocity_m_s, state.particle_mass_kg,
-                           state.particle_inv_mass, self._labels, self._piece_count, self.damping)
+        pbd_damping_pieces(buffers.unit_bounds(state), state.particle_position_m, state.particle_velocity_m_s,
+                           state.particle_mass_kg, state.particle_inv_mass, self._labels, self._piece_count,
+                           self.damping)
 
 
 class PositionUpdate(_NoSummary):
@@ -154,8 +156,8 @@ class PositionUpdate(_NoSummary):
         self.has_bodies = model.body_count > 0
 
     def run(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
-        integrate_positions(state.particle_position_m, state.particle_velocity_m_s, state.particle_active,
-                            buffers.prev_position_m, dt_s)
+        integrate_positions(buffers.unit_bounds(state), state.particle_position_m, state.particle_velocity_m_s,
+                            state.particle_active, buffers.prev_position_m, dt_s)
         if self.has_bodies:
             advance_bodies(self.model, state, state.time_s + dt_s, dt_s)
 
@@ -221,7 +223,6 @@ class StrainLimiting(_NoSummary):
             springs = springs[keep]
             starts = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
         self.limited_springs, self.colour_start = springs, starts
-        self._worst_of = np.zeros(self.limited_springs.shape[0])
         self._checked_at = np.zeros(self.limited_springs.shape[0], np.int64)
         if self.compliant:
             line_springs, line_start, line_groups = self._all_lines
@@ -258,8 +259,8 @@ class StrainLimiting(_NoSummary):
             it, converged = limit_strain_groups(self.limited_springs, self.colour_start, state.spring_rest_length_m,
                                                 m.strain_limit, m.strain_tolerance, m.strain_max_iterations,
                                                 state.particle_inv_mass, state.spring_particle_a,
-                                                state.spring_particle_b, state.spring_alive, self._worst_of,
-                                                self._checked_at, self._moved_at, state.particle_position_m)
+                                                state.spring_particle_b, state.spring_alive, self._checked_at,
+                                                self._moved_at, state.particle_position_m)
         self.iterations_last = it
         self.iterations_max = max(self.iterations_max, it)
         self.cap_hits += 0 if converged else 1
@@ -280,8 +281,8 @@ class RigidContact(_NoSummary):
     def run(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
         m = self.model
         self.contacts_last = collide_rigid(
-            m.body_shape, m.body_rotation, m.body_radius_m, m.body_half_extents_m, m.body_normal, m.body_friction,
-            m.body_collide, self.body_dynamic, 0.5 * m.thickness_m, dt_s, state.body_position_m,
+            buffers.unit_bounds(state), m.body_shape, m.body_rotation, m.body_radius_m, m.body_half_extents_m,
+            m.body_normal, m.body_friction, m.body_collide, self.body_dynamic, 0.5 * m.thickness_m, dt_s, state.body_position_m,
             state.body_velocity_m_s, state.particle_inv_mass, state.particle_mass_kg, buffers.prev_position_m,
             state.particle_position_m, buffers.body_impulse_n_s)
         if self.any_dynamic:
@@ -319,5 +320,5 @@ class VelocityPostProcess(_NoSummary):
 
     def run(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
         buffers.bad_particle = int(velocities_from_positions(
-            state.particle_position_m, buffers.prev_position_m, state.particle_active, state.particle_velocity_m_s,
-            dt_s, self.speed_limit_m_s))
+            buffers.unit_bounds(state), state.particle_position_m, buffers.prev_position_m, state.particle_active,
+            state.particle_velocity_m_s, dt_s, self.speed_limit_m_s))
