@@ -1,6 +1,6 @@
 """Analytic and conservation checks of the base-model step: free fall, attachments, contact."""
 import numpy as np
-from fraytool.sim.kernels.work_split import whole_range
+from fraytool.sim.kernels.work_split import all_slots
 
 from fraytool.scene import load_scene
 from fraytool.sim import Simulation
@@ -85,7 +85,7 @@ def test_damping_preserves_linear_and_angular_momentum():
     free = w > 0
     p0, L0 = _momenta(x[free], v[free], m[free])
     v2 = v.copy()
-    pbd_damping(whole_range(len(x)), x, v2, m, w, 0.3)
+    pbd_damping(*all_slots(len(x)), x, v2, m, w, 0.3)
     p1, L1 = _momenta(x[free], v2[free], m[free])
     np.testing.assert_allclose(p1, p0, rtol=1e-12, atol=1e-12 * np.abs(p0).max())
     np.testing.assert_allclose(L1, L0, rtol=1e-12, atol=1e-12 * np.abs(L0).max())
@@ -96,21 +96,33 @@ def test_damping_preserves_linear_and_angular_momentum():
     omega = np.array([0.3, -1.0, 0.5])
     vr = np.array([1.0, 2.0, 3.0]) + np.cross(omega, x - (m[:, None] * x).sum(0) / m.sum())
     vr_all = vr.copy()
-    pbd_damping(whole_range(len(x)), x, vr_all, m, np.ones(n), 0.5)
+    pbd_damping(*all_slots(len(x)), x, vr_all, m, np.ones(n), 0.5)
     np.testing.assert_allclose(vr_all, vr, atol=1e-12)
 
 
-def test_units_split_the_active_particles_evenly():
-    """`split_by_weight` cuts the slots into contiguous units of about equal weight: the active half
-    of a model's slots (the second half holds the inactive yarn-level partners) spread over all
-    units, not over the first half of them; with no weight every slot is still covered."""
-    from fraytool.sim.kernels.work_split import split_by_weight
 
-    weight = np.zeros(2000, np.uint8)
-    weight[:1000] = 1
-    bounds = np.zeros(9, np.int64)
-    split_by_weight(weight, bounds)
-    assert bounds[0] == 0 and bounds[-1] == 2000 and (np.diff(bounds) >= 0).all()
-    assert [int(weight[bounds[u]:bounds[u + 1]].sum()) for u in range(8)] == [125] * 8
-    split_by_weight(np.zeros(5, np.uint8), bounds)
-    assert bounds[0] == 0 and bounds[-1] == 5 and (np.diff(bounds) >= 0).all()
+def test_particle_lists_follow_splits_and_refinement():
+    """The solver's lists (fraytool.sim.kernels.work_split.ParticleLists): free = inverse mass > 0,
+    moving = active minus the slaved crossings, each cut into equal units covering the list; rebuilt
+    when a slot is activated (a split) or another state comes, kept otherwise."""
+    from fraytool.sim.builder import build_model
+    from fraytool.sim.kernels.work_split import WORK_UNITS, ParticleLists
+
+    model = build_model(small_scene(nx=6, ny=5))
+    state = model.state()
+    lists = ParticleLists()
+    free, bounds = lists.free(state)
+    assert free.tolist() == np.flatnonzero(state.particle_inv_mass > 0).tolist()
+    assert bounds.shape == (WORK_UNITS + 1,) and bounds[0] == 0 and bounds[-1] == free.shape[0]
+    assert (np.diff(bounds) >= 0).all() and np.ptp(np.diff(bounds)) <= 1
+    slaved = np.array([3, 7], np.int32)
+    moving, _ = lists.moving(state, slaved)
+    expect = np.flatnonzero(state.particle_active)
+    assert moving.tolist() == [p for p in expect.tolist() if p not in (3, 7)]
+    assert lists.free(state)[0] is free  # nothing changed: the same list
+    n = model.crossing_count
+    state.particle_active[n + 5] = True  # a split activates a partner slot and gives it a mass
+    state.particle_inv_mass[n + 5] = 1.0
+    assert n + 5 in lists.free(state)[0].tolist() and n + 5 in lists.moving(state, slaved)[0].tolist()
+    other = model.state()
+    assert lists.free(other)[0].tolist() == free.tolist()

@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections import deque
 
 import numpy as np
-from fraytool.sim.kernels.work_split import whole_range
+from fraytool.sim.kernels.work_split import all_slots
 
 from fraytool.kinds import STRUCT_WARP, STRUCT_WEFT
 from fraytool.scene import parse_scene
@@ -131,11 +131,11 @@ def test_damping_per_piece_keeps_the_relative_speed_of_two_pieces_flying_apart()
     omega = np.array([0.0, 0.0, 3.0])
     v[right] = np.array([0.5, 0.0, 1.0]) + np.cross(omega, x[right] - centre)
     before = v.copy()
-    pbd_damping_pieces(whole_range(len(x)), x, v, state.particle_mass_kg, state.particle_inv_mass, labels, count, 0.5)
+    pbd_damping_pieces(*all_slots(len(x)), x, v, state.particle_mass_kg, state.particle_inv_mass, labels, count, 0.5)
     np.testing.assert_allclose(v, before, atol=1e-12)
     # one body (all in piece 0): the pieces' relative motion is damped
     one = np.where(labels >= 0, 0, -1)
-    pbd_damping_pieces(whole_range(len(x)), x, v, state.particle_mass_kg, state.particle_inv_mass, one, 1, 0.5)
+    pbd_damping_pieces(*all_slots(len(x)), x, v, state.particle_mass_kg, state.particle_inv_mass, one, 1, 0.5)
     assert np.abs(v - before).max() > 0.1
 
 
@@ -150,7 +150,7 @@ def test_damping_per_piece_conserves_each_pieces_momentum():
     v[~state.particle_active] = 0.0
     before = [((m[labels == k, None] * v[labels == k]).sum(axis=0),
                (m[labels == k, None] * np.cross(x[labels == k], v[labels == k])).sum(axis=0)) for k in range(count)]
-    pbd_damping_pieces(whole_range(len(x)), x, v, m, state.particle_inv_mass, labels, count, 0.3)
+    pbd_damping_pieces(*all_slots(len(x)), x, v, m, state.particle_inv_mass, labels, count, 0.3)
     for k in range(count):
         p = (m[labels == k, None] * v[labels == k]).sum(axis=0)
         L = (m[labels == k, None] * np.cross(x[labels == k], v[labels == k])).sum(axis=0)

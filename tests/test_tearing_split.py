@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import numpy as np
-from fraytool.sim.kernels.work_split import whole_range
+from fraytool.sim.kernels.work_split import all_slots
 import pytest
 
 from fraytool.grid import base_yarn_points, crossing_normals
@@ -86,7 +86,7 @@ def test_split_conserves_mass_momentum_and_angular_momentum():
     assert np.abs(p_after - p_total).max() <= CONSERVE_RTOL * np.abs(p_total).max()
     # The velocity the step's post-process will compute, v = (x - x_prev) / dt, is the original one.
     v = np.zeros_like(state.particle_velocity_m_s)
-    velocities_from_positions(whole_range(len(v)), state.particle_position_m, prev, state.particle_active, v, dt, 1e3)
+    velocities_from_positions(*all_slots(len(v)), state.particle_position_m, prev, state.particle_active, v, dt, 1e3)
     p_local = (m[pair, None] * v[pair]).sum(axis=0)
     assert np.abs(p_local - m_old * v_old).max() <= CONSERVE_RTOL * np.abs(m_old * v_old).max()
     # No angular momentum about the old position: R_warp = -R_weft, equal masses, equal velocities.
@@ -334,7 +334,7 @@ def test_transition_with_propagation_conserves_mass_and_momentum(inclusive):
     m = state.particle_mass_kg
     assert abs(m.sum() - mass_total) <= CONSERVE_RTOL * mass_total
     v = np.zeros_like(state.particle_velocity_m_s)
-    velocities_from_positions(whole_range(len(v)), state.particle_position_m, prev, state.particle_active, v, dt, 1e3)
+    velocities_from_positions(*all_slots(len(v)), state.particle_position_m, prev, state.particle_active, v, dt, 1e3)
     p_after = (m[:, None] * v).sum(axis=0)
     assert np.abs(p_after - p_total).max() <= CONSERVE_RTOL * np.abs(m0[:, None] * v0).sum()
     assert topology_problems(model, state) == []

@@ -105,6 +105,7 @@ class Simulation:
         """Run one frame's steps and return its record."""
         for _ in range(self.steps_per_frame):
             self.solver.step(self.state, self.dt_s)
+        self.solver.end_frame(self.state, self.dt_s)
         self.frame += 1
         self._observe()
         return self.record()

@@ -146,6 +146,14 @@ class SolverExplicitPBD:
         if self._guard_bodies and not np.isfinite(state.body_position_m).all():
             self._unstable(state, -1, dt_s)  # a thrown body received a non-finite impulse
 
+    def end_frame(self, state: State, dt_s: float) -> None:
+        """Bring what the steps leave out up to date for the frame's record and checkpoint (the slaved
+        crossings' velocities of a multi-resolution model); call after the last step of a frame."""
+        for stage in self.stages:
+            finish = getattr(stage, "end_frame", None)
+            if finish is not None:
+                finish(state, self.buffers, dt_s)
+
     def _unstable(self, state: State, particle: int, dt_s: float) -> None:
         """Stop the run: the end-of-step guard found `particle` (or, if -1, a rigid body) non-finite or
         too fast. The diagnostic says which mass and which springs; fraytool.sim.guard replays the

@@ -6,10 +6,11 @@
 
 It removes only the non-rigid part of the motion: linear and angular momentum are unchanged.
 
-The sums run in particle order on one thread (a parallel sum would round differently with the
-thread count); the last pass, each particle's own update, runs in parallel over units of particles
-(`unit_bounds`, fraytool.sim.kernels.work_split), so the result is the same, bit for bit, on any
-number of threads.
+The kernels take the free particles as an ascending list (`particles`, fraytool.sim.kernels.work_split;
+the ones the sums would not skip). The sums run over it in order on one thread (a parallel sum would
+round differently with the thread count); the last pass, each particle's own update, runs in
+parallel over its units (`unit_bounds`), so the result is the same, bit for bit, on any number of
+threads.
 """
 from __future__ import annotations
 
@@ -18,13 +19,14 @@ import numpy as np
 
 
 @nb.njit(cache=True, fastmath=False, parallel=True)
-def pbd_damping(unit_bounds, particle_position_m, particle_velocity_m_s, particle_mass_kg, particle_inv_mass, k_damping):
+def pbd_damping(particles, unit_bounds, particle_position_m, particle_velocity_m_s, particle_mass_kg, particle_inv_mass,
+                k_damping):
     """Damp the velocities of all free particles (inverse mass > 0) together, in place."""
-    n = particle_position_m.shape[0]
     m_sum = 0.0
     xc = np.zeros(3)
     vc = np.zeros(3)
-    for p in range(n):
+    for i in range(particles.shape[0]):
+        p = particles[i]
         if particle_inv_mass[p] == 0.0:
             continue  # held or inactive: not part of the damped body
         m = particle_mass_kg[p]
@@ -38,7 +40,8 @@ def pbd_damping(unit_bounds, particle_position_m, particle_velocity_m_s, particl
     vc /= m_sum
     L = np.zeros(3)
     I = np.zeros((3, 3))
-    for p in range(n):
+    for i in range(particles.shape[0]):
+        p = particles[i]
         if particle_inv_mass[p] == 0.0:
             continue
         m = particle_mass_kg[p]
@@ -61,7 +64,8 @@ def pbd_damping(unit_bounds, particle_position_m, particle_velocity_m_s, particl
     I[2, 1] = I[1, 2]
     w = _solve3(I, L)
     for u in nb.prange(unit_bounds.shape[0] - 1):
-        for p in range(unit_bounds[u], unit_bounds[u + 1]):
+        for i in range(unit_bounds[u], unit_bounds[u + 1]):
+            p = particles[i]
             if particle_inv_mass[p] == 0.0:
                 continue
             rx = particle_position_m[p, 0] - xc[0]
@@ -97,16 +101,16 @@ def _solve3(A, b):
 
 
 @nb.njit(cache=True, fastmath=False, parallel=True)
-def pbd_damping_pieces(unit_bounds, particle_position_m, particle_velocity_m_s, particle_mass_kg, particle_inv_mass,
-                       particle_piece, piece_count, k_damping):
+def pbd_damping_pieces(particles, unit_bounds, particle_position_m, particle_velocity_m_s, particle_mass_kg,
+                       particle_inv_mass, particle_piece, piece_count, k_damping):
     """The same damping applied to each piece of a torn cloth on its own (fraytool.sim.kernels.pieces):
     every piece keeps its own linear and angular momentum, so pieces moving apart rigidly keep their
     relative velocity. Particles with piece -1 (inactive) or inverse mass 0 (held) are left alone."""
-    n = particle_position_m.shape[0]
     m_sum = np.zeros(piece_count)
     xc = np.zeros((piece_count, 3))
     vc = np.zeros((piece_count, 3))
-    for p in range(n):
+    for i in range(particles.shape[0]):
+        p = particles[i]
         k = particle_piece[p]
         if k < 0 or particle_inv_mass[p] == 0.0:
             continue
@@ -122,7 +126,8 @@ def pbd_damping_pieces(unit_bounds, particle_position_m, particle_velocity_m_s, 
                 vc[k, d] /= m_sum[k]
     L = np.zeros((piece_count, 3))
     I = np.zeros((piece_count, 3, 3))
-    for p in range(n):
+    for i in range(particles.shape[0]):
+        p = particles[i]
         k = particle_piece[p]
         if k < 0 or particle_inv_mass[p] == 0.0:
             continue
@@ -147,7 +152,8 @@ def pbd_damping_pieces(unit_bounds, particle_position_m, particle_velocity_m_s, 
         I[k, 2, 1] = I[k, 1, 2]
         w[k] = _solve3(I[k], L[k])
     for u in nb.prange(unit_bounds.shape[0] - 1):
-        for p in range(unit_bounds[u], unit_bounds[u + 1]):
+        for i in range(unit_bounds[u], unit_bounds[u + 1]):
+            p = particles[i]
             k = particle_piece[p]
             if k < 0 or particle_inv_mass[p] == 0.0:
                 continue

@@ -1,9 +1,9 @@
 """Explicit Euler updates of velocities and positions, and the PBD velocity post-process (§4).
 
-Every update is per particle, so the kernels run in parallel over units of particles
-(fraytool.sim.kernels.work_split: `unit_bounds`, contiguous ranges of the slots; `whole_range` for
-one), with the same result, bit for bit, on any number of threads; the post-process's guard takes
-the lowest bad index over the units (a minimum: exact in any order)."""
+Every update is per particle, so the kernels run in parallel over units of a list of particles
+(fraytool.sim.kernels.work_split: `particles`, ascending slots, cut by `unit_bounds`; `all_slots`
+for every slot), with the same result, bit for bit, on any number of threads; the post-process's
+guard takes the lowest bad index over the units (a minimum: exact in any order)."""
 from __future__ import annotations
 
 import math
@@ -11,12 +11,15 @@ import math
 import numba as nb
 import numpy as np
 
+from fraytool.sim.kernels.work_split import WORK_UNITS
+
 
 @nb.njit(cache=True, fastmath=False, parallel=True)
-def integrate_velocities(unit_bounds, particle_velocity_m_s, particle_force_n, particle_inv_mass, gravity_m_s2, dt_s):
+def integrate_velocities(particles, unit_bounds, particle_velocity_m_s, particle_force_n, particle_inv_mass, gravity_m_s2, dt_s):
     """v += dt (g + f / m) for free particles (inverse mass > 0)."""
     for u in nb.prange(unit_bounds.shape[0] - 1):
-        for p in range(unit_bounds[u], unit_bounds[u + 1]):
+        for i in range(unit_bounds[u], unit_bounds[u + 1]):
+            p = particles[i]
             w = particle_inv_mass[p]
             if w == 0.0:
                 continue  # inactive slot or held by a rigid body
@@ -25,13 +28,19 @@ def integrate_velocities(unit_bounds, particle_velocity_m_s, particle_force_n, p
 
 
 @nb.njit(cache=True, fastmath=False, parallel=True)
-def integrate_positions(unit_bounds, particle_position_m, particle_velocity_m_s, particle_active, prev_position_m_out,
+def integrate_positions(particles, unit_bounds, particle_position_m, particle_velocity_m_s, particle_active, prev_position_m_out,
                         dt_s):
-    """Save the start-of-step positions, then x += dt v for active particles."""
+    """Save the start-of-step positions of the active slots (an inactive slot's is never read: a split
+    that activates one writes it), then x += dt v for the active particles listed."""
+    n = particle_position_m.shape[0]
+    for u in nb.prange(WORK_UNITS):
+        for p in range(u * n // WORK_UNITS, (u + 1) * n // WORK_UNITS):
+            if particle_active[p]:
+                for d in range(3):
+                    prev_position_m_out[p, d] = particle_position_m[p, d]
     for u in nb.prange(unit_bounds.shape[0] - 1):
-        for p in range(unit_bounds[u], unit_bounds[u + 1]):
-            for d in range(3):
-                prev_position_m_out[p, d] = particle_position_m[p, d]
+        for i in range(unit_bounds[u], unit_bounds[u + 1]):
+            p = particles[i]
             if not particle_active[p]:
                 continue
             for d in range(3):
@@ -39,7 +48,7 @@ def integrate_positions(unit_bounds, particle_position_m, particle_velocity_m_s,
 
 
 @nb.njit(cache=True, fastmath=False, parallel=True)
-def velocities_from_positions(unit_bounds, particle_position_m, prev_position_m, particle_active, particle_velocity_m_s,
+def velocities_from_positions(particles, unit_bounds, particle_position_m, prev_position_m, particle_active, particle_velocity_m_s,
                               dt_s, speed_limit_m_s):
     """PBD post-process v = (x - x_prev) / dt; returns the first particle that is non-finite or faster
     than speed_limit_m_s (the stability guard), or -1 when all are sane."""
@@ -47,7 +56,8 @@ def velocities_from_positions(unit_bounds, particle_position_m, prev_position_m,
     units = unit_bounds.shape[0] - 1
     first_bad = np.full(units, -1, np.int64)
     for u in nb.prange(units):
-        for p in range(unit_bounds[u], unit_bounds[u + 1]):
+        for i in range(unit_bounds[u], unit_bounds[u + 1]):
+            p = particles[i]
             if not particle_active[p]:
                 continue
             s2 = 0.0

@@ -100,15 +100,16 @@ def project_out_of_body(k, body_shape, body_rotation, body_radius_m, body_half_e
 
 
 @nb.njit(cache=True, fastmath=False)
-def _contact_range(lo, hi, k, plane, sphere, pnx, pny, pnz, cx, cy, cz, reach2, step_x, step_y, step_z, friction,
-                   dynamic, dt_s, body_shape, body_rotation, body_radius_m, body_half_extents_m, body_normal,
-                   body_position_m, margin_m, particle_inv_mass, particle_mass_kg, prev_position_m,
+def _contact_range(particles, lo, hi, k, plane, sphere, pnx, pny, pnz, cx, cy, cz, reach2, step_x, step_y, step_z,
+                   friction, dynamic, dt_s, body_shape, body_rotation, body_radius_m, body_half_extents_m,
+                   body_normal, body_position_m, margin_m, particle_inv_mass, particle_mass_kg, prev_position_m,
                    particle_position_m, body_impulse_out):
-    """Particles lo .. hi - 1 against body k (the body's constants passed in): each one in contact is
+    """Particles particles[lo:hi] against body k (the body's constants passed in): each one in contact is
     moved out with friction, and for a dynamic body its impulse m dx / dt is added to
     body_impulse_out[k] in index order. Returns the number of contacts."""
     hits = 0
-    for p in range(lo, hi):
+    for i in range(lo, hi):
+        p = particles[i]
         if particle_inv_mass[p] == 0.0:
             continue  # inactive or held: held particles follow their body, not contacts
         ex = particle_position_m[p, 0] - cx
@@ -170,8 +171,9 @@ def _contact_range(lo, hi, k, plane, sphere, pnx, pny, pnz, cx, cy, cz, reach2, 
 
 @nb.njit(cache=True, fastmath=False, parallel=True)
 def collide_rigid(
-    # units of particles (fraytool.sim.kernels.work_split)
-    unit_bounds,
+    # the particles in contact with bodies (the free ones, ascending) and their units
+    # (fraytool.sim.kernels.work_split)
+    particles, unit_bounds,
     # model
     body_shape, body_rotation, body_radius_m, body_half_extents_m, body_normal, body_friction, body_collide,
     body_dynamic, margin_m, dt_s,
@@ -192,7 +194,6 @@ def collide_rigid(
     order on any number of threads."""
     contacts = 0
     body_impulse_out[:] = 0.0
-    n = particle_position_m.shape[0]
     for k in range(body_shape.shape[0]):
         if not body_collide[k]:
             continue
@@ -213,17 +214,17 @@ def collide_rigid(
         step_z = dt_s * body_velocity_m_s[k, 2]
         friction = body_friction[k]
         if body_dynamic[k]:
-            contacts += _contact_range(0, n, k, plane, sphere, pnx, pny, pnz, cx, cy, cz, reach2, step_x, step_y,
-                                       step_z, friction, True, dt_s, body_shape, body_rotation, body_radius_m,
-                                       body_half_extents_m, body_normal, body_position_m, margin_m,
-                                       particle_inv_mass, particle_mass_kg, prev_position_m, particle_position_m,
-                                       body_impulse_out)
+            contacts += _contact_range(particles, 0, particles.shape[0], k, plane, sphere, pnx, pny, pnz, cx, cy,
+                                       cz, reach2, step_x, step_y, step_z, friction, True, dt_s, body_shape,
+                                       body_rotation, body_radius_m, body_half_extents_m, body_normal,
+                                       body_position_m, margin_m, particle_inv_mass, particle_mass_kg,
+                                       prev_position_m, particle_position_m, body_impulse_out)
         else:
             hits = 0
             for u in nb.prange(unit_bounds.shape[0] - 1):
-                hits += _contact_range(unit_bounds[u], unit_bounds[u + 1], k, plane, sphere, pnx, pny, pnz, cx, cy,
-                                       cz, reach2, step_x, step_y, step_z, friction, False, dt_s, body_shape,
-                                       body_rotation, body_radius_m, body_half_extents_m, body_normal,
+                hits += _contact_range(particles, unit_bounds[u], unit_bounds[u + 1], k, plane, sphere, pnx, pny,
+                                       pnz, cx, cy, cz, reach2, step_x, step_y, step_z, friction, False, dt_s,
+                                       body_shape, body_rotation, body_radius_m, body_half_extents_m, body_normal,
                                        body_position_m, margin_m, particle_inv_mass, particle_mass_kg,
                                        prev_position_m, particle_position_m, body_impulse_out)
             contacts += hits

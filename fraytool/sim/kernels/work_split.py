@@ -1,61 +1,76 @@
-"""Work units for the parallel per-particle kernels: the particle slots cut into WORK_UNITS
-contiguous ranges of about equal work, which numba's prange hands out to the threads.
+"""Particle lists and work units for the parallel per-particle kernels.
 
-A plain prange over the particle slots gives each thread an equal share of slots, but the slots
-are not equal work: the second half holds the yarn-level partners of the crossings
-(fraytool.sim.model), inactive until a split, so one thread would get the whole cloth. The units
-are cut by weight instead (active particles), and their number does not depend on the thread
-count: a kernel that keeps each particle's arithmetic inside one unit gives the same bits on any
-number of threads."""
+The per-particle kernels (velocity and position updates, the velocity post-process, damping, rigid
+contact) take a sorted list of the particle slots they update and `unit_bounds`: that list cut into
+WORK_UNITS runs of equal length (unit u is particles[unit_bounds[u]:unit_bounds[u + 1]]), which
+numba's prange hands out to the threads. A list, because most slots are often not work: the second
+half of the slots holds the yarn-level partners of the crossings (fraytool.sim.model), inactive
+until a split, and in a multi-resolution model most crossings are slaved to coarse nodes
+(fraytool.sim.multires), neither integrated nor damped; a plain prange over the slots gave one
+thread the whole cloth. Units, because their number does not depend on the thread count: a kernel
+that keeps each particle's arithmetic inside its unit gives the same bits on any number of threads,
+and a serial sum over a list in order makes the same additions as a scan of every slot that skips
+the others."""
 from __future__ import annotations
 
-import numba as nb
+from typing import Optional
+
 import numpy as np
 
 WORK_UNITS = 64
-"""Units per kernel: a few per thread for balance, few enough that a unit's set-up is noise."""
+"""Units per list: a few per thread for balance, few enough that a unit's set-up is noise."""
 
 
-@nb.njit(cache=True)
-def split_by_weight(weight, bounds_out):
-    """Cut range(len(weight)) into len(bounds_out) - 1 contiguous units of about equal total weight:
-    unit u is [bounds_out[u], bounds_out[u + 1]). Units may be empty; together they cover every slot."""
-    n = weight.shape[0]
-    units = bounds_out.shape[0] - 1
-    total = 0
-    for p in range(n):
-        total += weight[p]
-    bounds_out[0] = 0
-    k = 1
-    acc = 0
-    for p in range(n):
-        acc += weight[p]
-        while k < units and acc * units >= k * total and total > 0:
-            bounds_out[k] = p + 1
-            k += 1
-    while k <= units:
-        bounds_out[k] = n
-        k += 1
+def even_units(count: int, units: int = WORK_UNITS) -> np.ndarray:
+    """Bounds cutting a list of `count` entries into `units` runs of equal length (+-1)."""
+    return (np.arange(units + 1, dtype=np.int64) * count) // units
 
 
-def whole_range(count: int) -> np.ndarray:
-    """One unit covering slots [0, count): for calling a per-particle kernel outside the solver."""
-    return np.array([0, count], np.int64)
+def all_slots(count: int) -> tuple[np.ndarray, np.ndarray]:
+    """(every slot 0 .. count - 1, its units): for calling a per-particle kernel outside the solver."""
+    return np.arange(count, dtype=np.int32), even_units(count)
 
 
-class ParticleUnits:
-    """The solver's split of the particle slots into units of about equal numbers of active
-    particles, recomputed when the active set may have changed (another state's arrays, or a split:
-    the only thing that activates a slot, raising the count)."""
+class ParticleLists:
+    """The solver's lists of particle slots, rebuilt when the sets may have changed.
 
-    def __init__(self, particle_count: int):
-        self.bounds = np.zeros(WORK_UNITS + 1, np.int64)
-        self._key: tuple = ()
-        self.particle_count = particle_count
+    - free: slots with inverse mass > 0 (integrated, damped, in contact with bodies);
+    - moving: active slots minus the crossings slaved to coarse nodes (positions integrated, velocities
+      from positions; a slaved crossing's position is its interpolation, its velocity is set once per
+      frame, fraytool.sim.stages.core.VelocityPostProcess).
+    Within a run, a split (activates a slot, sets masses) raises the active count, and a refinement
+    (frees crossings) the refined-cell count; so equal counts on the same arrays mean the same sets."""
 
-    def for_state(self, active: np.ndarray) -> np.ndarray:
-        key = (active, int(np.count_nonzero(active)))
-        if len(self._key) != 2 or key[0] is not self._key[0] or key[1] != self._key[1]:
-            split_by_weight(active.view(np.uint8), self.bounds)
-            self._key = key
-        return self.bounds
+    def __init__(self) -> None:
+        self._free_key: tuple = ()
+        self._moving_key: tuple = ()
+        self._free = (np.zeros(0, np.int32), even_units(0))
+        self._moving = (np.zeros(0, np.int32), even_units(0))
+
+    @staticmethod
+    def _key(array: np.ndarray, state) -> tuple:
+        return (array, int(np.count_nonzero(state.particle_active)), int(np.count_nonzero(state.coarse_cell_refined)))
+
+    @staticmethod
+    def _same(a: tuple, b: tuple) -> bool:
+        return len(a) == 3 and a[0] is b[0] and a[1:] == b[1:]
+
+    def free(self, state) -> tuple[np.ndarray, np.ndarray]:
+        """(free slots ascending, their units)."""
+        key = self._key(state.particle_inv_mass, state)
+        if not self._same(self._free_key, key):
+            listed = np.flatnonzero(state.particle_inv_mass > 0.0).astype(np.int32)
+            self._free, self._free_key = (listed, even_units(listed.shape[0])), key
+        return self._free
+
+    def moving(self, state, slaved: Optional[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+        """(active slots that are not slaved crossings, ascending, their units); `slaved`: the slaved
+        crossings of a multi-resolution model now, else None."""
+        key = self._key(state.particle_active, state)
+        if not self._same(self._moving_key, key):
+            mask = state.particle_active.copy()
+            if slaved is not None:
+                mask[slaved] = False
+            listed = np.flatnonzero(mask).astype(np.int32)
+            self._moving, self._moving_key = (listed, even_units(listed.shape[0])), key
+        return self._moving

@@ -6,7 +6,7 @@ from typing import Callable, Protocol
 
 import numpy as np
 
-from fraytool.sim.kernels.work_split import ParticleUnits
+from fraytool.sim.kernels.work_split import ParticleLists
 from fraytool.sim.model import Model
 from fraytool.sim.state import State
 
@@ -26,20 +26,15 @@ class StepBuffers:
     body_impulse_n_s: np.ndarray
     """Impulse the cloth received from each body in the last rigid-contact pass [N s], shape (body_count, 3),
     float64 (a scene that tears with a colliding body has two passes per step, each applied on its own)."""
-    units: ParticleUnits
-    """The particle slots cut into units of about equal numbers of active particles, for the
-    per-particle kernels in parallel (fraytool.sim.kernels.work_split)."""
+    lists: ParticleLists
+    """The free and the moving particles, listed for the per-particle kernels (fraytool.sim.kernels.work_split)."""
     bad_particle: int = -1
     """Set by the velocity post-process: a particle found non-finite or too fast, else -1."""
 
     @staticmethod
     def for_model(model: Model) -> "StepBuffers":
         return StepBuffers(np.zeros((model.particle_count, 3)), np.zeros((model.particle_count, 3)),
-                           np.zeros((model.body_count, 3)), ParticleUnits(model.particle_count))
-
-    def unit_bounds(self, state: State) -> np.ndarray:
-        """`units` for the state's active particles now."""
-        return self.units.for_state(state.particle_active)
+                           np.zeros((model.body_count, 3)), ParticleLists())
 
 
 class Stage(Protocol):

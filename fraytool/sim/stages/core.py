@@ -5,7 +5,7 @@ Each stage unpacks the model's arrays once, at construction, and calls one numba
 (kernels take arrays only; fraytool.sim.kernels)."""
 from __future__ import annotations
 
-from typing import Optional
+from typing import Callable, Optional
 
 import numpy as np
 
@@ -19,6 +19,7 @@ from fraytool.sim.kernels.integrate import (
     velocities_from_positions,
 )
 from fraytool.sim.kernels.pieces import label_pieces
+from fraytool.sim.kernels.work_split import even_units
 from fraytool.sim.kernels.rigid_contact import collide_rigid
 from fraytool.sim.kernels.strain_limit import damp_overstretched, limit_strain_groups, limit_strain_lines
 from fraytool.sim.model import Model
@@ -101,7 +102,7 @@ class VelocityUpdate(_NoSummary):
         self.gravity_m_s2 = model.gravity_m_s2
 
     def run(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
-        integrate_velocities(buffers.unit_bounds(state), state.particle_velocity_m_s, buffers.force_n,
+        integrate_velocities(*buffers.lists.free(state), state.particle_velocity_m_s, buffers.force_n,
                              state.particle_inv_mass, self.gravity_m_s2, dt_s)
 
 
@@ -128,7 +129,7 @@ class Damping(_NoSummary):
 
     def run(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
         if not self.per_piece:
-            pbd_damping(buffers.unit_bounds(state), state.particle_position_m, state.particle_velocity_m_s,
+            pbd_damping(*buffers.lists.free(state), state.particle_position_m, state.particle_velocity_m_s,
                         state.particle_mass_kg, state.particle_inv_mass, self.damping)
             return
         key = (int(np.count_nonzero(state.spring_alive)), int(np.count_nonzero(state.couple_connected)),
@@ -140,7 +141,7 @@ class Damping(_NoSummary):
                                              state.spring_particle_a, state.spring_particle_b,
                                              state.spring_alive, self._labels)
             self._topology_key = key
-        pbd_damping_pieces(buffers.unit_bounds(state), state.particle_position_m, state.particle_velocity_m_s,
+        pbd_damping_pieces(*buffers.lists.free(state), state.particle_position_m, state.particle_velocity_m_s,
                            state.particle_mass_kg, state.particle_inv_mass, self._labels, self._piece_count,
                            self.damping)
 
@@ -151,13 +152,16 @@ class PositionUpdate(_NoSummary):
     name = "integration"
     kernel = "integrate_positions"
 
-    def __init__(self, model: Model):
+    def __init__(self, model: Model, slaved_of: Optional[Callable[[State], np.ndarray]] = None):
         self.model = model
         self.has_bodies = model.body_count > 0
+        self.slaved_of = slaved_of or _none_slaved
+        """The crossings slaved to coarse nodes now (multi-resolution model): not integrated, their
+        positions are their interpolation (fraytool.sim.stages.multires)."""
 
     def run(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
-        integrate_positions(buffers.unit_bounds(state), state.particle_position_m, state.particle_velocity_m_s,
-                            state.particle_active, buffers.prev_position_m, dt_s)
+        integrate_positions(*buffers.lists.moving(state, self.slaved_of(state)), state.particle_position_m,
+                            state.particle_velocity_m_s, state.particle_active, buffers.prev_position_m, dt_s)
         if self.has_bodies:
             advance_bodies(self.model, state, state.time_s + dt_s, dt_s)
 
@@ -281,7 +285,7 @@ class RigidContact(_NoSummary):
     def run(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
         m = self.model
         self.contacts_last = collide_rigid(
-            buffers.unit_bounds(state), m.body_shape, m.body_rotation, m.body_radius_m, m.body_half_extents_m,
+            *buffers.lists.free(state), m.body_shape, m.body_rotation, m.body_radius_m, m.body_half_extents_m,
             m.body_normal, m.body_friction, m.body_collide, self.body_dynamic, 0.5 * m.thickness_m, dt_s, state.body_position_m,
             state.body_velocity_m_s, state.particle_inv_mass, state.particle_mass_kg, buffers.prev_position_m,
             state.particle_position_m, buffers.body_impulse_n_s)
@@ -310,15 +314,36 @@ class RigidContactBeforeLimit(RigidContact):
 
 class VelocityPostProcess(_NoSummary):
     """Step 8: v = (x - x_prev) / dt (PBD), with the guard's end-of-step check: the first particle
-    non-finite or faster than speed_limit_m_s goes to buffers.bad_particle."""
+    non-finite or faster than speed_limit_m_s goes to buffers.bad_particle.
+
+    In a multi-resolution model the crossings slaved to coarse nodes are left out of the step (their
+    velocity is read by nothing in it: they are not integrated, and a crossing freed by a refinement
+    is freed with its interpolated position and start-of-step position, so the step ends with its
+    velocity); `end_frame` gives them theirs, by the same formula, for the frame's record."""
 
     name = "integration"
     kernel = "velocities_from_positions"
 
-    def __init__(self, model: Model, speed_limit_m_s: float):
+    def __init__(self, model: Model, speed_limit_m_s: float,
+                 slaved_of: Optional[Callable[[State], np.ndarray]] = None):
         self.speed_limit_m_s = speed_limit_m_s
+        self.slaved_of = slaved_of or _none_slaved
 
     def run(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
         buffers.bad_particle = int(velocities_from_positions(
-            buffers.unit_bounds(state), state.particle_position_m, buffers.prev_position_m, state.particle_active,
-            state.particle_velocity_m_s, dt_s, self.speed_limit_m_s))
+            *buffers.lists.moving(state, self.slaved_of(state)), state.particle_position_m, buffers.prev_position_m,
+            state.particle_active, state.particle_velocity_m_s, dt_s, self.speed_limit_m_s))
+
+    def end_frame(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
+        """The slaved crossings' velocities of the last step, v = (x - x_prev) / dt (multi-resolution)."""
+        slaved = self.slaved_of(state)
+        if slaved is None or not slaved.shape[0]:
+            return
+        velocities_from_positions(slaved, even_units(slaved.shape[0]), state.particle_position_m,
+                                  buffers.prev_position_m, state.particle_active, state.particle_velocity_m_s, dt_s,
+                                  self.speed_limit_m_s)
+
+
+def _none_slaved(state: State) -> None:
+    """No crossing is slaved (a model at yarn resolution everywhere)."""
+    return None

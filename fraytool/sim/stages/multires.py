@@ -63,6 +63,11 @@ class MultiresRuntime:
         if state is not self._owner or count != self._count:
             self._rebuild(state)
 
+    def slaved_now(self, state: State) -> np.ndarray:
+        """The crossings slaved to coarse nodes in `state` (ascending)."""
+        self.ensure(state)
+        return self.slaved
+
     def _rebuild(self, state: State) -> None:
         lay, refined = self.layout, state.coarse_cell_refined
         self._owner, self._count = state, int(np.count_nonzero(refined))
