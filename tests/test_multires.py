@@ -140,6 +140,7 @@ def test_coarse_drape_rests_on_the_ball_near_the_fine_one():
         state, solver = model.state(), SolverExplicitPBD(model)
         for _ in range(12 * spec.time.steps_per_frame):
             solver.step(state, spec.time.step_s)
+        solver.end_frame(state, spec.time.step_s)  # slaved crossings on their interpolation
         out[k] = state.particle_position_m[: model.crossing_count].copy()
         centre = model.body_initial_position_m[0]
         r = np.linalg.norm(out[k] - centre, axis=1)
@@ -306,3 +307,28 @@ def test_the_band_holds_a_splits_walk_along_the_longest_float():
 def test_a_grid_without_crossings_between_nodes_starts_refined():
     model = _cloth(nx=2, ny=2, factor=2, tearing=True)
     assert model.state().coarse_cell_refined.all()
+
+
+def test_a_frame_ends_with_every_slaved_crossing_on_its_interpolation():
+    """The steps keep only the hanging nodes on their interpolation (the other slaved crossings are read
+    by nothing in a step); a frame's end (Simulation.advance_frame -> solver.end_frame) puts every
+    slaved crossing on it, position exactly, velocity as the nodes' interpolated velocity."""
+    from fraytool.sim.simulation import Simulation
+
+    spec = load_scene(ROOT / "scenes" / "fig6_thrown_ball_plain.toml", [("cloth.multires.factor", 4)])
+    sim = Simulation(spec)
+    lay = multires.coarse_layout(sim.model)
+    for _ in range(3):
+        sim.advance_frame()
+    free = multires.free_crossings(lay, sim.state.coarse_cell_refined)
+    assert 0 < free.sum() < free.size
+    x, v = sim.state.particle_position_m, sim.state.particle_velocity_m_s
+    n = sim.model.crossing_count
+    want_x, want_v = x[:n].copy(), v[:n].copy()
+    multires.interpolate_slaved(lay, free, want_x)
+    multires.interpolate_slaved(lay, free, want_v)
+    assert np.array_equal(x[:n][~free], want_x[~free])
+    scale = np.abs(v[:n][free]).max()
+    assert scale > 0.01  # the cloth is moving
+    # (x - x_prev) / dt of interpolated positions against the interpolated velocities: equal up to rounding
+    assert np.abs(v[:n][~free] - want_v[~free]).max() < 1e-8 * scale

@@ -99,6 +99,8 @@ class Simulation:
         self.shot = ShotFigures.from_arrays(data)
 
     def step(self) -> None:
+        """One step. In a multi-resolution model the slaved crossings are brought up to date at the end
+        of a frame (advance_frame; or call solver.end_frame after your last step)."""
         self.solver.step(self.state, self.dt_s)
 
     def advance_frame(self) -> FrameRecord:

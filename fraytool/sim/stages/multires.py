@@ -6,10 +6,11 @@
 - SyncSlaved (after the position update: the hanging nodes; before self-collision: all) puts slaved
   crossings back on their interpolation mid-step.
 - SlavedContact (after rigid contact): slaved crossings kept out of bodies through their nodes.
-- Refinement (before tearing): slaved crossings put back on their cells' bilinear interpolation
-  (the constraints and collisions moved the nodes); then coarse cells near a strain that could tear, or near a moving body,
-  refine; the crossings that become free take their mass back from their nodes (total mass and
-  momentum kept exactly: the crossing moves with the interpolated velocity its mass had while lumped).
+- Refinement (before tearing): the hanging nodes put back on their cells' bilinear interpolation
+  (the constraints and collisions moved the nodes; every slaved crossing once per frame, for the
+  record); then coarse cells near a strain that could tear, or near a moving body, refine; the
+  crossings that become free take their mass back from their nodes (total mass and momentum kept
+  exactly: the crossing moves with the interpolated velocity its mass had while lumped).
 
 One MultiresRuntime, shared by these stages, keeps the lists derived from State.coarse_cell_refined;
 it rebuilds them whenever it sees another State or another refined count (cells only refine, so
@@ -62,6 +63,13 @@ class MultiresRuntime:
         count = int(np.count_nonzero(state.coarse_cell_refined))
         if state is not self._owner or count != self._count:
             self._rebuild(state)
+
+    def sync_all(self, state: State, prev_position_m: np.ndarray) -> None:
+        """Every slaved crossing on its interpolation: positions, and start-of-step positions from the
+        nodes' (the interpolation of a node's move over the step is the slaved crossing's move)."""
+        lay = self.layout
+        sync_slaved(self.slaved, lay.crossing_node, lay.crossing_weight, state.particle_position_m)
+        sync_slaved(self.slaved, lay.crossing_node, lay.crossing_weight, prev_position_m)
 
     def slaved_now(self, state: State) -> np.ndarray:
         """The crossings slaved to coarse nodes in `state` (ascending)."""
@@ -137,8 +145,9 @@ class MultiresForces:
 class SyncSlaved:
     """Slaved crossings back on their cells' interpolation, mid-step: after the position update only
     the hanging nodes (the slaved crossings a working fine spring pulls on: strain limiting reads them
-    as anchors), before self-collision all of them (it reads them as obstacles). Integration skips
-    them (inverse mass 0), so by then they are off their interpolation by this step's node moves."""
+    as anchors), before self-collision all of them, positions and start-of-step positions (it reads
+    them as obstacles, swept over the step). The step does not move them (integration leaves them
+    out), so by then they are off their interpolation by the node moves since the last sync."""
 
     kernel = "sync_slaved"
 
@@ -150,8 +159,11 @@ class SyncSlaved:
     def run(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
         rt = self.runtime
         rt.ensure(state)
-        sync_slaved(rt.loaded_slaved if self.hanging_only else rt.slaved, rt.layout.crossing_node,
-                    rt.layout.crossing_weight, state.particle_position_m)
+        if self.hanging_only:
+            sync_slaved(rt.loaded_slaved, rt.layout.crossing_node, rt.layout.crossing_weight,
+                        state.particle_position_m)
+        else:
+            rt.sync_all(state, buffers.prev_position_m)
 
     def summary(self, state: State) -> dict:
         return {}
@@ -193,8 +205,10 @@ class SlavedContact:
 
 
 class Refinement:
-    """Before tearing: slaved crossings back on their interpolation (the constraints and collisions
-    moved the nodes), then coarse cells refined ahead of any strain that could tear them."""
+    """Before tearing: the hanging nodes back on their interpolation (the constraints and collisions
+    moved the nodes), then coarse cells refined ahead of any strain that could tear them. The other
+    slaved crossings are read by nothing in a step but self-collision (SyncSlaved), so they are put
+    back on their interpolation once per frame (`end_frame`), and when a refinement frees some."""
 
     name = "refinement"
     kernel = "cells_to_refine"
@@ -207,7 +221,8 @@ class Refinement:
     def run(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
         rt, m, lay = self.runtime, self.model, self.runtime.layout
         rt.ensure(state)
-        sync_slaved(rt.slaved, lay.crossing_node, lay.crossing_weight, state.particle_position_m)
+        # the hanging nodes: the fine springs whose strains decide what refines (and then what tears)
+        sync_slaved(rt.loaded_slaved, lay.crossing_node, lay.crossing_weight, state.particle_position_m)
         if state.coarse_cell_refined.all():
             return  # everything refined
         self._centre[:] = state.body_position_m[rt.moving_bodies]
@@ -218,7 +233,18 @@ class Refinement:
                                 m.refine_strain, m.refine_band_cells, lay.cells_x, lay.cells_y, self._centre,
                                 rt.body_reach_m, rt.cell_nodes, state.coarse_cell_refined, rt._hot, rt._new)
         if count:
+            # a crossing freed now starts from its interpolation, and its velocity at the step's end
+            # is (x - x_prev) / dt of the interpolated positions: the velocity its mass had while lumped
+            rt.sync_all(state, buffers.prev_position_m)
             rt.refine(state, rt._new)
+
+    def end_frame(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
+        """Every slaved crossing on its interpolation for the frame's record (the steps sync only the
+        hanging nodes); their velocities follow in VelocityPostProcess.end_frame."""
+        if state.coarse_cell_refined.all():
+            return
+        self.runtime.ensure(state)
+        self.runtime.sync_all(state, buffers.prev_position_m)
 
     def summary(self, state: State) -> dict:
         refined = state.coarse_cell_refined
