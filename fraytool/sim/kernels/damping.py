@@ -18,7 +18,7 @@ import numba as nb
 import numpy as np
 
 
-@nb.njit(cache=True, fastmath=False, parallel=True)
+@nb.njit(cache=True, fastmath=False)
 def pbd_damping(particles, unit_bounds, particle_position_m, particle_velocity_m_s, particle_mass_kg, particle_inv_mass,
                 k_damping):
     """Damp the velocities of all free particles (inverse mass > 0) together, in place."""
@@ -63,6 +63,14 @@ def pbd_damping(particles, unit_bounds, particle_position_m, particle_velocity_m
     I[2, 0] = I[0, 2]
     I[2, 1] = I[1, 2]
     w = _solve3(I, L)
+    _damp_toward(particles, unit_bounds, particle_position_m, particle_velocity_m_s, particle_inv_mass, xc, vc, w,
+                 k_damping)
+
+
+@nb.njit(cache=True, fastmath=False, parallel=True)
+def _damp_toward(particles, unit_bounds, particle_position_m, particle_velocity_m_s, particle_inv_mass, xc, vc, w,
+                 k_damping):
+    """The last pass of `pbd_damping`, particle by particle in parallel over the units."""
     for u in nb.prange(unit_bounds.shape[0] - 1):
         for i in range(unit_bounds[u], unit_bounds[u + 1]):
             p = particles[i]
@@ -100,7 +108,7 @@ def _solve3(A, b):
     return x
 
 
-@nb.njit(cache=True, fastmath=False, parallel=True)
+@nb.njit(cache=True, fastmath=False)
 def pbd_damping_pieces(particles, unit_bounds, particle_position_m, particle_velocity_m_s, particle_mass_kg,
                        particle_inv_mass, particle_piece, piece_count, k_damping):
     """The same damping applied to each piece of a torn cloth on its own (fraytool.sim.kernels.pieces):
@@ -151,6 +159,14 @@ def pbd_damping_pieces(particles, unit_bounds, particle_position_m, particle_vel
         I[k, 2, 0] = I[k, 0, 2]
         I[k, 2, 1] = I[k, 1, 2]
         w[k] = _solve3(I[k], L[k])
+    _damp_pieces_toward(particles, unit_bounds, particle_position_m, particle_velocity_m_s, particle_inv_mass,
+                        particle_piece, xc, vc, w, k_damping)
+
+
+@nb.njit(cache=True, fastmath=False, parallel=True)
+def _damp_pieces_toward(particles, unit_bounds, particle_position_m, particle_velocity_m_s, particle_inv_mass,
+                        particle_piece, xc, vc, w, k_damping):
+    """The last pass of `pbd_damping_pieces`, particle by particle in parallel over the units."""
     for u in nb.prange(unit_bounds.shape[0] - 1):
         for i in range(unit_bounds[u], unit_bounds[u + 1]):
             p = particles[i]

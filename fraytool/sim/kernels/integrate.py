@@ -11,8 +11,6 @@ import math
 import numba as nb
 import numpy as np
 
-from fraytool.sim.kernels.work_split import WORK_UNITS
-
 
 @nb.njit(cache=True, fastmath=False, parallel=True)
 def integrate_velocities(particles, unit_bounds, particle_velocity_m_s, particle_force_n, particle_inv_mass, gravity_m_s2, dt_s):
@@ -28,19 +26,17 @@ def integrate_velocities(particles, unit_bounds, particle_velocity_m_s, particle
 
 
 @nb.njit(cache=True, fastmath=False, parallel=True)
-def integrate_positions(particles, unit_bounds, particle_position_m, particle_velocity_m_s, particle_active, prev_position_m_out,
-                        dt_s):
-    """Save the start-of-step positions of the active slots (an inactive slot's is never read: a split
-    that activates one writes it), then x += dt v for the active particles listed."""
-    n = particle_position_m.shape[0]
-    for u in nb.prange(WORK_UNITS):
-        for p in range(u * n // WORK_UNITS, (u + 1) * n // WORK_UNITS):
-            if particle_active[p]:
-                for d in range(3):
-                    prev_position_m_out[p, d] = particle_position_m[p, d]
+def integrate_positions(particles, unit_bounds, particle_position_m, particle_velocity_m_s, particle_active,
+                        prev_position_m_out, dt_s):
+    """For the particles listed: save the start-of-step position, then x += dt v if active. (The
+    solver lists the moving particles: other slots' start-of-step positions are not read, or are set
+    by whoever reads them: a split for the slot it activates, the multi-resolution stages for the
+    slaved crossings.)"""
     for u in nb.prange(unit_bounds.shape[0] - 1):
         for i in range(unit_bounds[u], unit_bounds[u + 1]):
             p = particles[i]
+            for d in range(3):
+                prev_position_m_out[p, d] = particle_position_m[p, d]
             if not particle_active[p]:
                 continue
             for d in range(3):

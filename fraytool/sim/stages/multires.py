@@ -143,10 +143,10 @@ class MultiresForces:
 
 
 class SyncSlaved:
-    """Slaved crossings back on their cells' interpolation, mid-step: after the position update only
-    the hanging nodes (the slaved crossings a working fine spring pulls on: strain limiting reads them
-    as anchors), before self-collision all of them, positions and start-of-step positions (it reads
-    them as obstacles, swept over the step). The step does not move them (integration leaves them
+    """Slaved crossings back on their cells' interpolation, positions and start-of-step positions,
+    mid-step: after the position update only the hanging nodes (the slaved crossings a working fine
+    spring pulls on: strain limiting reads them as anchors, and its dashpot their moves over the step),
+    before self-collision all of them (it reads them as obstacles, swept over the step). The step does not move them (integration leaves them
     out), so by then they are off their interpolation by the node moves since the last sync."""
 
     kernel = "sync_slaved"
@@ -160,8 +160,9 @@ class SyncSlaved:
         rt = self.runtime
         rt.ensure(state)
         if self.hanging_only:
-            sync_slaved(rt.loaded_slaved, rt.layout.crossing_node, rt.layout.crossing_weight,
-                        state.particle_position_m)
+            lay = rt.layout
+            sync_slaved(rt.loaded_slaved, lay.crossing_node, lay.crossing_weight, state.particle_position_m)
+            sync_slaved(rt.loaded_slaved, lay.crossing_node, lay.crossing_weight, buffers.prev_position_m)
         else:
             rt.sync_all(state, buffers.prev_position_m)
 
