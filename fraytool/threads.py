@@ -54,9 +54,10 @@ def set_up_threads(count: int | None) -> None:
     sets it, else DEFAULT_THREADS.
 
     More than one thread pays only on free cores: numba's OpenMP threads spin while they wait for the
-    others (OMP_WAIT_POLICY active, the runtime's default), which is what makes a parallel region
-    cheap enough at all: with OMP_WAIT_POLICY=PASSIVE (sleeping waits) two threads gained nothing on
-    the 256 x 256 drape (strain limiting 771 -> 790 ms per frame) and lost on fig7 (9.6 -> 18.6)."""
+    others (for a while by the runtime's default; for good with OMP_WAIT_POLICY=ACTIVE, which a run
+    of more than one thread sets: WAIT_POLICY), which is what makes a parallel region cheap enough at
+    all: with OMP_WAIT_POLICY=PASSIVE (sleeping waits) two threads gained nothing on the 256 x 256
+    drape (strain limiting 771 -> 790 ms per frame) and lost on fig7 (9.6 -> 18.6)."""
     if count is not None:
         use_threads(count)
     elif "NUMBA_NUM_THREADS" not in os.environ:

@@ -104,7 +104,8 @@ def test_damping_preserves_linear_and_angular_momentum():
 def test_particle_lists_follow_splits_and_refinement():
     """The solver's lists (fraytool.sim.kernels.work_split.ParticleLists): free = inverse mass > 0,
     moving = active minus the slaved crossings, each cut into equal units covering the list; rebuilt
-    when a slot is activated (a split) or another state comes, kept otherwise."""
+    when a slot is activated (a split), when a cell refines (the refined count), or another state
+    comes; kept otherwise."""
     from fraytool.sim.builder import build_model
     from fraytool.sim.kernels.work_split import WORK_UNITS, ParticleLists
 
@@ -124,5 +125,16 @@ def test_particle_lists_follow_splits_and_refinement():
     state.particle_active[n + 5] = True  # a split activates a partner slot and gives it a mass
     state.particle_inv_mass[n + 5] = 1.0
     assert n + 5 in lists.free(state)[0].tolist() and n + 5 in lists.moving(state, slaved)[0].tolist()
+    state.coarse_cell_refined = np.zeros(4, bool)  # a refinement frees crossings: their mass back
+    state.particle_inv_mass[2] = 0.0
+    assert 2 in lists.free(state)[0].tolist()  # same counts: the list is kept (the documented contract)
+    lists.invalidate()
+    assert 2 not in lists.free(state)[0].tolist()
+    state.particle_inv_mass[2] = 1.0
+    lists.invalidate()
+    state.coarse_cell_refined[1] = True
+    state.particle_inv_mass[2] = 0.0
+    assert 2 not in lists.free(state)[0].tolist()
+    assert lists.moving(state, np.array([2], np.int32))[0].tolist().count(2) == 0
     other = model.state()
     assert lists.free(other)[0].tolist() == free.tolist()

@@ -175,22 +175,41 @@ def test_a_tear_never_touches_a_slaved_crossing(scene, factor):
 
 
 def test_resume_from_a_checkpoint_matches_an_unbroken_run():
+    """A run resumed from a frame's checkpoint (written after the frame's end, with a fresh solver whose
+    start-of-step positions are zero) gives the same state, every array, as the unbroken run; also
+    when the saved state is taken mid-frame and stepped by a bare solver."""
+    from fraytool.sim.simulation import Simulation
     from fraytool.sim.state import State
 
     spec = load_scene(ROOT / "scenes" / "fig6_thrown_ball_plain.toml", [("cloth.multires.factor", 4)])
-    model = build_model(spec)
+    sim = Simulation(spec)
+    for _ in range(6):
+        sim.advance_frame()
+    checkpoint = {k: v.copy() for k, v in sim.checkpoint_arrays().items()}
+    for _ in range(6):
+        sim.advance_frame()
+    resumed = Simulation(spec, model=sim.model, state=State.from_arrays(checkpoint), frame=6)
+    for _ in range(6):
+        resumed.advance_frame()
+    assert sim.state.spring_broken.any() and 0 < sim.state.coarse_cell_refined.sum()
+    for name, value in sim.state.arrays().items():
+        assert np.array_equal(value, resumed.state.arrays()[name]), name
+
+    model = sim.model
     state, solver = model.state(), SolverExplicitPBD(model)
-    steps = 6 * spec.time.steps_per_frame
+    steps = 6 * spec.time.steps_per_frame + 7  # mid-frame
     for _ in range(steps):
         solver.step(state, spec.time.step_s)
     saved = State.from_arrays(state.arrays())
     for _ in range(steps):
         solver.step(state, spec.time.step_s)
-    resumed, solver2 = saved, SolverExplicitPBD(model)
+    again, solver2 = saved, SolverExplicitPBD(model)
     for _ in range(steps):
-        solver2.step(resumed, spec.time.step_s)
+        solver2.step(again, spec.time.step_s)
+    solver.end_frame(state, spec.time.step_s)
+    solver2.end_frame(again, spec.time.step_s)
     for name, value in state.arrays().items():
-        assert np.array_equal(value, resumed.arrays()[name]), name
+        assert np.array_equal(value, again.arrays()[name]), name
 
 
 def test_factor_must_be_a_power_of_two_up_to_8():
@@ -332,3 +351,38 @@ def test_a_frame_ends_with_every_slaved_crossing_on_its_interpolation():
     assert scale > 0.01  # the cloth is moving
     # (x - x_prev) / dt of interpolated positions against the interpolated velocities: equal up to rounding
     assert np.abs(v[:n][~free] - want_v[~free]).max() < 1e-8 * scale
+
+
+def test_slaved_crossings_are_on_their_interpolation_whenever_a_split_may_read_them():
+    """A split reads its neighbours (the couple's normal) and its settle every yarn segment, slaved
+    crossings included; the steps keep most slaved crossings stale, so the refinement syncs them all
+    on every step with a hot cell (a spring past the refine strain, which every split needs). Checked
+    just before the tearing stage of every such step of fig6 at factor 4 (self-collision off: it would
+    sync them all anyway), through to its tear."""
+    from fraytool.sim.simulation import Simulation
+    from fraytool.sim.stages.base import HookStage
+
+    spec = load_scene(ROOT / "scenes" / "fig6_thrown_ball_plain.toml",
+                      [("cloth.multires.factor", 4), ("self_collision.enabled", False)])
+    sim = Simulation(spec)
+    runtime = sim.solver._find("Refinement").runtime
+    lay = runtime.layout
+    n = sim.model.crossing_count
+    seen = {"hot": 0, "cold": 0}
+
+    def check(state, prev, dt):
+        free = multires.free_crossings(lay, state.coarse_cell_refined)
+        want = state.particle_position_m[:n].copy()
+        multires.interpolate_slaved(lay, free, want)
+        on = np.array_equal(state.particle_position_m[:n][~free], want[~free])
+        if runtime._hot.any():
+            seen["hot"] += 1
+            assert on, f"step {state.step_index}: a hot step with slaved crossings off their interpolation"
+        elif not on:
+            seen["cold"] += 1  # allowed: nothing reads them in this step
+
+    sim.solver.insert_stage(HookStage("refinement", check))
+    assert [type(s).__name__ for s in sim.solver.stages][-3:] == ["HookStage", "TearingStage", "VelocityPostProcess"]
+    for _ in range(40):
+        sim.advance_frame()
+    assert sim.state.spring_broken.any() and seen["hot"] > 0 and seen["cold"] > 0

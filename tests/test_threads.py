@@ -80,9 +80,13 @@ def test_threads_flag_is_checked(tmp_path, capsys):
 @pytest.mark.skipif(thread_limit() < 2, reason="needs two cores: numba allows one thread here")
 def test_threads_flag_and_the_default_set_numba(tmp_path, monkeypatch):
     """--threads N sets numba's threads; without it a command runs one thread, unless the environment
-    sets NUMBA_NUM_THREADS (fraytool.threads.DEFAULT_THREADS)."""
+    sets NUMBA_NUM_THREADS (fraytool.threads.DEFAULT_THREADS). More than one thread asks OpenMP for
+    spinning waits, unless the environment chose a wait policy (fraytool.threads.WAIT_POLICY)."""
     import numba
 
+    from fraytool.threads import WAIT_POLICY
+
+    monkeypatch.delenv("OMP_WAIT_POLICY", raising=False)  # set by the run below: undone after the test
     scene = tmp_path / "strip.toml"
     scene.write_text(pulled_strip_text("strip"))
     before = numba.get_num_threads()
@@ -94,6 +98,9 @@ def test_threads_flag_and_the_default_set_numba(tmp_path, monkeypatch):
 
     try:
         assert run("--threads", "2") == 2
+        assert os.environ["OMP_WAIT_POLICY"] == WAIT_POLICY
+        monkeypatch.setenv("OMP_WAIT_POLICY", "PASSIVE")
+        assert run("--threads", "2") == 2 and os.environ["OMP_WAIT_POLICY"] == "PASSIVE"  # the user's stands
         monkeypatch.delenv("NUMBA_NUM_THREADS", raising=False)
         assert run() == 1  # the default
         numba.set_num_threads(2)

@@ -10,7 +10,8 @@ either *coarse* or *refined*; cells only refine, never coarsen.
   is refined; otherwise it is **slaved**: its position and velocity are the bilinear interpolation
   of its cell's four nodes (on a cell edge this is the linear interpolation of the edge's two nodes,
   whichever cell is used, so a slaved crossing between a refined and a coarse cell, a *hanging
-  node*, is continuous with both).
+  node*, is continuous with both). (In a step only the ones something reads are put there; every
+  one at the end of a frame: fraytool.sim.stages.multires.)
 - A slaved crossing's mass is lumped into its nodes with the interpolation weights (so gravity,
   total mass and momentum are those of the whole cloth), and it has mass and inverse mass 0 in the
   State (constraints, contacts and damping leave it alone); the forces on it go to its nodes with

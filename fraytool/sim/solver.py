@@ -146,6 +146,12 @@ class SolverExplicitPBD:
         if self._guard_bodies and not np.isfinite(state.body_position_m).all():
             self._unstable(state, -1, dt_s)  # a thrown body received a non-finite impulse
 
+    def slaved_crossings(self, state: State) -> np.ndarray:
+        """The crossings slaved to coarse nodes in `state` (multi-resolution model; else none): their
+        state is brought up to date where it is read and at the end of a frame (`end_frame`)."""
+        stage = self._find("Refinement")
+        return stage.runtime.slaved_now(state) if stage is not None else np.zeros(0, np.int32)
+
     def end_frame(self, state: State, dt_s: float) -> None:
         """Bring what the steps leave out up to date for the frame's record and checkpoint (the slaved
         crossings' velocities of a multi-resolution model); call after the last step of a frame."""

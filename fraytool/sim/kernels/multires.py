@@ -55,9 +55,10 @@ def gather_slaved_forces(slaved, crossing_node, crossing_weight, particle_force_
 
 @nb.njit(cache=True, fastmath=False)
 def sync_slaved(slaved, crossing_node, crossing_weight, particle_position_m):
-    """Position of each slaved crossing = the weighted sum of its nodes' (in place). Velocities need no
-    sync: the velocity post-process makes every velocity from positions, and integration is linear,
-    so a slaved crossing moved by its own velocity lands on its nodes' interpolation up to rounding."""
+    """Position of each slaved crossing = the weighted sum of its nodes' (in place; also used for the
+    start-of-step positions). The step neither integrates slaved crossings nor makes their velocities:
+    the stages sync them where they are read, and the frame's end gives them the velocity of their
+    synced positions (fraytool.sim.stages.multires)."""
     for m in range(slaved.shape[0]):
         s = slaved[m]
         for d in range(3):

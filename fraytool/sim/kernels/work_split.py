@@ -39,7 +39,9 @@ class ParticleLists:
       from positions; a slaved crossing's position is its interpolation, its velocity is set once per
       frame, fraytool.sim.stages.core.VelocityPostProcess).
     Within a run, a split (activates a slot, sets masses) raises the active count, and a refinement
-    (frees crossings) the refined-cell count; so equal counts on the same arrays mean the same sets."""
+    (frees crossings) the refined-cell count; so equal counts on the same arrays mean the same sets.
+    A tool that edits inverse masses or active flags in place some other way (pinning a particle
+    mid-run) calls `invalidate` after it."""
 
     def __init__(self) -> None:
         self._free_key: tuple = ()
@@ -47,9 +49,14 @@ class ParticleLists:
         self._free = (np.zeros(0, np.int32), even_units(0))
         self._moving = (np.zeros(0, np.int32), even_units(0))
 
+    def invalidate(self) -> None:
+        """Rebuild both lists at their next use."""
+        self._free_key = self._moving_key = ()
+
     @staticmethod
     def _key(array: np.ndarray, state) -> tuple:
-        return (array, int(np.count_nonzero(state.particle_active)), int(np.count_nonzero(state.coarse_cell_refined)))
+        return (array, int(np.count_nonzero(state.particle_active)),
+                int(np.count_nonzero(state.coarse_cell_refined)))
 
     @staticmethod
     def _same(a: tuple, b: tuple) -> bool:

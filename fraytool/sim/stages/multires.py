@@ -208,8 +208,10 @@ class SlavedContact:
 class Refinement:
     """Before tearing: the hanging nodes back on their interpolation (the constraints and collisions
     moved the nodes), then coarse cells refined ahead of any strain that could tear them. The other
-    slaved crossings are read by nothing in a step but self-collision (SyncSlaved), so they are put
-    back on their interpolation once per frame (`end_frame`), and when a refinement frees some."""
+    slaved crossings are read in a step only by self-collision (SyncSlaved, which syncs them first)
+    and by a split (its couple's normal reads the neighbouring crossings, its settle every yarn
+    segment), which needs a spring past the refine strain: so they are synced here when a cell is
+    hot or a refinement frees some, and otherwise once per frame (`end_frame`)."""
 
     name = "refinement"
     kernel = "cells_to_refine"
@@ -233,10 +235,14 @@ class Refinement:
                                 lay.coarse_rest_length_m, rt.coarse_alive, state.particle_position_m,
                                 m.refine_strain, m.refine_band_cells, lay.cells_x, lay.cells_y, self._centre,
                                 rt.body_reach_m, rt.cell_nodes, state.coarse_cell_refined, rt._hot, rt._new)
-        if count:
-            # a crossing freed now starts from its interpolation, and its velocity at the step's end
-            # is (x - x_prev) / dt of the interpolated positions: the velocity its mass had while lumped
+        if count or rt._hot.any():
+            # A crossing freed now starts from its interpolation, and its velocity at the step's end
+            # is (x - x_prev) / dt of the interpolated positions: the velocity its mass had while lumped.
+            # A hot cell (a spring past the refine strain, below every tearing strain) means tearing may
+            # split this step, and a split reads its neighbours (the couple's normal) and its settle
+            # every yarn segment: slaved crossings included.
             rt.sync_all(state, buffers.prev_position_m)
+        if count:
             rt.refine(state, rt._new)
 
     def end_frame(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
