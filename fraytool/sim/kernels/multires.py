@@ -329,3 +329,37 @@ def lump_masses(crossing_mass_kg, free, crossing_node, crossing_weight, out):
             continue
         for q in range(4):
             out[crossing_node[c, q]] += crossing_weight[c, q] * crossing_mass_kg[c]
+
+
+@nb.njit(cache=True, fastmath=False)
+def sync_near_hot(hot, reach, cells_x, cells_y, cell_start, cell_slaved, crossing_node, crossing_weight,
+                  particle_position_m, prev_position_m):
+    """`sync_slaved` (positions and start-of-step positions, the same sums) for the slaved crossings of
+    the cells within `reach` cells (square band) of a hot cell: the ones a split in a hot cell may read
+    (its neighbours, the yarn segments near its settle). `cell_slaved[cell_start[c]:cell_start[c + 1]]`:
+    the slaved crossings interpolating cell c. A crossing near two hot cells is synced twice, to the
+    same values."""
+    for c in range(hot.shape[0]):
+        if not hot[c]:
+            continue
+        ci = c % cells_x
+        cj = c // cells_x
+        for dj in range(-reach, reach + 1):
+            for di in range(-reach, reach + 1):
+                i = ci + di
+                j = cj + dj
+                if i < 0 or i >= cells_x or j < 0 or j >= cells_y:
+                    continue
+                t = j * cells_x + i
+                for m in range(cell_start[t], cell_start[t + 1]):
+                    s = cell_slaved[m]
+                    for d in range(3):
+                        x = 0.0
+                        for q in range(4):
+                            x += crossing_weight[s, q] * particle_position_m[crossing_node[s, q], d]
+                        particle_position_m[s, d] = x
+                    for d in range(3):
+                        x = 0.0
+                        for q in range(4):
+                            x += crossing_weight[s, q] * prev_position_m[crossing_node[s, q], d]
+                        prev_position_m[s, d] = x

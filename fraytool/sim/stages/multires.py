@@ -29,6 +29,7 @@ from fraytool.sim.kernels.multires import (
     cells_to_refine,
     collide_slaved,
     gather_slaved_forces,
+    sync_near_hot,
     sync_slaved,
 )
 from fraytool.sim.model import Model
@@ -209,9 +210,10 @@ class Refinement:
     """Before tearing: the hanging nodes back on their interpolation (the constraints and collisions
     moved the nodes), then coarse cells refined ahead of any strain that could tear them. The other
     slaved crossings are read in a step only by self-collision (SyncSlaved, which syncs them first)
-    and by a split (its couple's normal reads the neighbouring crossings, its settle every yarn
-    segment), which needs a spring past the refine strain: so they are synced here when a cell is
-    hot or a refinement frees some, and otherwise once per frame (`end_frame`)."""
+    and by a split (its couple's normal reads the neighbouring crossings, its settle the yarn segments
+    it could carry through), which needs a spring past the refine strain: so the ones within the band
+    + 1 cells of a hot cell are synced here, all of them when a refinement frees some, and every one
+    once per frame (`end_frame`)."""
 
     name = "refinement"
     kernel = "cells_to_refine"
@@ -235,15 +237,18 @@ class Refinement:
                                 lay.coarse_rest_length_m, rt.coarse_alive, state.particle_position_m,
                                 m.refine_strain, m.refine_band_cells, lay.cells_x, lay.cells_y, self._centre,
                                 rt.body_reach_m, rt.cell_nodes, state.coarse_cell_refined, rt._hot, rt._new)
-        if count or rt._hot.any():
-            # A crossing freed now starts from its interpolation, and its velocity at the step's end
-            # is (x - x_prev) / dt of the interpolated positions: the velocity its mass had while lumped.
-            # A hot cell (a spring past the refine strain, below every tearing strain) means tearing may
-            # split this step, and a split reads its neighbours (the couple's normal) and its settle
-            # every yarn segment: slaved crossings included.
-            rt.sync_all(state, buffers.prev_position_m)
         if count:
+            # a crossing freed now starts from its interpolation, and its velocity at the step's end
+            # is (x - x_prev) / dt of the interpolated positions: the velocity its mass had while lumped
+            rt.sync_all(state, buffers.prev_position_m)
             rt.refine(state, rt._new)
+        elif rt._hot.any():
+            # a hot cell (a spring past the refine strain, below every tearing strain): tearing may split
+            # this step, and a split reads its neighbours (the couple's normal) and its settle the yarn
+            # segments it may carry through: the slaved crossings near the hot cells are synced
+            sync_near_hot(rt._hot, m.refine_band_cells + 1, lay.cells_x, lay.cells_y, rt.cell_start,
+                          rt.cell_slaved, lay.crossing_node, lay.crossing_weight, state.particle_position_m,
+                          buffers.prev_position_m)
 
     def end_frame(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
         """Every slaved crossing on its interpolation for the frame's record (the steps sync only the
