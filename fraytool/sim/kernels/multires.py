@@ -60,12 +60,17 @@ def sync_slaved(slaved, crossing_node, crossing_weight, particle_position_m):
     the stages sync them where they are read, and the frame's end gives them the velocity of their
     synced positions (fraytool.sim.stages.multires)."""
     for m in range(slaved.shape[0]):
-        s = slaved[m]
-        for d in range(3):
-            x = 0.0
-            for q in range(4):
-                x += crossing_weight[s, q] * particle_position_m[crossing_node[s, q], d]
-            particle_position_m[s, d] = x
+        _sync_one(slaved[m], crossing_node, crossing_weight, particle_position_m)
+
+
+@nb.njit(cache=True, fastmath=False, inline="always")
+def _sync_one(s, crossing_node, crossing_weight, values):
+    """values[s] = the weighted sum of its nodes' values (the interpolation of slaved crossing s)."""
+    for d in range(3):
+        x = 0.0
+        for q in range(4):
+            x += crossing_weight[s, q] * values[crossing_node[s, q], d]
+        values[s, d] = x
 
 
 @nb.njit(cache=True, fastmath=False)
@@ -352,14 +357,5 @@ def sync_near_hot(hot, reach, cells_x, cells_y, cell_start, cell_slaved, crossin
                     continue
                 t = j * cells_x + i
                 for m in range(cell_start[t], cell_start[t + 1]):
-                    s = cell_slaved[m]
-                    for d in range(3):
-                        x = 0.0
-                        for q in range(4):
-                            x += crossing_weight[s, q] * particle_position_m[crossing_node[s, q], d]
-                        particle_position_m[s, d] = x
-                    for d in range(3):
-                        x = 0.0
-                        for q in range(4):
-                            x += crossing_weight[s, q] * prev_position_m[crossing_node[s, q], d]
-                        prev_position_m[s, d] = x
+                    _sync_one(cell_slaved[m], crossing_node, crossing_weight, particle_position_m)
+                    _sync_one(cell_slaved[m], crossing_node, crossing_weight, prev_position_m)
