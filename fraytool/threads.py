@@ -6,9 +6,9 @@ count changes only the speed:
   (`limit_strain_groups`): every thread moves its own particles, and the largest residual of a group
   is a maximum (exact in any order);
 - the per-particle kernels (velocity and position updates, the velocity post-process, the last pass
-  of damping, contact with bodies that do not take the cloth's push): in units of particles cut to
-  equal numbers of active particles (fraytool.sim.kernels.work_split), each particle's arithmetic
-  inside one unit.
+  of damping, contact with bodies that do not take the cloth's push): over a list of the particles
+  they update cut into a fixed number of equal units (fraytool.sim.kernels.work_split), each
+  particle's arithmetic inside one unit.
 The command line runs one thread unless asked for more (DEFAULT_THREADS). Still on one thread:
 spring forces sum into shared particles in spring order (parallel order-keeping versions were
 measured slower per thread than the serial loop: a gather per particle, 2.5x, units of particles

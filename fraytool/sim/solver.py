@@ -48,6 +48,9 @@ class SolverExplicitPBD:
         self.buffers = StepBuffers.for_model(model)
         self.stages = build_stages(model, speed_limit_m_s)
         """The step's stages in order (fraytool.sim.stages)."""
+        refinement = self._find("Refinement")
+        if refinement is not None:  # a multi-resolution model: its slaved crossings are not moving particles
+            self.buffers.lists.slaved_of = refinement.runtime.slaved_now
         self.stage_s = dict.fromkeys(STAGE_NAMES, 0.0)
         """Wall time spent per stage since construction [s]."""
         self.stage_check: Optional[Callable[[str, str], None]] = None
@@ -149,8 +152,7 @@ class SolverExplicitPBD:
     def slaved_crossings(self, state: State) -> np.ndarray:
         """The crossings slaved to coarse nodes in `state` (multi-resolution model; else none): their
         state is brought up to date where it is read and at the end of a frame (`end_frame`)."""
-        stage = self._find("Refinement")
-        return stage.runtime.slaved_now(state) if stage is not None else np.zeros(0, np.int32)
+        return self.buffers.lists.slaved(state)
 
     def end_frame(self, state: State, dt_s: float) -> None:
         """Bring what the steps leave out up to date for the frame's record and checkpoint (the slaved

@@ -113,21 +113,13 @@ def cells_to_refine(
               spring_particle_b, spring_alive, refine_strain, hot)
     _mark_hot(coarse_listed, coarse_cells, coarse_rest_length_m, particle_position_m, coarse_a, coarse_b,
               coarse_alive, refine_strain, hot)
+    mark_band(hot, band, cells_x, cells_y, new)
     count = 0
-    for c in range(hot.shape[0]):
-        if not hot[c]:
-            continue
-        ci = c % cells_x
-        cj = c // cells_x
-        for dj in range(-band, band + 1):
-            for di in range(-band, band + 1):
-                i = ci + di
-                j = cj + dj
-                if 0 <= i < cells_x and 0 <= j < cells_y:
-                    t = j * cells_x + i
-                    if not refined[t] and not new[t]:
-                        new[t] = True
-                        count += 1
+    for c in range(new.shape[0]):
+        if new[c] and refined[c]:
+            new[c] = False
+        elif new[c]:
+            count += 1
     for k in range(body_centre_m.shape[0]):
         r2 = body_reach_m[k] * body_reach_m[k]
         for c in range(refined.shape[0]):
@@ -337,25 +329,31 @@ def lump_masses(crossing_mass_kg, free, crossing_node, crossing_weight, out):
 
 
 @nb.njit(cache=True, fastmath=False)
-def sync_near_hot(hot, reach, cells_x, cells_y, cell_start, cell_slaved, crossing_node, crossing_weight,
-                  particle_position_m, prev_position_m):
-    """`sync_slaved` (positions and start-of-step positions, the same sums) for the slaved crossings of
-    the cells within `reach` cells (square band) of a hot cell: the ones a split in a hot cell may read
-    (its neighbours, the yarn segments near its settle). `cell_slaved[cell_start[c]:cell_start[c + 1]]`:
-    the slaved crossings interpolating cell c. A crossing near two hot cells is synced twice, to the
-    same values."""
+def mark_band(hot, band, cells_x, cells_y, near):
+    """near[t] = True for every cell t within `band` cells (square band) of a hot cell; others False."""
+    for c in range(near.shape[0]):
+        near[c] = False
     for c in range(hot.shape[0]):
         if not hot[c]:
             continue
         ci = c % cells_x
         cj = c // cells_x
-        for dj in range(-reach, reach + 1):
-            for di in range(-reach, reach + 1):
-                i = ci + di
-                j = cj + dj
-                if i < 0 or i >= cells_x or j < 0 or j >= cells_y:
-                    continue
-                t = j * cells_x + i
-                for m in range(cell_start[t], cell_start[t + 1]):
-                    _sync_one(cell_slaved[m], crossing_node, crossing_weight, particle_position_m)
-                    _sync_one(cell_slaved[m], crossing_node, crossing_weight, prev_position_m)
+        for j in range(max(0, cj - band), min(cells_y, cj + band + 1)):
+            for i in range(max(0, ci - band), min(cells_x, ci + band + 1)):
+                near[j * cells_x + i] = True
+
+
+@nb.njit(cache=True, fastmath=False)
+def sync_near_hot(hot, reach, cells_x, cells_y, cell_start, cell_slaved, crossing_node, crossing_weight,
+                  near, particle_position_m, prev_position_m):
+    """`sync_slaved` (positions and start-of-step positions, the same sums) for the slaved crossings of
+    the cells within `reach` cells (square band) of a hot cell: the ones a split in a hot cell may read
+    (its neighbours, the yarn segments near its settle). `cell_slaved[cell_start[c]:cell_start[c + 1]]`:
+    the slaved crossings interpolating cell c; `near`: scratch, one per cell."""
+    mark_band(hot, reach, cells_x, cells_y, near)
+    for t in range(near.shape[0]):
+        if not near[t]:
+            continue
+        for m in range(cell_start[t], cell_start[t + 1]):
+            _sync_one(cell_slaved[m], crossing_node, crossing_weight, particle_position_m)
+            _sync_one(cell_slaved[m], crossing_node, crossing_weight, prev_position_m)

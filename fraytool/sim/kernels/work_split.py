@@ -13,7 +13,7 @@ and a serial sum over a list in order makes the same additions as a scan of ever
 the others."""
 from __future__ import annotations
 
-from typing import Optional
+from typing import Callable, Optional
 
 import numpy as np
 
@@ -44,6 +44,9 @@ class ParticleLists:
     mid-run) calls `invalidate` after it."""
 
     def __init__(self) -> None:
+        self.slaved_of: Optional[Callable[[object], np.ndarray]] = None
+        """slaved_of(state): the crossings slaved to coarse nodes now (multi-resolution model, set by the
+        solver from its stages); None: none."""
         self._free_key: tuple = ()
         self._moving_key: tuple = ()
         self._free = (np.zeros(0, np.int32), even_units(0))
@@ -70,14 +73,16 @@ class ParticleLists:
             self._free, self._free_key = (listed, even_units(listed.shape[0])), key
         return self._free
 
-    def moving(self, state, slaved: Optional[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-        """(active slots that are not slaved crossings, ascending, their units); `slaved`: the slaved
-        crossings of a multi-resolution model now, else None."""
+    def slaved(self, state) -> np.ndarray:
+        """The crossings slaved to coarse nodes in `state`, ascending (empty without a coarse model)."""
+        return self.slaved_of(state) if self.slaved_of is not None else np.zeros(0, np.int32)
+
+    def moving(self, state) -> tuple[np.ndarray, np.ndarray]:
+        """(active slots that are not slaved crossings, ascending, their units)."""
         key = self._key(state.particle_active, state)
         if not self._same(self._moving_key, key):
             mask = state.particle_active.copy()
-            if slaved is not None:
-                mask[slaved] = False
+            mask[self.slaved(state)] = False
             listed = np.flatnonzero(mask).astype(np.int32)
             self._moving, self._moving_key = (listed, even_units(listed.shape[0])), key
         return self._moving

@@ -36,8 +36,7 @@ def build_stages(model: Model, speed_limit_m_s: float) -> list:
     stages.append(core.VelocityUpdate(model))
     if model.damping > 0.0:
         stages.append(core.Damping(model))
-    slaved_of = runtime.slaved_now if runtime is not None else None
-    stages.append(core.PositionUpdate(model, slaved_of))
+    stages.append(core.PositionUpdate(model))
     if runtime is not None:
         stages.append(multires.SyncSlaved(runtime, "integration", hanging_only=True))
     if model.attachment_count > 0:
@@ -72,5 +71,5 @@ def build_stages(model: Model, speed_limit_m_s: float) -> list:
         stages.append(multires.Refinement(model, runtime))
     if tearing is not None:
         stages.append(tearing)
-    stages.append(core.VelocityPostProcess(model, speed_limit_m_s, slaved_of))
+    stages.append(core.VelocityPostProcess(model, speed_limit_m_s))
     return stages

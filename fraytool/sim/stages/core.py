@@ -5,7 +5,7 @@ Each stage unpacks the model's arrays once, at construction, and calls one numba
 (kernels take arrays only; fraytool.sim.kernels)."""
 from __future__ import annotations
 
-from typing import Callable, Optional
+from typing import Optional
 
 import numpy as np
 
@@ -19,9 +19,9 @@ from fraytool.sim.kernels.integrate import (
     velocities_from_positions,
 )
 from fraytool.sim.kernels.pieces import label_pieces
-from fraytool.sim.kernels.work_split import even_units
 from fraytool.sim.kernels.rigid_contact import collide_rigid
 from fraytool.sim.kernels.strain_limit import damp_overstretched, limit_strain_groups, limit_strain_lines
+from fraytool.sim.kernels.work_split import even_units
 from fraytool.sim.model import Model
 from fraytool.sim.rigid import advance_bodies, apply_cloth_impulse
 from fraytool.sim.stages.base import StepBuffers
@@ -152,15 +152,13 @@ class PositionUpdate(_NoSummary):
     name = "integration"
     kernel = "integrate_positions"
 
-    def __init__(self, model: Model, slaved_of: Optional[Callable[[State], np.ndarray]] = None):
+    def __init__(self, model: Model):
         self.model = model
         self.has_bodies = model.body_count > 0
-        self.slaved_of = slaved_of or _none_slaved
-        """The crossings slaved to coarse nodes now (multi-resolution model): not integrated, their
-        positions are their interpolation (fraytool.sim.stages.multires)."""
 
     def run(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
-        integrate_positions(*buffers.lists.moving(state, self.slaved_of(state)), state.particle_position_m,
+        # the moving particles: slaved crossings (multi-resolution model) are their nodes' interpolation
+        integrate_positions(*buffers.lists.moving(state), state.particle_position_m,
                             state.particle_velocity_m_s, state.particle_active, buffers.prev_position_m, dt_s)
         if self.has_bodies:
             advance_bodies(self.model, state, state.time_s + dt_s, dt_s)
@@ -286,8 +284,8 @@ class RigidContact(_NoSummary):
         m = self.model
         self.contacts_last = collide_rigid(
             *buffers.lists.free(state), m.body_shape, m.body_rotation, m.body_radius_m, m.body_half_extents_m,
-            m.body_normal, m.body_friction, m.body_collide, self.body_dynamic, 0.5 * m.thickness_m, dt_s, state.body_position_m,
-            state.body_velocity_m_s, state.particle_inv_mass, state.particle_mass_kg, buffers.prev_position_m,
+            m.body_normal, m.body_friction, m.body_collide, self.body_dynamic, 0.5 * m.thickness_m, dt_s,
+            state.body_position_m, state.body_velocity_m_s, state.particle_inv_mass, state.particle_mass_kg, buffers.prev_position_m,
             state.particle_position_m, buffers.body_impulse_n_s)
         if self.any_dynamic:
             apply_cloth_impulse(m, state, buffers.body_impulse_n_s)
@@ -324,26 +322,19 @@ class VelocityPostProcess(_NoSummary):
     name = "integration"
     kernel = "velocities_from_positions"
 
-    def __init__(self, model: Model, speed_limit_m_s: float,
-                 slaved_of: Optional[Callable[[State], np.ndarray]] = None):
+    def __init__(self, model: Model, speed_limit_m_s: float):
         self.speed_limit_m_s = speed_limit_m_s
-        self.slaved_of = slaved_of or _none_slaved
 
     def run(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
         buffers.bad_particle = int(velocities_from_positions(
-            *buffers.lists.moving(state, self.slaved_of(state)), state.particle_position_m, buffers.prev_position_m,
+            *buffers.lists.moving(state), state.particle_position_m, buffers.prev_position_m,
             state.particle_active, state.particle_velocity_m_s, dt_s, self.speed_limit_m_s))
 
     def end_frame(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
         """The slaved crossings' velocities of the last step, v = (x - x_prev) / dt (multi-resolution)."""
-        slaved = self.slaved_of(state)
-        if slaved is None or not slaved.shape[0]:
+        slaved = buffers.lists.slaved(state)
+        if not slaved.shape[0]:
             return
         velocities_from_positions(slaved, even_units(slaved.shape[0]), state.particle_position_m,
                                   buffers.prev_position_m, state.particle_active, state.particle_velocity_m_s, dt_s,
                                   self.speed_limit_m_s)
-
-
-def _none_slaved(state: State) -> None:
-    """No crossing is slaved (a model at yarn resolution everywhere)."""
-    return None

@@ -55,6 +55,7 @@ class MultiresRuntime:
         self.cell_nodes = lay.cell_nodes(model.warp_yarns)
         self._hot = np.zeros(lay.cell_count, bool)
         self._new = np.zeros(lay.cell_count, bool)
+        self._near = np.zeros(lay.cell_count, bool)
         self.moving_bodies, self.body_reach_m = multires.moving_body_reach(model, lay)
         self._owner: Optional[State] = None
         self._count = -1
@@ -247,8 +248,8 @@ class Refinement:
             # this step, and a split reads its neighbours (the couple's normal) and its settle the yarn
             # segments it may carry through: the slaved crossings near the hot cells are synced
             sync_near_hot(rt._hot, m.refine_band_cells + 1, lay.cells_x, lay.cells_y, rt.cell_start,
-                          rt.cell_slaved, lay.crossing_node, lay.crossing_weight, state.particle_position_m,
-                          buffers.prev_position_m)
+                          rt.cell_slaved, lay.crossing_node, lay.crossing_weight, rt._near,
+                          state.particle_position_m, buffers.prev_position_m)
 
     def end_frame(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
         """Every slaved crossing on its interpolation for the frame's record (the steps sync only the
