@@ -281,8 +281,9 @@ def test_check_reports_the_coarse_grid(capsys):
     info = json.loads(capsys.readouterr().out)
     # 512 yarns at factor 4: lines at 0, 4, ..., 508 and 511 -> 129 per axis, 128 x 128 cells
     assert info["coarse_factor"] == 4 and info["coarse_nodes"] == 129 * 129 and info["coarse_cells"] == 128 * 128
-    # the clip and the bar hold the left and right edges: their cells and a band of 2 refined from the start
-    assert info["cells_refined_at_start"] == 2 * 3 * 128
+    # the clip and the bar hold the left and right edges, whole edges between held nodes: nothing refines
+    # for them (test_a_held_edge_stays_coarse_and_on_its_body), and the ball is not near yet
+    assert info["cells_refined_at_start"] == 0
     assert info["refine_strain"] == pytest.approx(0.5 * 0.12)
 
 
@@ -392,3 +393,45 @@ def test_slaved_crossings_are_on_their_interpolation_whenever_a_split_may_read_t
     for _ in range(40):
         sim.advance_frame()
     assert sim.state.spring_broken.any() and seen["hot"] > 0 and seen["stale elsewhere"] > 0
+
+
+def test_a_held_edge_stays_coarse_and_on_its_body():
+    """An edge held by one body between held nodes needs no refinement: each slaved crossing on it is
+    the interpolation of two held nodes, which a rigid map carries onto the crossing's own attachment
+    point. Checked against the body's map of each held crossing's offset while the bar swings the
+    edge down (tablecloth_tear resized); and a grip on a few crossings inside a cell (its nodes free)
+    refines that cell and the band around it from the start."""
+    from fraytool.sim.simulation import Simulation
+
+    scene = ROOT / "scenes" / "tablecloth_tear.toml"
+    small = [("cloth.warp_yarns", 33), ("cloth.weft_yarns", 33), ("cloth.spacing_m", 0.03),
+             ("cloth.mass_per_crossing_kg", 2.8e-4), ("cloth.tearing.enabled", False),
+             ("cloth.multires.refine_near_bodies", False)]
+    sim = Simulation(load_scene(scene, small))
+    m = sim.model
+    lay = multires.coarse_layout(m)
+    assert not sim.state.coarse_cell_refined.any()
+    held = m.attachment_particle
+    assert (~multires.free_crossings(lay, sim.state.coarse_cell_refined)[held]).sum() >= 2 * 32 * 3 // 4
+    start = sim.state.particle_position_m[held].copy()
+    for _ in range(4):
+        sim.advance_frame()
+    st = sim.state
+    b = m.attachment_body
+    want = st.body_position_m[b] + np.einsum("kij,kj->ki", m.body_rotation[b], m.attachment_offset_m)
+    x = st.particle_position_m[held]
+    assert np.abs(x - start).max() > 0.01  # the bar has moved its edge
+    assert np.abs(x - want).max() < 1e-12
+
+    b2 = ModelBuilder(seed=3)
+    b2.add_cloth(warp_yarns=29, weft_yarns=29, spacing_m=0.004, thickness_m=0.0006, mass_per_crossing_kg=1e-5,
+                 structural_n_per_m=20.0, bend_n_per_m=0.5, shear_n_per_m=2.0)
+    b2.add_sphere("grip", radius_m=0.001, position_m=[0.006, 0.0, 0.006], collide=False)
+    b2.add_attachment("grip", warp_range=[1, 2], weft_range=[1, 2])  # inside the first cell (nodes at 0 and 4)
+    b2.set_multires(factor=4, band_cells=1)
+    gripped = b2.finalize()
+    glay = multires.coarse_layout(gripped)
+    assert not multires.followed_by_interpolation(gripped, glay).any()
+    refined = multires.initial_refined(gripped, glay).reshape(glay.cells_y, glay.cells_x)
+    reach = 1 + int(gripped.refine_band_cells)  # the cell and its band (the band the weave needs)
+    assert refined[:reach, :reach].all() and not refined[reach:, :].any() and not refined[:, reach:].any()

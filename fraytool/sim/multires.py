@@ -258,15 +258,17 @@ def _stiff_of(kind: np.ndarray, stiff: dict) -> np.ndarray:
 
 
 def initial_refined(model, layout: CoarseLayout) -> np.ndarray:
-    """Cells refined from the first step: those holding a crossing held by a body (it must be free to
-    follow the body) or a spring cut by a [[cuts]] line (a cut cloth is torn there), and a band of
-    refine_band_cells around them; with refine_near_bodies, those with a node within a moving body's
-    reach at the start (as the Refinement stage tests every step after). A grid with no crossing
-    between its nodes (cells of one spacing) is refined whole: it is already as coarse as it gets."""
+    """Cells refined from the first step: those holding a held crossing that its interpolation would not
+    keep on its body (`followed_by_interpolation`) or a spring cut by a [[cuts]] line (a cut cloth is
+    torn there), and a band of refine_band_cells around them; with refine_near_bodies, those with a
+    node within a moving body's reach at the start (as the Refinement stage tests every step after). A
+    grid with no crossing between its nodes (cells of one spacing) is refined whole: it is already as
+    coarse as it gets."""
     if layout.crossing_is_node.all():
         return np.ones(layout.cell_count, bool)
     refined = np.zeros(layout.cell_count, bool)
-    held = layout.crossing_cells[model.attachment_particle].ravel()
+    unfollowed = model.attachment_particle[~followed_by_interpolation(model, layout)]
+    held = layout.crossing_cells[unfollowed].ravel()
     refined[held[held >= 0]] = True
     cut = layout.spring_cells[model.spring_precut].ravel()
     refined[cut[cut >= 0]] = True
@@ -295,6 +297,23 @@ def moving_body_reach(model, layout: CoarseLayout) -> tuple[np.ndarray, np.ndarr
                                       0.5 * model.thickness_m) + (model.refine_band_cells + 1) * diagonal
                       for k in bodies])
     return bodies, reach
+
+
+def followed_by_interpolation(model, layout: CoarseLayout) -> np.ndarray:
+    """For each attachment: True where its crossing, slaved, stays on the body anyway, so its cells
+    need not refine: every node it interpolates (nonzero weight) is held by the same body.
+
+    A body moves its held points by one rigid map x = c + R o, and the interpolation weights reproduce
+    affine maps of the rest grid (sum w_q = 1, sum w_q o_q = o), so the interpolation of the nodes'
+    attached positions is the crossing's own: a clipped edge between held nodes stays coarse. A grip
+    on a few crossings inside a cell (its nodes free) does not, and refines its cells."""
+    n = model.crossing_count
+    body_of = np.full(n, -1, np.int64)
+    body_of[model.attachment_particle] = model.attachment_body
+    held = model.attachment_particle
+    nodes = layout.crossing_node[held]
+    same = (layout.crossing_weight[held] == 0.0) | (body_of[nodes] == body_of[held][:, None])
+    return same.all(axis=1)
 
 
 def dilate(cells: np.ndarray, cells_x: int, cells_y: int, band: int) -> np.ndarray:

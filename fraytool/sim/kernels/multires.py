@@ -10,7 +10,7 @@ import numba as nb
 
 from fraytool.sim.kernels.forces import add_spring_force
 from fraytool.kinds import SHAPE_BOX, SHAPE_PLANE
-from fraytool.sim.kernels.rigid_contact import surface_contact
+from fraytool.sim.kernels.rigid_contact import plane_distance, surface_contact
 
 
 @nb.njit(cache=True, fastmath=False)
@@ -28,6 +28,14 @@ def add_listed_spring_forces(
         if spring_alive[s]:
             add_spring_force(s, share[m] * spring_stiffness_n_per_m[s], spring_kind, spring_rest_length_m,
                              particle_position_m, spring_particle_a, spring_particle_b, particle_force_n)
+
+
+@nb.njit(cache=True, fastmath=False)
+def zero_rows(rows, values):
+    """values[rows] = 0 (a row per particle)."""
+    for m in range(rows.shape[0]):
+        for d in range(values.shape[1]):
+            values[rows[m], d] = 0.0
 
 
 @nb.njit(cache=True, fastmath=False)
@@ -139,9 +147,10 @@ def cells_to_refine(
 
 @nb.njit(cache=True, fastmath=False)
 def collide_slaved(
-    cell_start, cell_slaved, cell_nodes, crossing_node, crossing_weight,
+    cell_start, cell_slaved, cell_nodes, nodes, crossing_node, crossing_weight,
     body_shape, body_rotation, body_radius_m, body_half_extents_m, body_normal, body_friction, body_collide,
     margin_m, dt_s, body_position_m, body_velocity_m_s, particle_inv_mass, prev_position_m, particle_position_m, point,
+    outside,
 ):
     """Keep the slaved crossings out of the bodies by moving their nodes: where a slaved crossing's
     interpolated point x = sum w_q x_q lies inside a body by d along normal n, the nodes move by
@@ -151,22 +160,44 @@ def collide_slaved(
     in index order inside a cell. The slaved crossings come grouped by the cell they interpolate
     (cell_slaved[cell_start[c]:cell_start[c + 1]]); a cell that `_cell_clear` shows cannot touch the
     body is skipped.
+
+    The face test of `_cell_clear` is read off `outside` (scratch, one byte per crossing): for each
+    of the `nodes` (every cell's corners), a bit per face plane of the body it is outside of, set at
+    the start of the body's pass and again for the nodes of each crossing that moves them; a cell is
+    outside a face when all four of its nodes are (the AND of their bits). The same tests as asking
+    the nodes per cell (they were 0.6 ms of a 256 x 256 tablecloth step for 64 cells in contact of
+    4096), at a byte per node per cell.
     `point` is a scratch array of 3. Returns the number of contacts."""
     contacts = 0
     for k in range(body_shape.shape[0]):
         if not body_collide[k]:
             continue
+        flat = body_shape[k] == SHAPE_PLANE or body_shape[k] == SHAPE_BOX
+        if flat:
+            for i in range(nodes.shape[0]):
+                outside[nodes[i]] = _outside_faces(k, nodes[i], body_shape, body_rotation, body_half_extents_m,
+                                                   body_normal, margin_m, body_position_m, particle_position_m)
         for c in range(cell_start.shape[0] - 1):
             if cell_start[c] == cell_start[c + 1]:
                 continue
-            if _cell_clear(k, c, cell_nodes, body_shape, body_rotation, body_radius_m, body_half_extents_m,
-                           body_normal, margin_m, body_position_m, particle_position_m):
+            if flat and (outside[cell_nodes[c, 0]] & outside[cell_nodes[c, 1]] & outside[cell_nodes[c, 2]]
+                         & outside[cell_nodes[c, 3]]) != 0:
+                continue
+            if _cell_far(k, c, cell_nodes, body_shape, body_rotation, body_radius_m, body_half_extents_m,
+                         body_normal, margin_m, body_position_m, particle_position_m):
                 continue
             for m in range(cell_start[c], cell_start[c + 1]):
-                contacts += _collide_slaved_one(cell_slaved[m], k, crossing_node, crossing_weight, body_shape,
-                                                body_rotation, body_radius_m, body_half_extents_m, body_normal,
-                                                body_friction, margin_m, dt_s, body_position_m, body_velocity_m_s,
-                                                particle_inv_mass, prev_position_m, particle_position_m, point)
+                s = cell_slaved[m]
+                hit = _collide_slaved_one(s, k, crossing_node, crossing_weight, body_shape, body_rotation,
+                                          body_radius_m, body_half_extents_m, body_normal, body_friction, margin_m,
+                                          dt_s, body_position_m, body_velocity_m_s, particle_inv_mass,
+                                          prev_position_m, particle_position_m, point)
+                contacts += hit
+                if hit and flat:
+                    for q in range(4):  # its nodes moved: their bits again
+                        node = crossing_node[s, q]
+                        outside[node] = _outside_faces(k, node, body_shape, body_rotation, body_half_extents_m,
+                                                       body_normal, margin_m, body_position_m, particle_position_m)
     return contacts
 
 
@@ -175,45 +206,40 @@ CLEAR_TOLERANCE_M = 1e-9
 on the surface up to rounding, and a point of their cell is then inside by at most this much."""
 
 
+@nb.njit(cache=True, fastmath=False, inline="always")
+def _outside_faces(k, p, body_shape, body_rotation, body_half_extents_m, body_normal, margin_m, body_position_m,
+                   particle_position_m):
+    """Bits of the face planes of body k that particle p is outside of, margin included, to
+    CLEAR_TOLERANCE_M: for a box, bit 2 axis for the face at -half_extents[axis] along the body's axis,
+    bit 2 axis + 1 for the one at +half_extents[axis]; for a plane, bit 1. A cell's points are convex
+    combinations of its four nodes (bilinear weights), so they lie in the nodes' convex hull: all four
+    nodes outside the same (face) plane put every point of the cell outside the body. (A face's height
+    along -n is minus the one along n, exactly: negation is exact, and rounds a sum symmetrically.)"""
+    ex = particle_position_m[p, 0] - body_position_m[k, 0]
+    ey = particle_position_m[p, 1] - body_position_m[k, 1]
+    ez = particle_position_m[p, 2] - body_position_m[k, 2]
+    if body_shape[k] == SHAPE_PLANE:
+        if plane_distance(body_rotation[k], body_normal[k], ex, ey, ez, 0.0) >= margin_m - CLEAR_TOLERANCE_M:
+            return 2
+        return 0
+    bits = 0
+    for axis in range(3):
+        h = ex * body_rotation[k, 0, axis] + ey * body_rotation[k, 1, axis] + ez * body_rotation[k, 2, axis]
+        level = body_half_extents_m[k, axis] + margin_m - CLEAR_TOLERANCE_M
+        if -h >= level:
+            bits |= 1 << (2 * axis)
+        if h >= level:
+            bits |= 1 << (2 * axis + 1)
+    return bits
+
+
 @nb.njit(cache=True, fastmath=False)
-def _cell_clear(k, c, cell_nodes, body_shape, body_rotation, body_radius_m, body_half_extents_m, body_normal,
-                margin_m, body_position_m, particle_position_m):
-    """True when no point of cell c can be inside body k (margin included). A cell's points are convex
-    combinations of its four nodes (bilinear weights), so they lie in the nodes' convex hull: for a
-    plane, or a box face, all four nodes outside the same (face) plane put every point outside; for
-    any shape, all four nodes farther from the body than the cell's widest node-to-node distance do
-    too (the distance to a body changes by at most the distance moved)."""
+def _cell_far(k, c, cell_nodes, body_shape, body_rotation, body_radius_m, body_half_extents_m, body_normal,
+              margin_m, body_position_m, particle_position_m):
+    """True when all four nodes of cell c are farther from body k than the cell's widest node-to-node
+    distance: then no point of the cell is inside (margin included; the distance to a body changes by
+    at most the distance moved). For any shape; planes and boxes try their faces first (collide_slaved)."""
     shape = body_shape[k]
-    if shape == SHAPE_PLANE or shape == SHAPE_BOX:
-        rot = body_rotation[k]
-        for axis in range(3):
-            if shape == SHAPE_PLANE and axis > 0:
-                break
-            for sign in (-1.0, 1.0):
-                if shape == SHAPE_PLANE and sign < 0.0:
-                    continue
-                # outward face normal in the world frame, and the face's offset from the centre
-                if shape == SHAPE_PLANE:
-                    nx = rot[0, 0] * body_normal[k, 0] + rot[0, 1] * body_normal[k, 1] + rot[0, 2] * body_normal[k, 2]
-                    ny = rot[1, 0] * body_normal[k, 0] + rot[1, 1] * body_normal[k, 1] + rot[1, 2] * body_normal[k, 2]
-                    nz = rot[2, 0] * body_normal[k, 0] + rot[2, 1] * body_normal[k, 1] + rot[2, 2] * body_normal[k, 2]
-                    offset = margin_m
-                else:
-                    nx = sign * rot[0, axis]
-                    ny = sign * rot[1, axis]
-                    nz = sign * rot[2, axis]
-                    offset = body_half_extents_m[k, axis] + margin_m
-                clear = True
-                for q in range(4):
-                    p = cell_nodes[c, q]
-                    h = ((particle_position_m[p, 0] - body_position_m[k, 0]) * nx
-                         + (particle_position_m[p, 1] - body_position_m[k, 1]) * ny
-                         + (particle_position_m[p, 2] - body_position_m[k, 2]) * nz)
-                    if h < offset - CLEAR_TOLERANCE_M:
-                        clear = False
-                        break
-                if clear:
-                    return True
     near = 1e300
     widest = 0.0
     for q in range(4):
@@ -230,7 +256,7 @@ def _cell_clear(k, c, cell_nodes, body_shape, body_rotation, body_radius_m, body
     return near > math.sqrt(widest)
 
 
-@nb.njit(cache=True, fastmath=False)
+@nb.njit(cache=True, fastmath=False, inline="always")
 def _collide_slaved_one(s, k, crossing_node, crossing_weight, body_shape, body_rotation, body_radius_m,
                         body_half_extents_m, body_normal, body_friction, margin_m, dt_s, body_position_m,
                         body_velocity_m_s, particle_inv_mass, prev_position_m, particle_position_m, point):

@@ -8,6 +8,8 @@ Labels are numbered by their lowest particle slot (deterministic), -1 for inacti
 """
 from __future__ import annotations
 
+import math
+
 import numba as nb
 import numpy as np
 
@@ -78,3 +80,31 @@ def piece_masses(particle_piece, particle_mass_kg, piece_count):
             mass[k] += particle_mass_kg[p]
             count[k] += 1
     return mass, count
+
+
+@nb.njit(cache=True, fastmath=False)
+def max_woven_strain(spring_kind, spring_crossing_a, spring_crossing_b, crossing_yarn_level, couple_connected,
+                     spring_alive, spring_particle_a, spring_particle_b, spring_rest_length_m, particle_position_m):
+    """(largest strain |x_b - x_a| / L - 1 over live structural springs whose two end crossings are woven:
+    base level, or a connected couple; its spring slot, the lowest on a tie), (0.0, -1) if none. One
+    pass, nothing allocated (fraytool.sim.pieces.woven_strain)."""
+    best = 0.0
+    where = -1
+    for s in range(spring_kind.shape[0]):
+        kind = spring_kind[s]
+        if not spring_alive[s] or (kind != STRUCT_WEFT and kind != STRUCT_WARP):
+            continue
+        ca = spring_crossing_a[s]
+        cb = spring_crossing_b[s]
+        if (crossing_yarn_level[ca] and not couple_connected[ca]) or (crossing_yarn_level[cb] and not couple_connected[cb]):
+            continue
+        a = spring_particle_a[s]
+        b = spring_particle_b[s]
+        dx = particle_position_m[b, 0] - particle_position_m[a, 0]
+        dy = particle_position_m[b, 1] - particle_position_m[a, 1]
+        dz = particle_position_m[b, 2] - particle_position_m[a, 2]
+        strain = math.sqrt(dx * dx + dy * dy + dz * dz) / spring_rest_length_m[s] - 1.0
+        if where < 0 or strain > best:
+            best = strain
+            where = s
+    return best, where

@@ -17,7 +17,7 @@ import numba as nb
 from fraytool.kinds import SHAPE_PLANE, SHAPE_SPHERE
 
 
-@nb.njit(cache=True, fastmath=False)
+@nb.njit(cache=True, fastmath=False, inline="always")
 def surface_contact(shape, center, rotation, radius, half_extents, normal, x, margin):
     """Signed distance (negative inside, margin included) and outward unit normal at point x."""
     if shape == SHAPE_SPHERE:
