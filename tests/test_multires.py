@@ -284,7 +284,7 @@ def test_check_reports_the_coarse_grid(capsys):
     # the clip and the bar hold the left and right edges, whole edges between held nodes: nothing refines
     # for them (test_a_held_edge_stays_coarse_and_on_its_body), and the ball is not near yet
     assert info["cells_refined_at_start"] == 0
-    assert info["refine_strain"] == pytest.approx(0.5 * 0.12)
+    assert info["refine_strain"] == pytest.approx(0.7 * 0.12)
 
 
 def test_coarse_yarn_springs_add_up_to_the_fine_yarns_across_uneven_cells():
