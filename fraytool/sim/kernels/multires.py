@@ -158,15 +158,13 @@ def collide_slaved(
     surface (the projection of an embedded point), with the Coulomb friction of collide_rigid on the
     point's move relative to the body over the step. One Gauss-Seidel pass, cell by cell and crossings
     in index order inside a cell. The slaved crossings come grouped by the cell they interpolate
-    (cell_slaved[cell_start[c]:cell_start[c + 1]]); a cell that `_cell_clear` shows cannot touch the
-    body is skipped.
-
-    The face test of `_cell_clear` is read off `outside` (scratch, one byte per crossing): for each
-    of the `nodes` (every cell's corners), a bit per face plane of the body it is outside of, set at
-    the start of the body's pass and again for the nodes of each crossing that moves them; a cell is
-    outside a face when all four of its nodes are (the AND of their bits). The same tests as asking
-    the nodes per cell (they were 0.6 ms of a 256 x 256 tablecloth step for 64 cells in contact of
-    4096), at a byte per node per cell.
+    (cell_slaved[cell_start[c]:cell_start[c + 1]]); a cell that cannot touch the body is skipped:
+    - for a plane or a box, when all four of its nodes are outside one face plane (`_outside_faces`:
+      its points are convex combinations of the nodes). The face bits of every node (`nodes`, the
+      cells' corners) are set in `outside` (scratch, a byte per crossing) at the start of the body's
+      pass, and again for the nodes of each crossing that moves them; a cell's test is the AND of its
+      four nodes' bytes (asking each node per cell cost 0.6 ms of a 256 x 256 tablecloth step);
+    - for any shape, when its nodes are farther from the body than the cell is wide (`_cell_far`).
     `point` is a scratch array of 3. Returns the number of contacts."""
     contacts = 0
     for k in range(body_shape.shape[0]):
