@@ -205,34 +205,38 @@ def _outside_reach(x, reach, i1, i2, i3, i4):
 
 
 @nb.njit(cache=True, fastmath=False)
-def swept_segment_boxes(x_start, x_end, spring_particle_a, spring_particle_b, segments, box):
-    """Rows ``box[s] = (lo, hi)`` of the listed segments' swept boxes, the very values
-    ``_apart_swept`` computes (so the pre-test on them gives the same answers, bit for bit)."""
+def swept_segment_boxes(x_start, x_end, spring_particle_a, spring_particle_b, segments, box_row, box):
+    """Rows ``box[box_row[s]] = (lo, hi)`` of the listed segments' swept boxes, the very values
+    ``_apart_swept`` computes (so the pre-test on them gives the same answers, bit for bit).
+    ``box_row`` maps a spring slot to its row of ``box`` (one row per yarn segment, not per slot:
+    the boxes were the self-collision stage's largest array, 381 B a crossing when per slot)."""
     for k in range(segments.shape[0]):
         s = segments[k]
         i1 = spring_particle_a[s]
         i2 = spring_particle_b[s]
+        r = box_row[s]
         for d in range(3):
-            box[s, d] = min(min(x_start[i1, d], x_start[i2, d]), min(x_end[i1, d], x_end[i2, d]))
-            box[s, 3 + d] = max(max(x_start[i1, d], x_start[i2, d]), max(x_end[i1, d], x_end[i2, d]))
+            box[r, d] = min(min(x_start[i1, d], x_start[i2, d]), min(x_end[i1, d], x_end[i2, d]))
+            box[r, 3 + d] = max(max(x_start[i1, d], x_start[i2, d]), max(x_end[i1, d], x_end[i2, d]))
 
 
 @nb.njit(cache=True, fastmath=False)
-def end_segment_boxes(x, spring_particle_a, spring_particle_b, segments, box):
-    """Rows ``box[s] = (lo, hi)`` of the listed segments' boxes at one instant, the very values
-    ``_apart_at_end`` computes."""
+def end_segment_boxes(x, spring_particle_a, spring_particle_b, segments, box_row, box):
+    """Rows ``box[box_row[s]] = (lo, hi)`` of the listed segments' boxes at one instant, the very
+    values ``_apart_at_end`` computes."""
     for k in range(segments.shape[0]):
         s = segments[k]
         i1 = spring_particle_a[s]
         i2 = spring_particle_b[s]
+        r = box_row[s]
         for d in range(3):
-            box[s, d] = min(x[i1, d], x[i2, d])
-            box[s, 3 + d] = max(x[i1, d], x[i2, d])
+            box[r, d] = min(x[i1, d], x[i2, d])
+            box[r, 3 + d] = max(x[i1, d], x[i2, d])
 
 
 @nb.njit(cache=True, fastmath=False, inline="always")
 def _apart_boxes_end(box, i, j, distance):
-    """``_apart_at_end`` on the boxes of segments i and j stored by ``end_segment_boxes``: the same
+    """``_apart_at_end`` on the boxes in rows i and j stored by ``end_segment_boxes``: the same
     values, the same expression, the same answer."""
     for k in range(3):
         lo1 = box[i, k]
@@ -247,7 +251,7 @@ def _apart_boxes_end(box, i, j, distance):
 
 @nb.njit(cache=True, fastmath=False, inline="always")
 def _apart_boxes_swept(box, i, j):
-    """``_apart_swept`` on the boxes of segments i and j stored by ``swept_segment_boxes``: the same
+    """``_apart_swept`` on the boxes in rows i and j stored by ``swept_segment_boxes``: the same
     values, the same expression, the same answer."""
     for k in range(3):
         lo1 = box[i, k]
@@ -261,16 +265,17 @@ def _apart_boxes_swept(box, i, j):
 
 
 @nb.njit(cache=True, fastmath=False)
-def ccd_pairs_all(x_start, x_end, candidates, spring_particle_a, spring_particle_b, spring_alive, segments, box):
+def ccd_pairs_all(x_start, x_end, candidates, spring_particle_a, spring_particle_b, spring_alive, segments, box_row,
+                  box):
     """``ccd_pairs`` on every candidate (no ``moved``), faster: the swept boxes of the listed
-    ``segments`` (every segment of the candidates) are computed once into ``box`` ((S, >= 6) scratch)
-    instead of once per pair; same answers, bit for bit."""
-    swept_segment_boxes(x_start, x_end, spring_particle_a, spring_particle_b, segments, box)
+    ``segments`` (every segment of the candidates) are computed once into ``box`` (scratch, a row
+    per segment at ``box_row[slot]``, >= 6 columns) instead of once per pair; same answers, bit for bit."""
+    swept_segment_boxes(x_start, x_end, spring_particle_a, spring_particle_b, segments, box_row, box)
     reach = 0.0  # the largest |coordinate| of the pass, as _coordinate_reach (every box value is one)
     for k in range(segments.shape[0]):
         s = segments[k]
         for d in range(6):
-            reach = max(reach, abs(box[s, d]))
+            reach = max(reach, abs(box[box_row[s], d]))
     skip_m = CCD_SKIP_DELTAS * DELTA_REL * reach
     hit = np.zeros(candidates.shape[0], np.bool_)
     t_hit = np.ones(candidates.shape[0])
@@ -281,7 +286,7 @@ def ccd_pairs_all(x_start, x_end, candidates, spring_particle_a, spring_particle
         j = candidates[k, 1]
         if not (spring_alive[i] and spring_alive[j]):
             continue  # cut since the candidates were built
-        if _apart_boxes_swept(box, i, j):
+        if _apart_boxes_swept(box, box_row[i], box_row[j]):
             continue  # (the CCD would report no hit)
         i1, i2 = spring_particle_a[i], spring_particle_b[i]
         i3, i4 = spring_particle_a[j], spring_particle_b[j]

@@ -390,8 +390,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
 
     set_default_mode(getattr(args, "progress", "auto"))
     try:
+        from fraytool.resident_memory import map_large_blocks
         from fraytool.threads import set_up_threads
 
+        map_large_blocks()
         set_up_threads(getattr(args, "threads", None))
         return COMMANDS[args.command](args)
     except FraytoolError as exc:

@@ -76,8 +76,11 @@ def simulate_task(shot: Shot, out_dir: str, frames_needed: int) -> dict:
     from fraytool.io.frame_store import FrameStore
     from fraytool.scene import scene_hash
 
+    from fraytool.resident_memory import map_large_blocks
+
     t0 = time.time()
     one_thread()
+    map_large_blocks()  # else a worker process keeps what its tasks freed resident (resident_memory)
     spec = load_shot(shot)
     store = FrameStore(Path(out_dir))
     # continue (or repair) this shot's own frames; frames of other settings are replaced

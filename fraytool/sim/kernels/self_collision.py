@@ -189,8 +189,9 @@ def repel_close_pairs(
     x_start, candidates, first, spring_particle_a, spring_particle_b, spring_alive, particle_inv_mass, reach,
     # state in/out
     x_end,
-    # scratch: the segments listed (every segment of the candidates), (S, >= 6) boxes, (P,) flags
-    segments, box, dirty,
+    # scratch: the segments listed (every segment of the candidates), their rows in the boxes
+    # (box_row[slot], narrow.swept_segment_boxes), the boxes (>= 6 columns), (P,) flags
+    segments, box_row, box, dirty,
 ):
     """Proximity pass over ``candidates[first:]``, in their (sorted) order: pairs whose segments end
     the step closer than the contact distance are pushed apart along their end-of-step separation.
@@ -207,7 +208,7 @@ def repel_close_pairs(
     pairs the distance test skips, without its divisions), then the closest distance itself
     decides. No allocation per pair."""
     moved = 0
-    end_segment_boxes(x_end, spring_particle_a, spring_particle_b, segments, box)
+    end_segment_boxes(x_end, spring_particle_a, spring_particle_b, segments, box_row, box)
     dirty[:] = False
     for k in range(first, candidates.shape[0]):
         i = candidates[k, 0]
@@ -217,7 +218,7 @@ def repel_close_pairs(
         i1, i2 = spring_particle_a[i], spring_particle_b[i]
         i3, i4 = spring_particle_a[j], spring_particle_b[j]
         if not (dirty[i1] or dirty[i2] or dirty[i3] or dirty[i4]):
-            if _apart_boxes_end(box, i, j, contact_distance_m):
+            if _apart_boxes_end(box, box_row[i], box_row[j], contact_distance_m):
                 continue  # (the distance below would be >= d_c)
             if _share_end(i1, i2, i3, i4):
                 continue

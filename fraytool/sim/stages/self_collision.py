@@ -100,6 +100,9 @@ class SelfCollision:
         self.margin_m = 0.5 * self.contact_distance_m + self.slack_m
         self.friction = model.self_collision_friction
         self.yarn_segments = np.nonzero(yarn_segment_ids(model) >= 0)[0].astype(np.int32)
+        self._box_row = np.full(model.spring_count, -1, np.int32)
+        """Spring slot -> its row in ``_box`` (yarn segments only; the kernels' ``box_row``)."""
+        self._box_row[self.yarn_segments] = np.arange(self.yarn_segments.shape[0], dtype=np.int32)
         self._cand = None
         self._box_lo = self._box_hi = None
         self._inflated = None
@@ -133,15 +136,15 @@ class SelfCollision:
         self.warned = False
         """The first give-up of the run printed its warning."""
         self._box = self._dirty = self._changed = self._before = self._flag = None
-        """Scratch of the kernels, kept across steps (``_scratch``)."""
+        """Scratch of the kernels, kept across steps (``_scratch``); ``_box`` has a row per yarn segment."""
         self._segs = self._segs_of = None
         """The spring slots in the candidates ``self._segs_of`` (``_pair_segments``)."""
 
     def _scratch(self, state) -> None:
         """(Re)allocate the kernels' scratch when the particle or spring slot count changed."""
         p, s = state.particle_position_m.shape[0], state.spring_particle_a.shape[0]
-        if self._box is None or self._box.shape[0] != s or self._dirty.shape[0] != p:
-            self._box = np.empty((s, 6))
+        if self._box is None or self._flag.shape[0] != s or self._dirty.shape[0] != p:
+            self._box = np.empty((self.yarn_segments.shape[0], 6))
             self._dirty = np.zeros(p, np.bool_)
             self._changed = np.zeros(p, np.bool_)
             self._before = np.empty((p, 3))
@@ -158,7 +161,8 @@ class SelfCollision:
         """CCD pass on the candidates (all of them, or those touching ``moved`` particles)."""
         x, a, b, alive = state.particle_position_m, state.spring_particle_a, state.spring_particle_b, state.spring_alive
         if moved is None:
-            return ccd_pairs_all(prev_position_m, x, self._cand, a, b, alive, self._pair_segments(), self._box)
+            return ccd_pairs_all(prev_position_m, x, self._cand, a, b, alive, self._pair_segments(), self._box_row,
+                                 self._box)
         return ccd_pairs(prev_position_m, x, self._cand, a, b, alive, moved)
 
     def _build(self, state, prev_position_m) -> None:
@@ -229,8 +233,8 @@ class SelfCollision:
         total, first = 0, 0
         while True:
             moved, stop = repel_close_pairs(self.contact_distance_m, self.friction, prev_position_m, self._cand,
-                                            first, a, b, alive, w, self._reach, x, self._pair_segments(), self._box,
-                                            self._dirty)
+                                            first, a, b, alive, w, self._reach, x, self._pair_segments(), self._box_row,
+                                            self._box, self._dirty)
             total += moved
             if stop < 0:
                 return total
