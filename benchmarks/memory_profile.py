@@ -138,8 +138,8 @@ def main(argv=None) -> int:
     table.mark("Simulation (solver, stages, observe)")
     stage_peaks: dict[str, float] = {}
 
-    def stage_check(stage: str, kernel: str) -> None:
-        key = f"  step stage {stage} ({kernel})"
+    def stage_check(stage) -> None:
+        key = f"  step stage {stage.name} ({stage.kernel})"
         stage_peaks[key] = max(stage_peaks.get(key, -1e30), table.per_crossing(peak_rss_bytes()))
         reset_peak()
 

@@ -51,7 +51,7 @@ def main() -> None:
         sim.advance_frame()
     sc = sim.solver.self_collision
     state = sim.state
-    x_prev = sim.solver.buffers.prev_position_m.copy()
+    x_prev = sim.solver.context.prev_position_m.copy()
     x = state.particle_position_m.copy()
     margin = 0.5 * sc.contact_distance_m + sc.slack_m
     spring_yarn = sim.model.spring_yarn()

@@ -84,7 +84,7 @@ class PosedCloth:
         rec = self.copy(frame)
         x = rec.particle_position_m[: self.C].astype(np.float64)
         centre = self.model.body_initial_position_m[0]
-        radius = float(self.model.body_radius_m[0]) + 0.6 * self.model.thickness_m
+        radius = float(self.model.body_params[0, 0]) + 0.6 * self.model.thickness_m
         d = x - centre
         horiz = np.hypot(d[:, 0], d[:, 2])
         on_ball = horiz < radius

@@ -3,6 +3,7 @@ exit code 2, never a traceback."""
 import json
 import re
 import subprocess
+from pathlib import Path
 import sys
 
 import pytest
@@ -58,6 +59,11 @@ CASES = {
                                  ["[bodies.0] half_extents_m = [0.01, 0.01, 0.01]", "is for boxes; a sphere"]),
     "cut outside the cloth": (GOOD + "\n[[cuts]]\nstart = [3.5, 100.0]\nend = [3.5, 2.0]\n",
                               ["[cuts.0] start = [3.5, 100.0]", "-1 <= j <="]),
+    "weave table of booleans": (_with('weave = "plain"', 'weave = "table"\ntable = [[true, false], [false, true]]'),
+                                ["[cloth] table = [[true, false], [false, true]]", "integers 0 and 1",
+                                 "not true / false"]),
+    "normal on a sphere": (GOOD + '\n[[bodies]]\nname = "b"\nshape = "sphere"\nradius_m = 0.01\nnormal = [1.0, 0.0, 0.0]\n',
+                           ["[bodies.0] normal = [1.0, 0.0, 0.0]", "is for planes; a sphere does not use it"]),
 }
 
 
@@ -70,6 +76,7 @@ def test_bad_scene_gives_clear_error_and_exit_2(case, tmp_path, capsys):
     err = capsys.readouterr().err
     assert code == 2, err
     assert str(path) in err
+    assert len(err.splitlines()) == 1, err  # one line per problem
     for fragment in expected:
         assert fragment in err, f"{fragment!r} not in {err!r}"
     assert "Traceback" not in err
@@ -159,7 +166,26 @@ def test_a_huge_value_is_not_echoed_whole(tmp_path, capsys):
     assert main(["check", str(path)]) == 2
     err = capsys.readouterr().err
     assert "[cloth] origin_m = [1.0, 1.0" in err and "(100000 items)" in err
-    assert max(len(line) for line in err.splitlines()) < 600
+    assert max(len(line) for line in err.splitlines()) < 300
+
+
+def test_echoed_values_are_cut_at_80_characters_and_lines_stay_under_200(tmp_path, capsys, monkeypatch):
+    """A long string, a long array and an unknown key with a long value: each echoed value is cut at 80
+    characters or fewer (with its size), one line per problem, under 200 characters (the explanation cut
+    at a word, pointing at docs/scene-format.md, where a line would be longer)."""
+    monkeypatch.chdir(tmp_path)
+    path = Path("long.toml")
+    for text in (_with('weave = "plain"', 'weave = "' + "x" * 300 + '"'),
+                 _with('weave = "plain"', 'weave = "table"\ntable = [[' + ", ".join(["1"] * 150) + "], [0, 1]]"),
+                 GOOD.replace("[cloth]\n", "[cloth]\nno_such_key = \"" + "y" * 300 + "\"\n")):
+        path.write_text(text)
+        assert main(["check", str(path)]) == 2
+        err = capsys.readouterr().err
+        lines = err.splitlines()
+        assert len(lines) == 1 and len(lines[0]) < 200, err
+        echoed = re.search(r"= (.*?)\.\.\. \((\d+) (characters|items)\)", err)
+        assert echoed and len(echoed.group(1)) <= 80, err
+    assert "no_such_key" in err and "did you mean" in err and "sub-tables: multires" in err
 
 
 def test_a_scene_too_big_for_the_memory_is_refused_with_the_estimate(tmp_path, capsys, monkeypatch):
@@ -199,4 +225,4 @@ def test_an_unknown_key_in_a_table_with_sub_tables_lists_them(tmp_path, capsys):
     scene.write_text(small_scene_text())
     assert main(["check", str(scene), "--set", "cloth.sprngs.bend_n_per_m=1"]) == 2
     err = capsys.readouterr().err
-    assert "[cloth] sprngs" in err and "sub-tables: [cloth.multires], [cloth.springs], [cloth.strain], [cloth.tearing]" in err
+    assert "[cloth] sprngs" in err and "sub-tables: multires, springs, strain, tearing" in err

@@ -404,4 +404,4 @@ def test_plane_normal_keeps_its_direction_at_any_scale(normal, unit):
     b.add_plane("floor", normal=normal)
     b.add_cloth(warp_yarns=3, weft_yarns=3, spacing_m=0.01, thickness_m=0.001, mass_per_crossing_kg=1e-5,
                 structural_n_per_m=10.0)
-    np.testing.assert_allclose(b.finalize().body_normal[0], unit, rtol=1e-12)
+    np.testing.assert_allclose(b.finalize().body_params[0], unit, rtol=1e-12)  # a plane: its unit normal

@@ -104,8 +104,7 @@ def test_damping_preserves_linear_and_angular_momentum():
 def test_particle_lists_follow_splits_and_refinement():
     """The solver's lists (fraytool.sim.kernels.work_split.ParticleLists): free = inverse mass > 0,
     moving = active minus the slaved crossings, each cut into equal units covering the list; rebuilt
-    when a slot is activated (a split), when a cell refines (the refined count), or another state
-    comes; kept otherwise."""
+    when the state's topology epoch changes (a split, a refinement, another state), kept otherwise."""
     from fraytool.sim.builder import build_model
     from fraytool.sim.kernels.work_split import WORK_UNITS, ParticleLists
 
@@ -125,18 +124,13 @@ def test_particle_lists_follow_splits_and_refinement():
     n = model.crossing_count
     state.particle_active[n + 5] = True  # a split activates a partner slot and gives it a mass
     state.particle_inv_mass[n + 5] = 1.0
+    assert n + 5 not in lists.free(state)[0].tolist()  # edited by hand, no new epoch: the list is kept
+    state.bump_topology()  # (the documented contract: a change of topology bumps the epoch)
     assert n + 5 in lists.free(state)[0].tolist() and n + 5 in lists.moving(state)[0].tolist()
-    state.coarse_cell_refined = np.zeros(4, bool)  # a refinement frees crossings: their mass back
-    state.particle_inv_mass[2] = 0.0
-    assert 2 in lists.free(state)[0].tolist()  # same counts: the list is kept (the documented contract)
-    lists.invalidate()
+    state.particle_inv_mass[2] = 0.0  # a refinement takes a crossing's mass away
+    lists.slaved_of = lambda _state: np.array([2], np.int32)
+    state.bump_topology()
     assert 2 not in lists.free(state)[0].tolist()
-    state.particle_inv_mass[2] = 1.0
-    lists.invalidate()
-    state.coarse_cell_refined[1] = True
-    state.particle_inv_mass[2] = 0.0
-    assert 2 not in lists.free(state)[0].tolist()
-    lists.slaved_of = lambda _state: np.array([2], np.int32)  # with the refined count changed: rebuilt
     assert lists.moving(state)[0].tolist().count(2) == 0
     other = model.state()
     assert lists.free(other)[0].tolist() == free.tolist()

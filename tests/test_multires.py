@@ -83,11 +83,11 @@ def test_lumped_masses_keep_total_mass_and_centre_of_mass():
 
 
 def test_refinement_keeps_mass_and_momentum():
-    from fraytool.sim.stages.multires import MultiresRuntime
+    from fraytool.sim.stages.multires import CoarseWork
 
     model = _cloth()
     state = model.state()
-    rt = MultiresRuntime(model)
+    rt = CoarseWork(model)
     rt.ensure(state)
     rng = np.random.default_rng(1)
     lay = rt.layout
@@ -140,12 +140,12 @@ def test_coarse_drape_rests_on_the_ball_near_the_fine_one():
         state, solver = model.state(), SolverExplicitPBD(model)
         for _ in range(12 * spec.time.steps_per_frame):
             solver.step(state, spec.time.step_s)
-        solver.end_frame(state, spec.time.step_s)  # slaved crossings on their interpolation
+        solver.complete(state, spec.time.step_s)  # slaved crossings on their interpolation
         out[k] = state.particle_position_m[: model.crossing_count].copy()
         centre = model.body_initial_position_m[0]
         r = np.linalg.norm(out[k] - centre, axis=1)
         # every crossing, slaved ones too, outside the ball (margin: half the thickness)
-        assert r.min() >= model.body_radius_m[0] + 0.49 * model.thickness_m
+        assert r.min() >= model.body_params[0, 0] + 0.49 * model.thickness_m  # (a sphere: its radius)
     gap = np.linalg.norm(out[4] - out[1], axis=1)
     assert gap.mean() < 0.01  # within 2 yarn spacings on average of the fine drape
 
@@ -206,8 +206,8 @@ def test_resume_from_a_checkpoint_matches_an_unbroken_run():
     again, solver2 = saved, SolverExplicitPBD(model)
     for _ in range(steps):
         solver2.step(again, spec.time.step_s)
-    solver.end_frame(state, spec.time.step_s)
-    solver2.end_frame(again, spec.time.step_s)
+    solver.complete(state, spec.time.step_s)
+    solver2.complete(again, spec.time.step_s)
     for name, value in state.arrays().items():
         assert np.array_equal(value, again.arrays()[name]), name
 
@@ -223,9 +223,10 @@ def test_structural_springs_of_refined_cells_are_strain_limited_only():
     solver = SolverExplicitPBD(model)
     state = model.state()
     solver.step(state, 1e-4)
-    strain = solver._strain
+    strain = next(s for s in solver.stages if type(s).__name__ == "StrainLimiting")
     assert strain.limited_springs.size == 0  # nothing refined, nothing held: the coarse model only
     state.coarse_cell_refined[0] = True
+    state.bump_topology()  # an edit by hand says so
     solver.step(state, 1e-4)
     lay = multires.coarse_layout(model)
     limited = strain.limited_springs
@@ -331,7 +332,7 @@ def test_a_grid_without_crossings_between_nodes_starts_refined():
 
 def test_a_frame_ends_with_every_slaved_crossing_on_its_interpolation():
     """The steps keep only the hanging nodes on their interpolation (the other slaved crossings are read
-    by nothing in a step); a frame's end (Simulation.advance_frame -> solver.end_frame) puts every
+    by nothing in a step); a frame's end (Simulation.advance_frame -> solver.complete) puts every
     slaved crossing on it, position exactly, velocity as the nodes' interpolated velocity."""
     from fraytool.sim.simulation import Simulation
 
@@ -357,16 +358,17 @@ def test_a_frame_ends_with_every_slaved_crossing_on_its_interpolation():
 def test_slaved_crossings_are_on_their_interpolation_whenever_a_split_may_read_them():
     """A split reads its neighbours (the couple's normal) and its settle the yarn segments it could
     carry through; the steps keep most slaved crossings stale, so on every step with a hot cell (a
-    spring past the refine strain, which every split needs) the refinement syncs the slaved crossings
-    within band + 1 cells of each hot cell. Checked just before the tearing stage of every such step of
-    fig6 at factor 4 (self-collision off: it would sync them all anyway), through to its tear."""
+    spring past the refine strain, which every split needs) the slaved crossings within band + 1 cells
+    of each hot cell are synced before a stage that declares it reads them. Checked by a pass that
+    declares that read, just before the tearing stage of every such step of fig6 at factor 4
+    (self-collision off: it would sync them all anyway), through to its tear."""
     from fraytool.sim.simulation import Simulation
-    from fraytool.sim.stages.base import HookStage
+    from fraytool.sim.stages.base import POSITIONS, SLAVED_NEAR_HOT, HookStage
 
     spec = load_scene(ROOT / "scenes" / "fig6_thrown_ball_plain.toml",
                       [("cloth.multires.factor", 4), ("self_collision.enabled", False)])
     sim = Simulation(spec)
-    runtime = sim.solver._find("Refinement").runtime
+    runtime = sim.solver.context.coarse
     lay = runtime.layout
     reach = sim.model.refine_band_cells + 1
     n = sim.model.crossing_count
@@ -377,19 +379,21 @@ def test_slaved_crossings_are_on_their_interpolation_whenever_a_split_may_read_t
         want = state.particle_position_m[:n].copy()
         multires.interpolate_slaved(lay, free, want)
         off = np.flatnonzero(~free & (state.particle_position_m[:n] != want).any(axis=1))
-        if not runtime._hot.any():
+        if not runtime.hot.any():
             return
         seen["hot"] += 1
         cell = lay.crossing_weight_cell[off]
         ci, cj = cell % lay.cells_x, cell // lay.cells_x
-        hot = np.flatnonzero(runtime._hot)
+        hot = np.flatnonzero(runtime.hot)
         hi, hj = hot % lay.cells_x, hot // lay.cells_x
         near = ((np.abs(ci[:, None] - hi[None, :]) <= reach) & (np.abs(cj[:, None] - hj[None, :]) <= reach)).any(1)
         assert not near.any(), f"step {state.step_index}: slaved crossings {off[near][:5]} near a hot cell are stale"
         seen["stale elsewhere"] += bool(off.size)
 
-    sim.solver.insert_stage(HookStage("refinement", check))
-    assert [type(s).__name__ for s in sim.solver.stages][-3:] == ["HookStage", "TearingStage", "VelocityPostProcess"]
+    sim.solver.insert_stage(HookStage("refinement", check, reads=frozenset({POSITIONS, SLAVED_NEAR_HOT}),
+                                      writes=frozenset()))
+    assert [type(s).__name__ for s in sim.solver.stages][-4:] == ["CoarseSync", "HookStage", "TearingStage",
+                                                                   "VelocityPostProcess"]
     for _ in range(40):
         sim.advance_frame()
     assert sim.state.spring_broken.any() and seen["hot"] > 0 and seen["stale elsewhere"] > 0

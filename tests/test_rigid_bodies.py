@@ -206,6 +206,7 @@ def test_rigid_contact_kernel_allocates_nothing_and_matches_the_per_body_project
     from numba.core.runtime import _nrt_python, rtsys
 
     from fraytool.kinds import SHAPE_BOX, SHAPE_PLANE, SHAPE_SPHERE
+    from fraytool.sim.kernels.bodies import BodiesIn
     from fraytool.sim.kernels.rigid_contact import collide_rigid, project_out_of_body
 
     rng = np.random.default_rng(11)
@@ -213,9 +214,7 @@ def test_rigid_contact_kernel_allocates_nothing_and_matches_the_per_body_project
     angle = 0.4
     turn = np.array([[np.cos(angle), 0.0, np.sin(angle)], [0.0, 1.0, 0.0], [-np.sin(angle), 0.0, np.cos(angle)]])
     rotation = np.stack([np.eye(3), np.eye(3), turn])
-    radius = np.array([0.05, 0.0, 0.0])
-    half = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.04, 0.02, 0.03]])
-    normal = np.array([[0.0, 1.0, 0.0], [0.0, 1.0, 0.0], [0.0, 1.0, 0.0]])
+    params = np.array([[0.05, 0.0, 0.0], [0.0, 1.0, 0.0], [0.04, 0.02, 0.03]])  # radius, normal, half extents
     position = np.array([[0.0, 0.0, 0.0], [0.0, -0.03, 0.0], [0.08, 0.0, 0.0]])
     friction = np.zeros(3)
     collide = np.ones(3, np.bool_)
@@ -225,13 +224,13 @@ def test_rigid_contact_kernel_allocates_nothing_and_matches_the_per_body_project
     inv = np.ones(4000)
     mass = np.ones(4000)
     impulse = np.zeros((3, 3))
-    args = (shape, rotation, radius, half, normal, friction, collide, dynamic, 0.001, 1e-3, position, np.zeros((3, 3)),
-            inv, mass, prev)
+    bodies = BodiesIn(shape, params, rotation, friction, collide, dynamic, position, np.zeros((3, 3)))
+    args = (bodies, 0.001, 1e-3, inv, mass, prev)
     collide_rigid(*all_slots(len(x)), *args, x.copy(), impulse)  # compile
     reference = x.copy()
     for p in range(reference.shape[0]):
         for k in range(3):
-            project_out_of_body(k, shape, rotation, radius, half, normal, position, 0.001, reference[p])
+            project_out_of_body(k, bodies, 0.001, reference[p])
     def allocations(points):
         was_on = _nrt_python.memsys_stats_enabled()
         _nrt_python.memsys_enable_stats()
@@ -250,7 +249,7 @@ def test_rigid_contact_kernel_allocates_nothing_and_matches_the_per_body_project
     # numba wraps each NumPy array passed in from Python once (a MemInfo per argument) and the
     # parallel loop over one body's particles schedules its threads (one allocation per body);
     # beyond those the kernel allocates nothing: the same count for 40 particles as for 4000
-    arrays_passed = sum(isinstance(a, np.ndarray) for a in args) + 4
+    arrays_passed = sum(isinstance(a, np.ndarray) for a in (*bodies, *args)) + 4
     assert arrays_passed <= allocs <= arrays_passed + len(shape)
     assert meminfos == allocs
     assert allocations(x[:40].copy())[:2] == (allocs, meminfos)

@@ -226,12 +226,11 @@ def test_yarn_line_solve_reaches_the_point_solve_fixed_point_in_far_fewer_sweeps
     lines = x.copy()
     ls, starts, groups = yarn_line_springs(model)
     n = ls.shape[0]
-    it_lines, ok_lines = limit_strain_lines(ls, starts, groups, model.spring_rest_length_m, 0.10, 1e-11, 200000,
-                                            alpha, inv, state.spring_particle_a, state.spring_particle_b,
-                                            state.spring_alive, np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n),
-                                            np.zeros((n, 3)), np.zeros(starts.shape[0] - 1),
-                                            np.zeros(starts.shape[0] - 1, np.int64), np.zeros(len(lines), np.int64),
-                                            lines)
+    it_lines, ok_lines = limit_strain_lines(
+        ls, starts, groups, (0.10, 1e-11, 200000), alpha,
+        (model.spring_rest_length_m, inv, state.spring_particle_a, state.spring_particle_b, state.spring_alive),
+        (np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros((n, 3)), np.zeros(starts.shape[0] - 1),
+         np.zeros(starts.shape[0] - 1, np.int64), np.zeros(len(lines), np.int64)), lines)
     assert ok_point and ok_lines
     assert _structural_strain(model, state, lines).max() > 0.11  # infeasible: the yarns stretch past the limit
     # XPBD on nonlinear constraints accumulates each correction along the direction it had when made,
@@ -261,10 +260,10 @@ def test_yarn_line_solve_matches_the_implicit_chain_step():
     point = x.copy()
     limit_strain_compliant(springs, rest_lengths, limit, 1e-13, 100000, alpha, w, a, b, alive, np.zeros(n), point)
     z = np.zeros(n)
-    it, converged = limit_strain_lines(springs, np.array([0, n], np.int64), np.array([0, 1], np.int64), rest_lengths,
-                                       limit, 1e-13, 1000, alpha, w, a, b, alive, z.copy(), z.copy(), z.copy(),
-                                       z.copy(), np.zeros((n, 3)), np.zeros(1), np.zeros(1, np.int64),
-                                       np.zeros(len(x), np.int64), x)
+    it, converged = limit_strain_lines(springs, np.array([0, n], np.int64), np.array([0, 1], np.int64),
+                                       (limit, 1e-13, 1000), alpha, (rest_lengths, w, a, b, alive),
+                                       (z.copy(), z.copy(), z.copy(), z.copy(), np.zeros((n, 3)), np.zeros(1),
+                                        np.zeros(1, np.int64), np.zeros(len(x), np.int64)), x)
     assert converged and it < 20
     np.testing.assert_allclose(x, point, atol=1e-10)
 
@@ -299,9 +298,9 @@ def _serial_and_grouped(model, state, springs, starts, x0, w, tolerance, sweeps)
     serial, grouped = x0.copy(), x0.copy()
     a, b, alive = state.spring_particle_a, state.spring_particle_b, state.spring_alive
     got_serial = limit_strain(springs, model.spring_rest_length_m, 0.05, tolerance, sweeps, w, a, b, alive, serial)
-    got_grouped = limit_strain_groups(springs, starts, model.spring_rest_length_m, 0.05, tolerance, sweeps, w, a, b,
-                                      alive, np.zeros(springs.shape[0], np.int64),
-                                      np.zeros(len(grouped), np.int64), grouped)
+    got_grouped = limit_strain_groups(springs, starts, (0.05, tolerance, sweeps),
+                                      (model.spring_rest_length_m, w, a, b, alive),
+                                      np.zeros(springs.shape[0], np.int64), np.zeros(len(grouped), np.int64), grouped)
     return (serial, got_serial), (grouped, got_grouped)
 
 

@@ -67,8 +67,8 @@ def test_pair_closer_than_T_ends_exactly_T_apart(slide):
     # weft spring along x above a warp spring along y, crossing at their middles, 0.3 T apart
     pa, qa = np.array([-0.002, 0.0, 0.0003]), np.array([0.002, 0.0, 0.0003])
     pb, qb = np.array([0.0, -0.002, 0.0003 - 0.3 * T]), np.array([0.0, 0.002, 0.0003 - 0.3 * T])
-    d, ta, tb, kpa, kqa, kpb, kqb, nx, ny, nz = crossing_pair_correction(pa, qa, pb, qb, pa, qa, pb, qb,
-                                                                         1.0, 1.0, 1.0, 1.0, 1.0, T, slide)
+    d, ta, tb, kpa, kqa, kpb, kqb, nx, ny, nz = crossing_pair_correction((pa, qa, pb, qb), (pa, qa, pb, qb),
+                                                                         (1.0, 1.0, 1.0, 1.0), 1.0, T, slide)
     assert np.isclose(d, 0.3 * T) and ta == tb == 0.5
     n = np.array([nx, ny, nz])
     new = [p + k * n for p, k in ((pa, kpa), (qa, kqa), (pb, kpb), (qb, kqb))]
@@ -85,7 +85,7 @@ def test_pair_projection_is_exact_and_mass_weighted_at_any_parameters():
         w = rng.uniform(0.0, 2.0, 4)
         w[rng.integers(4)] = 0.0  # a held end never moves
         for slide in (False, True):
-            d, ta, tb, *k, nx, ny, nz = crossing_pair_correction(pa, qa, pb, qb, pa, qa, pb, qb, *w, -1.0, T, slide)
+            d, ta, tb, *k, nx, ny, nz = crossing_pair_correction((pa, qa, pb, qb), (pa, qa, pb, qb), tuple(w), -1.0, T, slide)
             rta, rtb, rd = closest_points_reference(pa, qa, pb, qb)
             assert np.isclose(d, rd, rtol=1e-12) and np.allclose([ta, tb], [rta, rtb], atol=1e-9)
             n = np.array([nx, ny, nz])
@@ -225,8 +225,8 @@ def test_a_pair_on_the_wrong_side_but_apart_is_not_thrown_through(slide):
     T = 0.0006
     pa, qa = np.array([-0.002, 0.0, 0.0]), np.array([0.002, 0.0, 0.0])  # weft, meant to be on top
     pb, qb = np.array([0.0, -0.002, 2 * T]), np.array([0.0, 0.002, 2 * T])  # warp 2 T above it
-    d, ta, tb, kpa, kqa, kpb, kqb, nx, ny, nz = crossing_pair_correction(pa, qa, pb, qb, pa, qa, pb, qb,
-                                                                         1.0, 1.0, 1.0, 1.0, 1.0, T, slide)
+    d, ta, tb, kpa, kqa, kpb, kqb, nx, ny, nz = crossing_pair_correction((pa, qa, pb, qb), (pa, qa, pb, qb),
+                                                                         (1.0, 1.0, 1.0, 1.0), 1.0, T, slide)
     assert np.isclose(d, 2 * T)
     n = np.array([nx, ny, nz])
     new = [p + k * n for p, k in ((pa, kpa), (qa, kqa), (pb, kpb), (qb, kqb))]

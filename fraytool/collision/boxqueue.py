@@ -24,16 +24,16 @@ def _before(heap: np.ndarray, i: int, j: int) -> bool:
 
 
 @numba.njit(cache=True, fastmath=False, inline="always")
-def _swap(heap: np.ndarray, i: int, j: int) -> None:
+def _swap(heap_inout: np.ndarray, i: int, j: int) -> None:
     for k in range(ROW):
-        tmp = heap[i, k]
-        heap[i, k] = heap[j, k]
-        heap[j, k] = tmp
+        tmp = heap_inout[i, k]
+        heap_inout[i, k] = heap_inout[j, k]
+        heap_inout[j, k] = tmp
 
 
 @numba.njit(cache=True, fastmath=False)
 def queue_push(
-    heap: np.ndarray,
+    heap_inout: np.ndarray,
     size: int,
     seq: int,
     t0: float,
@@ -46,36 +46,36 @@ def queue_push(
 ) -> np.ndarray:
     """Insert a box at position ``size`` (the caller increments size); returns the heap array,
     reallocated with twice the rows when full."""
-    if size == heap.shape[0]:
-        bigger = np.empty((2 * heap.shape[0], ROW))
-        bigger[:size] = heap[:size]
-        heap = bigger
-    heap[size, 0] = t0
-    heap[size, 1] = t1
-    heap[size, 2] = u0
-    heap[size, 3] = u1
-    heap[size, 4] = v0
-    heap[size, 5] = v1
-    heap[size, 6] = flag
-    heap[size, 7] = seq
+    if size == heap_inout.shape[0]:
+        bigger = np.empty((2 * heap_inout.shape[0], ROW))
+        bigger[:size] = heap_inout[:size]
+        heap_inout = bigger
+    heap_inout[size, 0] = t0
+    heap_inout[size, 1] = t1
+    heap_inout[size, 2] = u0
+    heap_inout[size, 3] = u1
+    heap_inout[size, 4] = v0
+    heap_inout[size, 5] = v1
+    heap_inout[size, 6] = flag
+    heap_inout[size, 7] = seq
     i = size
     while i > 0:
         parent = (i - 1) // 2
-        if not _before(heap, i, parent):
+        if not _before(heap_inout, i, parent):
             break
-        _swap(heap, i, parent)
+        _swap(heap_inout, i, parent)
         i = parent
-    return heap
+    return heap_inout
 
 
 @numba.njit(cache=True, fastmath=False)
-def queue_pop(heap: np.ndarray, size: int, out: np.ndarray) -> None:
+def queue_pop(heap_inout: np.ndarray, size: int, out_out: np.ndarray) -> None:
     """Copy the first box into ``out`` (ROW,) and remove it (the caller decrements size)."""
     for k in range(ROW):
-        out[k] = heap[0, k]
+        out_out[k] = heap_inout[0, k]
     last = size - 1
     for k in range(ROW):
-        heap[0, k] = heap[last, k]
+        heap_inout[0, k] = heap_inout[last, k]
     i = 0
     while True:
         left = 2 * i + 1
@@ -83,9 +83,9 @@ def queue_pop(heap: np.ndarray, size: int, out: np.ndarray) -> None:
             break
         best = left
         right = left + 1
-        if right < last and _before(heap, right, left):
+        if right < last and _before(heap_inout, right, left):
             best = right
-        if not _before(heap, best, i):
+        if not _before(heap_inout, best, i):
             break
-        _swap(heap, i, best)
+        _swap(heap_inout, i, best)
         i = best

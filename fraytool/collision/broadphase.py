@@ -84,23 +84,23 @@ def swept_boxes_kernel(
 
 
 @numba.njit(cache=True, fastmath=False)
-def _listed_boxes(x_start, x_end, spring_a, spring_b, segments, margin, box, ends, bounds):
+def _listed_boxes(x_start, x_end, spring_a, spring_b, segments, margin, box_out, ends_out, bounds_inout):
     """Swept boxes of the listed springs (rows lo_x, lo_y, lo_z, hi_x, hi_y, hi_z of ``box``, as
     in :func:`swept_boxes_kernel`) and their end particles. ``bounds`` gets the scene box (rows
     0-2 lo, 3-5 hi), the sum (row 6) and the maximum (row 7) of the box extents (largest side).
     Returns False if a coordinate is not finite."""
     finite = True
     for k in range(3):
-        bounds[k] = math.inf
-        bounds[3 + k] = -math.inf
+        bounds_inout[k] = math.inf
+        bounds_inout[3 + k] = -math.inf
     ext_sum = 0.0
     ext_max = 0.0
     for p in range(segments.shape[0]):
         s = segments[p]
         a = spring_a[s]
         b = spring_b[s]
-        ends[p, 0] = a
-        ends[p, 1] = b
+        ends_out[p, 0] = a
+        ends_out[p, 1] = b
         ext = 0.0
         for k in range(3):
             lo = min(min(x_start[a, k], x_start[b, k]), min(x_end[a, k], x_end[b, k]))
@@ -108,46 +108,46 @@ def _listed_boxes(x_start, x_end, spring_a, spring_b, segments, margin, box, end
             if margin > 0.0:
                 lo = round_down(lo - margin)
                 hi = round_up(hi + margin)
-            box[p, k] = lo
-            box[p, 3 + k] = hi
-            bounds[k] = min(bounds[k], lo)
-            bounds[3 + k] = max(bounds[3 + k], hi)
+            box_out[p, k] = lo
+            box_out[p, 3 + k] = hi
+            bounds_inout[k] = min(bounds_inout[k], lo)
+            bounds_inout[3 + k] = max(bounds_inout[3 + k], hi)
             ext = max(ext, hi - lo)
             finite = finite and math.isfinite(lo) and math.isfinite(hi)
         ext_sum += ext
         ext_max = max(ext_max, ext)
-    bounds[6] = ext_sum
-    bounds[7] = ext_max
+    bounds_inout[6] = ext_sum
+    bounds_inout[7] = ext_max
     return finite
 
 
 @numba.njit(cache=True, fastmath=False)
-def _column_ranges(box, au, av, ou, ov, inv_cell, col_range) -> int:
+def _column_ranges(box, au, av, ou, ov, inv_cell, col_range_out) -> int:
     """First and last column of every box along u and v (``col_range`` rows: first u, first v,
     last u, last v); returns the number of (box, column) entries."""
     entries = 0
     for p in range(box.shape[0]):
         if inv_cell == 0.0:
-            col_range[p, 0] = col_range[p, 1] = col_range[p, 2] = col_range[p, 3] = 0
+            col_range_out[p, 0] = col_range_out[p, 1] = col_range_out[p, 2] = col_range_out[p, 3] = 0
             entries += 1
             continue
         c0 = int(math.floor((box[p, au] - ou) * inv_cell))
         c1 = int(math.floor((box[p, av] - ov) * inv_cell))
         d0 = int(math.floor((box[p, 3 + au] - ou) * inv_cell))
         d1 = int(math.floor((box[p, 3 + av] - ov) * inv_cell))
-        col_range[p, 0] = c0
-        col_range[p, 1] = c1
-        col_range[p, 2] = d0
-        col_range[p, 3] = d1
+        col_range_out[p, 0] = c0
+        col_range_out[p, 1] = c1
+        col_range_out[p, 2] = d0
+        col_range_out[p, 3] = d1
         entries += (d0 - c0 + 1) * (d1 - c1 + 1)
     return entries
 
 
 @numba.njit(cache=True, fastmath=False)
-def _sweep_columns(col_start, ent_box, ent_key, q_hi, box, ends, order, aw, au, av, pi, pj) -> int:
+def _sweep_columns(col_start, ent_box, ent_key, q_hi, box, ends, order, aw, au, av, pi_inout, pj_out) -> int:
     """Step 3 of the module docstring: the owned, overlapping, non-adjacent pairs of every column,
     as (min, max) of their indices in ``order``; stores up to len(pi) of them, returns how many."""
-    cap = pi.shape[0]
+    cap = pi_inout.shape[0]
     count = 0
     for col in range(col_start.shape[0] - 1):
         q_end = col_start[col + 1]
@@ -180,8 +180,8 @@ def _sweep_columns(col_start, ent_box, ent_key, q_hi, box, ends, order, aw, au, 
                 if count < cap:
                     o0 = order[p0]
                     o1 = order[p1]
-                    pi[count] = min(o0, o1)
-                    pj[count] = max(o0, o1)
+                    pi_inout[count] = min(o0, o1)
+                    pj_out[count] = max(o0, o1)
                 count += 1
     return count
 

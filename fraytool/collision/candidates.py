@@ -89,13 +89,13 @@ def particle_reach(spring_particle_a, spring_particle_b, spring_alive, segments,
 
 
 @nb.njit(cache=True, fastmath=False)
-def update_reach(reach, touched, spring_particle_a, spring_particle_b, spring_alive, segments, box_lo, box_hi, slack):
+def update_reach(reach_inout, touched, spring_particle_a, spring_particle_b, spring_alive, segments, box_lo, box_hi, slack):
     """``particle_reach`` again for the particles with ``touched[p]`` only (the others keep theirs)."""
-    for p in range(reach.shape[0]):
+    for p in range(reach_inout.shape[0]):
         if touched[p]:
             for d in range(3):
-                reach[p, d] = -math.inf
-                reach[p, 3 + d] = math.inf
+                reach_inout[p, d] = -math.inf
+                reach_inout[p, 3 + d] = math.inf
     for k in range(segments.shape[0]):
         s = segments[k]
         if not spring_alive[s]:
@@ -103,8 +103,8 @@ def update_reach(reach, touched, spring_particle_a, spring_particle_b, spring_al
         for p in (spring_particle_a[s], spring_particle_b[s]):
             if touched[p]:
                 for d in range(3):
-                    reach[p, d] = max(reach[p, d], box_lo[k, d] - slack)
-                    reach[p, 3 + d] = min(reach[p, 3 + d], box_hi[k, d] + slack)
+                    reach_inout[p, d] = max(reach_inout[p, d], box_lo[k, d] - slack)
+                    reach_inout[p, 3 + d] = min(reach_inout[p, 3 + d], box_hi[k, d] + slack)
 
 
 @nb.njit(cache=True, fastmath=False)
@@ -154,7 +154,7 @@ def escaped_segments(x_start, x_end, spring_particle_a, spring_particle_b, sprin
 
 
 @nb.njit(cache=True, fastmath=False)
-def pair_segments(candidates, flag):
+def pair_segments(candidates, flag_inout):
     """The spring slots in ``candidates`` ((K, 2)), each once (in order of first appearance);
     ``flag`` ((S,) bools, all False) is scratch, all False again on return."""
     out = np.empty(2 * candidates.shape[0], np.int32)
@@ -162,12 +162,12 @@ def pair_segments(candidates, flag):
     for k in range(candidates.shape[0]):
         for c in range(2):
             s = candidates[k, c]
-            if not flag[s]:
-                flag[s] = True
+            if not flag_inout[s]:
+                flag_inout[s] = True
                 out[count] = s
                 count += 1
     for q in range(count):
-        flag[out[q]] = False
+        flag_inout[out[q]] = False
     return out[:count].copy()
 
 
@@ -186,11 +186,11 @@ def reattached_segments(spring_particle_a, spring_particle_b, spring_alive, segm
 
 
 @nb.njit(cache=True, fastmath=False)
-def _rebox_pairs(near, escaped, segments, flag, inflated, spring_particle_a, spring_particle_b, keys):
+def _rebox_pairs(near, escaped, segments, flag, inflated, spring_particle_a, spring_particle_b, keys_inout):
     """Pairs of the escaped segments (``rebox_segments``) with the ``near`` ones, as keys
     i * S + j (i < j spring slots) stored in ``keys`` when it is long enough; returns how many."""
     spring_count = spring_particle_a.shape[0]
-    store = keys.shape[0] > 0
+    store = keys_inout.shape[0] > 0
     count = 0
     for q in range(near.shape[0]):
         k = near[q]
@@ -207,19 +207,21 @@ def _rebox_pairs(near, escaped, segments, flag, inflated, spring_particle_a, spr
             if _share_end(spring_particle_a[s], spring_particle_b[s], spring_particle_a[t], spring_particle_b[t]):
                 continue
             if store:
-                keys[count] = min(s, t) * spring_count + max(s, t)
+                keys_inout[count] = min(s, t) * spring_count + max(s, t)
             count += 1
     return count
 
 
 @nb.njit(cache=True, fastmath=False)
-def rebox_segments(x_start, x_end, spring_particle_a, spring_particle_b, spring_alive, segments, escaped, lookahead,
-                   margin, box_lo, box_hi, inflated, build_alive, candidates):
+def rebox_segments(x_start, x_end, springs_in, segments, escaped, lookahead, margin, boxes_inout, candidates):
     """Re-box the ``escaped`` segments (indices into ``segments``) as a build would (swept from
-    x_start to x_end + lookahead (x_end - x_start)), writing their rows of ``box_lo``, ``box_hi``,
-    ``inflated`` (boxes + margin) and ``build_alive``, and return the candidates without their
-    pairs, plus every pair of an escaped segment with a live listed segment sharing no end
-    particle whose inflated boxes overlap: (K, 2) int32, sorted (module docstring, "Candidates")."""
+    x_start to x_end + lookahead (x_end - x_start)), writing their rows of the ``boxes_inout`` group
+    (``box_lo``, ``box_hi``, ``inflated`` (boxes + margin), ``build_alive``), and return the candidates
+    without their pairs, plus every pair of an escaped segment with a live listed segment sharing no
+    end particle whose inflated boxes overlap: (K, 2) int32, sorted (module docstring, "Candidates").
+    ``springs_in``: the springs' (ends a, ends b, alive flags)."""
+    spring_particle_a, spring_particle_b, spring_alive = springs_in
+    box_lo_inout, box_hi_inout, inflated_inout, build_alive_out = boxes_inout
     spring_count = spring_particle_a.shape[0]
     flag = np.zeros(spring_count, np.bool_)
     union = np.empty(6)
@@ -229,32 +231,32 @@ def rebox_segments(x_start, x_end, spring_particle_a, spring_particle_b, spring_
         k = escaped[r]
         s = segments[k]
         flag[s] = True
-        build_alive[k] = True
+        build_alive_out[k] = True
         pa = spring_particle_a[s]
         pb = spring_particle_b[s]
         for d in range(3):
             ahead_a = x_end[pa, d] + lookahead * (x_end[pa, d] - x_start[pa, d])
             ahead_b = x_end[pb, d] + lookahead * (x_end[pb, d] - x_start[pb, d])
-            box_lo[k, d] = min(min(x_start[pa, d], x_start[pb, d]), min(ahead_a, ahead_b))
-            box_hi[k, d] = max(max(x_start[pa, d], x_start[pb, d]), max(ahead_a, ahead_b))
-            inflated[k, d] = round_down(box_lo[k, d] - margin)
-            inflated[k, 3 + d] = round_up(box_hi[k, d] + margin)
-            union[d] = min(union[d], inflated[k, d])
-            union[3 + d] = max(union[3 + d], inflated[k, 3 + d])
+            box_lo_inout[k, d] = min(min(x_start[pa, d], x_start[pb, d]), min(ahead_a, ahead_b))
+            box_hi_inout[k, d] = max(max(x_start[pa, d], x_start[pb, d]), max(ahead_a, ahead_b))
+            inflated_inout[k, d] = round_down(box_lo_inout[k, d] - margin)
+            inflated_inout[k, 3 + d] = round_up(box_hi_inout[k, d] + margin)
+            union[d] = min(union[d], inflated_inout[k, d])
+            union[3 + d] = max(union[3 + d], inflated_inout[k, 3 + d])
     # segments near any escaped one (inside the union of their boxes), then the pairs, counted and
     # then stored as keys i * S + j (no array reassigned in a loop: see fraytool.collision.broadphase)
     near = np.empty(segments.shape[0], np.int32)
     n_near = 0
     for k in range(segments.shape[0]):
-        if (spring_alive[segments[k]] and inflated[k, 0] <= union[3] and union[0] <= inflated[k, 3]
-                and inflated[k, 1] <= union[4] and union[1] <= inflated[k, 4]
-                and inflated[k, 2] <= union[5] and union[2] <= inflated[k, 5]):
+        if (spring_alive[segments[k]] and inflated_inout[k, 0] <= union[3] and union[0] <= inflated_inout[k, 3]
+                and inflated_inout[k, 1] <= union[4] and union[1] <= inflated_inout[k, 4]
+                and inflated_inout[k, 2] <= union[5] and union[2] <= inflated_inout[k, 5]):
             near[n_near] = k
             n_near += 1
-    count = _rebox_pairs(near[:n_near], escaped, segments, flag, inflated, spring_particle_a, spring_particle_b,
+    count = _rebox_pairs(near[:n_near], escaped, segments, flag, inflated_inout, spring_particle_a, spring_particle_b,
                          np.empty(0, np.int64))
     keys = np.empty(count, np.int64)
-    _rebox_pairs(near[:n_near], escaped, segments, flag, inflated, spring_particle_a, spring_particle_b, keys)
+    _rebox_pairs(near[:n_near], escaped, segments, flag, inflated_inout, spring_particle_a, spring_particle_b, keys)
     keys = np.sort(keys)
     added = np.empty((keys.shape[0], 2), np.int32)
     for q in range(keys.shape[0]):

@@ -112,7 +112,7 @@ def _f_corners(
     u1: float,
     v0: float,
     v1: float,
-    corner: np.ndarray,
+    corner_out: np.ndarray,
 ) -> None:
     """Outward-rounded F at the 8 corners of the box: ``corner[0 / 1, c, k]`` lo / hi of
     component k at corner c = 4 it + 2 iu + iv.
@@ -144,7 +144,7 @@ def _f_corners(
                     ml, mh = iv_scale_nonneg(v, ebl, ebh)
                     bl, bh = iv_add(b0l, b0h, ml, mh)
                     c = 4 * it + 2 * iu + iv
-                    corner[0, c, k], corner[1, c, k] = iv_sub(al, ah, bl, bh)
+                    corner_out[0, c, k], corner_out[1, c, k] = iv_sub(al, ah, bl, bh)
 
 
 DISCARD, ACCEPT, SPLIT = 0, 1, 2
@@ -152,17 +152,17 @@ DISCARD, ACCEPT, SPLIT = 0, 1, 2
 
 
 @numba.njit(cache=True, fastmath=False)
-def _positions_at(work: np.ndarray, t: float, u0: float, u1: float, v0: float, v1: float) -> None:
+def _positions_at(work_inout: np.ndarray, t: float, u0: float, u1: float, v0: float, v1: float) -> None:
     """work[4] = sub-segments a(t, u0) a(t, u1), b(t, v0) b(t, v1) in plain floating point."""
     for k in range(3):
-        a0 = work[0, 0, k] + t * (work[1, 0, k] - work[0, 0, k])
-        a1 = work[0, 1, k] + t * (work[1, 1, k] - work[0, 1, k])
-        b0 = work[0, 2, k] + t * (work[1, 2, k] - work[0, 2, k])
-        b1 = work[0, 3, k] + t * (work[1, 3, k] - work[0, 3, k])
-        work[4, 0, k] = a0 + u0 * (a1 - a0)
-        work[4, 1, k] = a0 + u1 * (a1 - a0)
-        work[4, 2, k] = b0 + v0 * (b1 - b0)
-        work[4, 3, k] = b0 + v1 * (b1 - b0)
+        a0 = work_inout[0, 0, k] + t * (work_inout[1, 0, k] - work_inout[0, 0, k])
+        a1 = work_inout[0, 1, k] + t * (work_inout[1, 1, k] - work_inout[0, 1, k])
+        b0 = work_inout[0, 2, k] + t * (work_inout[1, 2, k] - work_inout[0, 2, k])
+        b1 = work_inout[0, 3, k] + t * (work_inout[1, 3, k] - work_inout[0, 3, k])
+        work_inout[4, 0, k] = a0 + u0 * (a1 - a0)
+        work_inout[4, 1, k] = a0 + u1 * (a1 - a0)
+        work_inout[4, 2, k] = b0 + v0 * (b1 - b0)
+        work_inout[4, 3, k] = b0 + v1 * (b1 - b0)
 
 
 @numba.njit(cache=True, fastmath=False, inline="always")
@@ -176,8 +176,8 @@ def _dot_lower(n0: float, n1: float, n2: float, corner: np.ndarray, c: int) -> f
 
 @numba.njit(cache=True, fastmath=False)
 def _proximity_status(
-    work: np.ndarray,
-    corner: np.ndarray,
+    work_inout: np.ndarray,
+    corner_inout: np.ndarray,
     t0: float,
     t1: float,
     u0: float,
@@ -197,17 +197,17 @@ def _proximity_status(
     ``work[4]`` scratch; ``corner`` (2, 8, 3) scratch for F at the box corners.
     ``h2_up >= h^2 >= h2_down``; ``delta`` the acceptance size of the hull of F [m].
     """
-    _f_corners(work[0], work[2], work[3], t0, t1, u0, u1, v0, v1, corner)
+    _f_corners(work_inout[0], work_inout[2], work_inout[3], t0, t1, u0, u1, v0, v1, corner_inout)
     # 2. hull B of F over the box: discard when B misses the ball |x| <= h.
     gap2 = 0.0  # lower bound of min |x|^2 over B
     far2 = 0.0  # upper bound of max |x|^2 over B
     width = 0.0
     for k in range(3):
-        lo = corner[0, 0, k]
-        hi = corner[1, 0, k]
+        lo = corner_inout[0, 0, k]
+        hi = corner_inout[1, 0, k]
         for c in range(1, 8):
-            lo = min(lo, corner[0, c, k])
-            hi = max(hi, corner[1, c, k])
+            lo = min(lo, corner_inout[0, c, k])
+            hi = max(hi, corner_inout[1, c, k])
         gk = iv_gap_to_zero(lo, hi)  # exact, no rounding
         if gk > 0.0:
             gap2 = round_down(gap2 + round_down(gk * gk))
@@ -223,16 +223,16 @@ def _proximity_status(
     # l0, l1 rounded-down values at t0, t1: no contact before the first s where that falls to
     # h |n| (conservative advancement).
     t_free = t0
-    _positions_at(work, t0, u0, u1, v0, v1)
-    su, sv = segment_closest_params_rows(work[4])
-    n0 = (work[4, 0, 0] + su * (work[4, 1, 0] - work[4, 0, 0])) - (
-        work[4, 2, 0] + sv * (work[4, 3, 0] - work[4, 2, 0])
+    _positions_at(work_inout, t0, u0, u1, v0, v1)
+    su, sv = segment_closest_params_rows(work_inout[4])
+    n0 = (work_inout[4, 0, 0] + su * (work_inout[4, 1, 0] - work_inout[4, 0, 0])) - (
+        work_inout[4, 2, 0] + sv * (work_inout[4, 3, 0] - work_inout[4, 2, 0])
     )
-    n1 = (work[4, 0, 1] + su * (work[4, 1, 1] - work[4, 0, 1])) - (
-        work[4, 2, 1] + sv * (work[4, 3, 1] - work[4, 2, 1])
+    n1 = (work_inout[4, 0, 1] + su * (work_inout[4, 1, 1] - work_inout[4, 0, 1])) - (
+        work_inout[4, 2, 1] + sv * (work_inout[4, 3, 1] - work_inout[4, 2, 1])
     )
-    n2 = (work[4, 0, 2] + su * (work[4, 1, 2] - work[4, 0, 2])) - (
-        work[4, 2, 2] + sv * (work[4, 3, 2] - work[4, 2, 2])
+    n2 = (work_inout[4, 0, 2] + su * (work_inout[4, 1, 2] - work_inout[4, 0, 2])) - (
+        work_inout[4, 2, 2] + sv * (work_inout[4, 3, 2] - work_inout[4, 2, 2])
     )
     d0 = math.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
     n_sq = round_up(round_up(round_up(n0 * n0) + round_up(n1 * n1)) + round_up(n2 * n2))
@@ -240,8 +240,8 @@ def _proximity_status(
         bound = round_up(h * round_up(math.sqrt(n_sq)))
         s_free = math.inf
         for c in range(4):  # (u, v) corner c: corner c at t0, corner 4 + c at t1
-            l0 = _dot_lower(n0, n1, n2, corner, c)
-            l1 = _dot_lower(n0, n1, n2, corner, c + 4)
+            l0 = _dot_lower(n0, n1, n2, corner_inout, c)
+            l1 = _dot_lower(n0, n1, n2, corner_inout, c + 4)
             if not l0 > bound:  # (also on NaN)
                 s_free = 0.0
                 break

@@ -43,14 +43,14 @@ from fraytool.collision.interval import (
 
 
 @numba.njit(cache=True, fastmath=False)
-def _iv_cross(p: np.ndarray, q: np.ndarray, out: np.ndarray) -> None:
+def _iv_cross(p: np.ndarray, q: np.ndarray, out_out: np.ndarray) -> None:
     """out = p x q for interval 3-vectors, arrays of shape (3, 2) holding (lo, hi)."""
     for k in range(3):
         k1 = (k + 1) % 3
         k2 = (k + 2) % 3
         al, ah = iv_mul(p[k1, 0], p[k1, 1], q[k2, 0], q[k2, 1])
         bl, bh = iv_mul(p[k2, 0], p[k2, 1], q[k1, 0], q[k1, 1])
-        out[k, 0], out[k, 1] = iv_sub(al, ah, bl, bh)
+        out_out[k, 0], out_out[k, 1] = iv_sub(al, ah, bl, bh)
 
 
 @numba.njit(cache=True, fastmath=False)

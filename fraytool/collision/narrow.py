@@ -84,7 +84,7 @@ def _apart_swept(xs, xe, i1, i2, i3, i4):
 
 
 @nb.njit(cache=True, fastmath=False)
-def _plane_gap(xs, xe, i1, i2, i3, i4, seg):
+def _plane_gap(xs, xe, i1, i2, i3, i4, seg_inout):
     """Gap between the end points of segment i1i2 and those of i3i4, at the step start (xs) and end
     (xe), along n = the closest-point vector of the two segments at the start (plain floating point:
     it only chooses n, any n gives a lower bound): min over the first segment's four points of
@@ -94,16 +94,16 @@ def _plane_gap(xs, xe, i1, i2, i3, i4, seg):
     ``seg`` is (4, 3) scratch. NaN or touching: a gap of -inf."""
     scale = 0.0
     for k in range(3):
-        seg[0, k] = xs[i1, k]
-        seg[1, k] = xs[i2, k]
-        seg[2, k] = xs[i3, k]
-        seg[3, k] = xs[i4, k]
+        seg_inout[0, k] = xs[i1, k]
+        seg_inout[1, k] = xs[i2, k]
+        seg_inout[2, k] = xs[i3, k]
+        seg_inout[3, k] = xs[i4, k]
         scale = max(scale, abs(xs[i1, k]), abs(xs[i2, k]), abs(xs[i3, k]), abs(xs[i4, k]),
                     abs(xe[i1, k]), abs(xe[i2, k]), abs(xe[i3, k]), abs(xe[i4, k]))
-    u, v = segment_closest_params_rows(seg)
-    n0 = seg[0, 0] + u * (seg[1, 0] - seg[0, 0]) - (seg[2, 0] + v * (seg[3, 0] - seg[2, 0]))
-    n1 = seg[0, 1] + u * (seg[1, 1] - seg[0, 1]) - (seg[2, 1] + v * (seg[3, 1] - seg[2, 1]))
-    n2 = seg[0, 2] + u * (seg[1, 2] - seg[0, 2]) - (seg[2, 2] + v * (seg[3, 2] - seg[2, 2]))
+    u, v = segment_closest_params_rows(seg_inout)
+    n0 = seg_inout[0, 0] + u * (seg_inout[1, 0] - seg_inout[0, 0]) - (seg_inout[2, 0] + v * (seg_inout[3, 0] - seg_inout[2, 0]))
+    n1 = seg_inout[0, 1] + u * (seg_inout[1, 1] - seg_inout[0, 1]) - (seg_inout[2, 1] + v * (seg_inout[3, 1] - seg_inout[2, 1]))
+    n2 = seg_inout[0, 2] + u * (seg_inout[1, 2] - seg_inout[0, 2]) - (seg_inout[2, 2] + v * (seg_inout[3, 2] - seg_inout[2, 2]))
     length = math.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
     if not length > 0.0:
         return -math.inf, scale
@@ -205,7 +205,7 @@ def _outside_reach(x, reach, i1, i2, i3, i4):
 
 
 @nb.njit(cache=True, fastmath=False)
-def swept_segment_boxes(x_start, x_end, spring_particle_a, spring_particle_b, segments, box_row, box):
+def swept_segment_boxes(x_start, x_end, spring_particle_a, spring_particle_b, segments, box_row, box_out):
     """Rows ``box[box_row[s]] = (lo, hi)`` of the listed segments' swept boxes, the very values
     ``_apart_swept`` computes (so the pre-test on them gives the same answers, bit for bit).
     ``box_row`` maps a spring slot to its row of ``box`` (one row per yarn segment, not per slot:
@@ -216,12 +216,12 @@ def swept_segment_boxes(x_start, x_end, spring_particle_a, spring_particle_b, se
         i2 = spring_particle_b[s]
         r = box_row[s]
         for d in range(3):
-            box[r, d] = min(min(x_start[i1, d], x_start[i2, d]), min(x_end[i1, d], x_end[i2, d]))
-            box[r, 3 + d] = max(max(x_start[i1, d], x_start[i2, d]), max(x_end[i1, d], x_end[i2, d]))
+            box_out[r, d] = min(min(x_start[i1, d], x_start[i2, d]), min(x_end[i1, d], x_end[i2, d]))
+            box_out[r, 3 + d] = max(max(x_start[i1, d], x_start[i2, d]), max(x_end[i1, d], x_end[i2, d]))
 
 
 @nb.njit(cache=True, fastmath=False)
-def end_segment_boxes(x, spring_particle_a, spring_particle_b, segments, box_row, box):
+def end_segment_boxes(x, spring_particle_a, spring_particle_b, segments, box_row, box_out):
     """Rows ``box[box_row[s]] = (lo, hi)`` of the listed segments' boxes at one instant, the very
     values ``_apart_at_end`` computes."""
     for k in range(segments.shape[0]):
@@ -230,8 +230,8 @@ def end_segment_boxes(x, spring_particle_a, spring_particle_b, segments, box_row
         i2 = spring_particle_b[s]
         r = box_row[s]
         for d in range(3):
-            box[r, d] = min(x[i1, d], x[i2, d])
-            box[r, 3 + d] = max(x[i1, d], x[i2, d])
+            box_out[r, d] = min(x[i1, d], x[i2, d])
+            box_out[r, 3 + d] = max(x[i1, d], x[i2, d])
 
 
 @nb.njit(cache=True, fastmath=False, inline="always")
@@ -266,16 +266,16 @@ def _apart_boxes_swept(box, i, j):
 
 @nb.njit(cache=True, fastmath=False)
 def ccd_pairs_all(x_start, x_end, candidates, spring_particle_a, spring_particle_b, spring_alive, segments, box_row,
-                  box):
+                  box_inout):
     """``ccd_pairs`` on every candidate (no ``moved``), faster: the swept boxes of the listed
     ``segments`` (every segment of the candidates) are computed once into ``box`` (scratch, a row
     per segment at ``box_row[slot]``, >= 6 columns) instead of once per pair; same answers, bit for bit."""
-    swept_segment_boxes(x_start, x_end, spring_particle_a, spring_particle_b, segments, box_row, box)
+    swept_segment_boxes(x_start, x_end, spring_particle_a, spring_particle_b, segments, box_row, box_inout)
     reach = 0.0  # the largest |coordinate| of the pass, as _coordinate_reach (every box value is one)
     for k in range(segments.shape[0]):
         s = segments[k]
         for d in range(6):
-            reach = max(reach, abs(box[box_row[s], d]))
+            reach = max(reach, abs(box_inout[box_row[s], d]))
     skip_m = CCD_SKIP_DELTAS * DELTA_REL * reach
     hit = np.zeros(candidates.shape[0], np.bool_)
     t_hit = np.ones(candidates.shape[0])
@@ -286,7 +286,7 @@ def ccd_pairs_all(x_start, x_end, candidates, spring_particle_a, spring_particle
         j = candidates[k, 1]
         if not (spring_alive[i] and spring_alive[j]):
             continue  # cut since the candidates were built
-        if _apart_boxes_swept(box, box_row[i], box_row[j]):
+        if _apart_boxes_swept(box_inout, box_row[i], box_row[j]):
             continue  # (the CCD would report no hit)
         i1, i2 = spring_particle_a[i], spring_particle_b[i]
         i3, i4 = spring_particle_a[j], spring_particle_b[j]

@@ -29,7 +29,7 @@ from fraytool.render.tube import VERTEX_FLOATS, body_pairs
 
 
 @numba.njit(cache=True)
-def _across(points, tangents, eye, direction, out):  # pragma: no cover - numba
+def _across(points, tangents, eye, direction, out_out):  # pragma: no cover - numba
     """Unit S = T x D per sample, D the direction to `eye` (if `direction` is all zero) or `direction`;
     where T and D are (nearly) parallel, any unit vector perpendicular to T."""
     for k in range(points.shape[0]):
@@ -50,9 +50,9 @@ def _across(points, tangents, eye, direction, out):  # pragma: no cover - numba
             else:
                 sx, sy, sz = ty, -tx, 0.0
             n = np.sqrt(sx * sx + sy * sy + sz * sz)
-        out[k, 0] = sx / n
-        out[k, 1] = sy / n
-        out[k, 2] = sz / n
+        out_out[k, 0] = sx / n
+        out_out[k, 1] = sy / n
+        out_out[k, 2] = sz / n
 
 
 def across(points: np.ndarray, tangents: np.ndarray, eye_m=None, direction=None) -> np.ndarray:

@@ -86,7 +86,7 @@ def _knot_step(a, b, alpha):  # pragma: no cover - numba
 
 
 @numba.njit(cache=True)
-def _sample_pieces(P, off, m, alpha, out):  # pragma: no cover - numba
+def _sample_pieces(P, off, m, alpha, out_out):  # pragma: no cover - numba
     """The samples of catmull_rom into `out`, piece after piece: segment s gives m[s] rows and each
     piece ends with its last control point. End segments
     use the reflected phantom points 2 P_0 - P_1 and 2 P_n - P_{n-1}; Barry-Goldman pyramid."""
@@ -121,10 +121,10 @@ def _sample_pieces(P, off, m, alpha, out):  # pragma: no cover - numba
                     a3 = p2[c] * (1.0 - w23) + p3[c] * w23
                     b1 = a1 * (1.0 - w02) + a2 * w02
                     b2 = a2 * (1.0 - w13) + a3 * w13
-                    out[row, c] = b1 * (1.0 - w12) + b2 * w12
+                    out_out[row, c] = b1 * (1.0 - w12) + b2 * w12
                 row += 1
         for c in range(3):
-            out[row, c] = P[last, c]
+            out_out[row, c] = P[last, c]
         row += 1
 
 
@@ -147,7 +147,7 @@ def _length(x, y, z):  # pragma: no cover - numba
 
 
 @numba.njit(cache=True)
-def _tangents(X, off, out):  # pragma: no cover - numba
+def _tangents(X, off, out_out):  # pragma: no cover - numba
     """polyline_tangents into `out`."""
     for piece in range(off.shape[0] - 1):
         first, last = off[piece], off[piece + 1] - 1
@@ -163,6 +163,6 @@ def _tangents(X, off, out):  # pragma: no cover - numba
                 length = _length(dx, dy, dz)
                 if length < 1e-15:
                     dx, dy, dz, length = 1.0, 0.0, 0.0, 1.0
-            out[i, 0] = dx / length
-            out[i, 1] = dy / length
-            out[i, 2] = dz / length
+            out_out[i, 0] = dx / length
+            out_out[i, 1] = dy / length
+            out_out[i, 2] = dz / length

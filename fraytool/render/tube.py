@@ -238,7 +238,7 @@ def translucent_triangles(offsets: np.ndarray, sides: int, alpha: np.ndarray) ->
 
 
 @numba.njit(cache=True)
-def _sweep(points, tangents, normals, alpha, warp, offsets, radius, sides, out):  # pragma: no cover - numba
+def _sweep(points, tangents, normals, alpha, warp, offsets, radius, sides, out_inout):  # pragma: no cover - numba
     M = points.shape[0]
     K = offsets.shape[0] - 1
     for k in range(M):
@@ -250,13 +250,13 @@ def _sweep(points, tangents, normals, alpha, warp, offsets, radius, sides, out):
             c, s = np.cos(th), np.sin(th)
             nx, ny, nz = c * ux + s * vx, c * uy + s * vy, c * uz + s * vz
             row = k * sides + q
-            out[row, 0] = points[k, 0] + radius * nx
-            out[row, 1] = points[k, 1] + radius * ny
-            out[row, 2] = points[k, 2] + radius * nz
-            out[row, 3], out[row, 4], out[row, 5] = nx, ny, nz
-            out[row, 6], out[row, 7], out[row, 8] = tx, ty, tz
-            out[row, 9] = alpha[k]
-            out[row, 10] = warp[k]
+            out_inout[row, 0] = points[k, 0] + radius * nx
+            out_inout[row, 1] = points[k, 1] + radius * ny
+            out_inout[row, 2] = points[k, 2] + radius * nz
+            out_inout[row, 3], out_inout[row, 4], out_inout[row, 5] = nx, ny, nz
+            out_inout[row, 6], out_inout[row, 7], out_inout[row, 8] = tx, ty, tz
+            out_inout[row, 9] = alpha[k]
+            out_inout[row, 10] = warp[k]
     for p in range(K):
         for end in range(2):
             k = offsets[p] if end == 0 else offsets[p + 1] - 1
@@ -265,16 +265,16 @@ def _sweep(points, tangents, normals, alpha, warp, offsets, radius, sides, out):
             for j in range(sides + 1):
                 row = base + j
                 if j == 0:
-                    out[row, 0], out[row, 1], out[row, 2] = points[k, 0], points[k, 1], points[k, 2]
+                    out_inout[row, 0], out_inout[row, 1], out_inout[row, 2] = points[k, 0], points[k, 1], points[k, 2]
                 else:
                     src = k * sides + j - 1
-                    out[row, 0], out[row, 1], out[row, 2] = out[src, 0], out[src, 1], out[src, 2]
-                out[row, 3] = sign * tangents[k, 0]
-                out[row, 4] = sign * tangents[k, 1]
-                out[row, 5] = sign * tangents[k, 2]
-                out[row, 6], out[row, 7], out[row, 8] = tangents[k, 0], tangents[k, 1], tangents[k, 2]
-                out[row, 9] = alpha[k]
-                out[row, 10] = warp[k]
+                    out_inout[row, 0], out_inout[row, 1], out_inout[row, 2] = out_inout[src, 0], out_inout[src, 1], out_inout[src, 2]
+                out_inout[row, 3] = sign * tangents[k, 0]
+                out_inout[row, 4] = sign * tangents[k, 1]
+                out_inout[row, 5] = sign * tangents[k, 2]
+                out_inout[row, 6], out_inout[row, 7], out_inout[row, 8] = tangents[k, 0], tangents[k, 1], tangents[k, 2]
+                out_inout[row, 9] = alpha[k]
+                out_inout[row, 10] = warp[k]
 
 
 def sweep_tubes(points: np.ndarray, tangents: np.ndarray, offsets: np.ndarray, radius_m: float, sides: int,

@@ -57,7 +57,7 @@ class Key:
             "float2": "an array of 2 numbers",
             "path": "an array of [t, x, y, z] arrays of finite numbers, times from 0 to 1e6 s and increasing, "
                     "positions",
-            "table2d": "an array of equal-length arrays of 0/1",
+            "table2d": "equal-length rows of the integers 0 and 1 (not true / false)",
         }[self.kind]
         bounds = []
         if self.lo is not None:
@@ -153,7 +153,8 @@ class Key:
                 return False, None
             width = None
             for row in value:
-                if not _is_seq(row) or not row or not all(v in (0, 1) and not isinstance(v, float) for v in row):
+                if not _is_seq(row) or not row or not all(v in (0, 1) and not isinstance(v, (float, bool))
+                                                          for v in row):
                     return False, None
                 width = len(row) if width is None else width
                 if len(row) != width:
@@ -180,13 +181,13 @@ def keys_of(cls: type) -> dict[str, Key]:
 PATH_MAX_TIME_S = 1.0e6
 """Latest keyframe time of a path [s]."""
 
-SHOW_MAX_CHARS = 120
+SHOW_MAX_CHARS = 80
 """Longest value echoed in a message; longer ones are cut, with their size (a 1,000,000-item array
 once made a 3 MB error line)."""
 
 
-def show(value: Any) -> str:
-    """A value as written in a scene file, for messages (at most about SHOW_MAX_CHARS characters)."""
+def show(value: Any, max_chars: int = SHOW_MAX_CHARS) -> str:
+    """A value as written in a scene file, for messages (at most about `max_chars` characters)."""
     if hasattr(value, "tolist"):
         value = value.tolist()
     if isinstance(value, str):
@@ -202,10 +203,10 @@ def show(value: Any) -> str:
             return f"[... nested arrays, {len(value)} items]"
     else:
         text = repr(value)
-    if len(text) <= SHOW_MAX_CHARS:
+    if len(text) <= max_chars:
         return text
     size = f"{len(value)} items" if isinstance(value, (list, tuple)) else f"{len(text)} characters"
-    return f"{text[:SHOW_MAX_CHARS]}... ({size})"
+    return f"{text[:max_chars]}... ({size})"
 
 
 def _is_number(v: Any) -> bool:

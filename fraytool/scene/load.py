@@ -6,6 +6,8 @@ into exit code 2. All problems in a file are reported at once.
 """
 from __future__ import annotations
 
+import difflib
+
 import hashlib
 import json
 import re
@@ -46,14 +48,44 @@ class _Problems:
         self.lines: list[str] = []
 
     def add(self, where: str, key: str | None, value: Any, allowed: str) -> None:
+        if isinstance(value, UnknownValue):
+            self.lines.append(f"{self.source}: [{where}] {key} = {show(value.value, UNKNOWN_SHOW_CHARS)}: {allowed}")
+            return
         if key is None:
             self.lines.append(f"{self.source}: [{where}]: {allowed}")
-        else:
-            self.lines.append(f"{self.source}: [{where}] {key} = {show(value)}: {allowed}")
+            return
+        line = f"{self.source}: [{where}] {key} = {show(value)}: {allowed}"
+        if len(line) > MESSAGE_CHARS and len(show(value)) > SHORT_SHOW_CHARS + 8:
+            line = f"{self.source}: [{where}] {key} = {show(value, SHORT_SHOW_CHARS)}: {allowed}"  # a long value
+        self.lines.append(line)
 
     def extend(self, where: str, problems: list[rules.Problem]) -> None:
         for key, value, allowed in problems:
             self.add(where, key, value, allowed)
+
+
+class UnknownValue:
+    """The value of an unknown key, for _Problems.add (echoed at UNKNOWN_SHOW_CHARS)."""
+
+    def __init__(self, value: Any):
+        self.value = value
+
+
+UNKNOWN_SHOW_CHARS = 12
+MESSAGE_CHARS = 180
+"""A problem line longer than this (with "fraytool: error: " in front) echoes a long value (cut at
+keys.SHOW_MAX_CHARS = 80 characters otherwise) at SHORT_SHOW_CHARS, so that the explanation fits."""
+SHORT_SHOW_CHARS = 24
+
+
+def allowed_keys(name: str, keys) -> str:
+    """What an unknown key's message says of the allowed ones: all of a short table (at most 6), else the
+    closest one and where they are all listed (a message line stays under 200 characters)."""
+    names = sorted(keys)
+    if len(names) <= 6:
+        return "allowed keys: " + ", ".join(names)
+    close = difflib.get_close_matches(str(name), names, n=1, cutoff=0.0)
+    return f"did you mean {close[0]}? (docs/scene-format.md)"
 
 
 def _read_table(doc: dict, where: str, keys: dict[str, Key], problems: _Problems) -> dict[str, Any]:
@@ -65,10 +97,12 @@ def _read_table(doc: dict, where: str, keys: dict[str, Key], problems: _Problems
                 continue  # a sub-table, read on its own
             tables = sorted(t.split(".")[-1] for t in schema.TOP if t.startswith(where + ".") and
                             t.count(".") == where.count(".") + 1)
-            allowed = "unknown key; allowed keys: " + ", ".join(sorted(keys))
-            if tables:
-                allowed += "; sub-tables: " + ", ".join(f"[{where}.{t}]" for t in tables)
-            problems.add(where, name, value, allowed)
+            parts = [allowed_keys(name, keys)]
+            if tables:  # a table given where a key goes: the sub-tables first
+                sub = "sub-tables: " + ", ".join(tables)
+                parts = [sub] + parts if isinstance(value, dict) else parts + [sub]
+            # (the value of an unknown key matters least: echoed short)
+            problems.add(where, name, UnknownValue(value), "unknown key; " + "; ".join(parts))
             continue
         key = keys[name]
         ok, converted = key.convert(value)

@@ -95,6 +95,8 @@ def body_problems(b: BodySpec) -> list[Problem]:
                     + (" (its size is half_extents_m)" if b.shape == "box" else "")))
     if b.shape != "box" and any(b.half_extents_m):
         out.append(("half_extents_m", list(b.half_extents_m), f"is for boxes; a {b.shape} does not use it"))
+    if b.shape != "plane" and tuple(b.normal) != (0.0, 1.0, 0.0):
+        out.append(("normal", list(b.normal), f"is for planes; a {b.shape} does not use it (turn it with rotation_deg)"))
     return out
 
 

@@ -13,7 +13,7 @@ from fraytool.scene.keys import REQUIRED, Key, keys_of
 
 __all__ = ["REQUIRED", "Key", "TOP", "REQUIRED_TABLES", "ARRAY_TABLES", "WEAVE_TABLE"]
 
-WEAVE_TABLE = Key("table2d", None, doc='with weave = "table": rows of 1 (weft on top) / 0 (warp on top)')
+WEAVE_TABLE = Key("table2d", None, doc='with weave = "table": 1 weft on top, 0 warp on top')
 """[cloth] table: the one key that is not a SceneSpec field (it becomes ClothSpec.weave_table)."""
 
 TOP: dict[str, dict[str, Key]] = {

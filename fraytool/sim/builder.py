@@ -514,9 +514,7 @@ class ModelBuilder:
             body_names=names,
             body_shape=np.array([SHAPE_NAMES.index(bd.shape) for bd in bodies], np.int8),
             body_motion=np.array([MOTION_NAMES.index(bd.motion) for bd in bodies], np.int8),
-            body_radius_m=np.array([bd.radius_m for bd in bodies], float),
-            body_half_extents_m=np.array([bd.half_extents_m for bd in bodies], float).reshape(-1, 3),
-            body_normal=normals,
+            body_params=np.array([_body_params(bd, normals[k]) for k, bd in enumerate(bodies)], float).reshape(-1, 3),
             body_rotation=rot,
             body_mass_kg=np.array([bd.mass_kg for bd in bodies], float),
             body_gravity=np.array([bd.gravity for bd in bodies], bool),
@@ -550,6 +548,15 @@ class ModelBuilder:
         )
 
 
+def _body_params(body: BodySpec, unit_normal: np.ndarray) -> tuple:
+    """A body's parameter vector by its kind (fraytool.sim.kernels.bodies)."""
+    if body.shape == "sphere":
+        return (body.radius_m, 0.0, 0.0)
+    if body.shape == "box":
+        return tuple(body.half_extents_m)
+    return tuple(unit_normal)  # a plane
+
+
 def longest_float(weft_on_top: np.ndarray) -> int:
     """The most consecutive crossings along any yarn where the same yarn stays on top (a float),
     from the weave pattern (crossing_weft_on_top as (weft_yarns, warp_yarns))."""
@@ -579,7 +586,8 @@ def build_model(spec: SceneSpec) -> Model:
     builder.add_cloth(warp_yarns=c.warp_yarns, weft_yarns=c.weft_yarns, spacing_m=c.spacing_m,
                       thickness_m=c.thickness_m, mass_per_crossing_kg=c.mass_per_crossing_kg, origin_m=c.origin_m,
                       plane=c.plane, weave=c.weave, twill=c.twill, satin_shafts=c.satin_shafts,
-                      table=c.weave_table if c.weave == "table" else None, **dataclasses.asdict(c.springs))
+                      table=[[int(v) for v in row] for row in c.weave_table] if c.weave == "table" else None,
+                      **dataclasses.asdict(c.springs))
     builder.set_strain_limit(**dataclasses.asdict(c.strain))
     builder.set_tearing(**dataclasses.asdict(c.tearing))
     builder.set_self_collision(**dataclasses.asdict(spec.self_collision))

@@ -31,6 +31,7 @@ import numpy as np
 
 from fraytool.sim.diagnostic import unstable_diagnostic
 from fraytool.sim.solver import SimulationUnstable, SolverExplicitPBD
+from fraytool.sim.stages.base import FORCES, START_POSITIONS
 from fraytool.sim.state import State
 
 class StageFailure(Exception):
@@ -50,7 +51,7 @@ def _first_bad_row(values: np.ndarray, rows: np.ndarray, limit: float = math.inf
     return int(rows[np.argmax(bad)]) if bad.any() else -1
 
 
-def make_stage_check(solver: SolverExplicitPBD, state: State, dt_s: float) -> Callable[[str, str], None]:
+def make_stage_check(solver: SolverExplicitPBD, state: State, dt_s: float) -> Callable[[object], None]:
     """The check run after every stage of one replayed step; raises StageFailure at the first bad value.
     Slaved crossings (multi-resolution model) are left out: the step does not keep them current (they
     follow their nodes, which are checked)."""
@@ -59,25 +60,28 @@ def make_stage_check(solver: SolverExplicitPBD, state: State, dt_s: float) -> Ca
     active = np.nonzero(checked)[0]
     moved = {"positions": False, "forces": False}
 
-    def check(stage: str, kernel: str) -> None:
-        if stage == "forces":
+    def check(stage) -> None:
+        # from the stage's declared writes: forces once written are checked; positions and their
+        # velocities once the start-of-step positions are (the position update)
+        if FORCES in stage.writes:
             moved["forces"] = True
-        if kernel == "integrate_positions":
+        if START_POSITIONS in stage.writes:
             moved["positions"] = True
         bad = -1
         if moved["forces"]:
-            bad = _first_bad_row(solver.buffers.force_n, active)
+            bad = _first_bad_row(solver.context.force_n, active)
         if bad < 0:
             bad = _first_bad_row(state.particle_velocity_m_s, active, solver.speed_limit_m_s)
         if bad < 0 and moved["positions"]:
             bad = _first_bad_row(state.particle_position_m, active)
             if bad < 0:
-                bad = _first_bad_row((state.particle_position_m - solver.buffers.prev_position_m) / dt_s, active, solver.speed_limit_m_s)
+                bad = _first_bad_row((state.particle_position_m - solver.context.prev_position_m) / dt_s, active, solver.speed_limit_m_s)
         body = -1
         if bad < 0 and state.body_position_m.size:
             body = _first_bad_row(state.body_position_m, np.arange(state.body_position_m.shape[0]))
         if bad >= 0 or body >= 0:
-            diag = unstable_diagnostic(solver.model, solver.speed_limit_m_s, state, bad, stage, kernel, dt_s)
+            diag = unstable_diagnostic(solver.model, solver.speed_limit_m_s, state, bad, stage.name, stage.kernel,
+                                       dt_s)
             if body >= 0:
                 diag["body"] = solver.model.body_names[body]
             raise StageFailure(diag)
@@ -101,7 +105,7 @@ def replay_failed_step(solver: SolverExplicitPBD, start: State, dt_s: float, fai
         for _ in range(steps - 1):
             solver.step(state, dt_s)
         before = state.copy()
-        solver.end_frame(before, dt_s)  # the last good state as a frame's record would hold it
+        solver.complete(before, dt_s)  # the last good state as a frame's record would hold it
         solver.stage_check = make_stage_check(solver, state, dt_s)
         try:
             solver.step(state, dt_s)

@@ -77,15 +77,12 @@ class Model:
 
     body_names: tuple[str, ...]
     body_shape: np.ndarray
-    """SHAPE_* per body, shape (body_count,), int8."""
+    """The body's kind, SHAPE_* (fraytool.kinds), shape (body_count,), int8."""
     body_motion: np.ndarray
     """MOTION_* per body, shape (body_count,), int8."""
-    body_radius_m: np.ndarray
-    """Sphere radius [m], shape (body_count,)."""
-    body_half_extents_m: np.ndarray
-    """Box half extents [m], shape (body_count, 3)."""
-    body_normal: np.ndarray
-    """Plane unit normal in the body frame, shape (body_count, 3)."""
+    body_params: np.ndarray
+    """Parameters by kind, shape (body_count, 3), float64: sphere (radius [m], 0, 0), box half extents [m],
+    plane unit normal in the body frame (fraytool.sim.kernels.bodies)."""
     body_rotation: np.ndarray
     """Fixed orientation (body to world), shape (body_count, 3, 3)."""
     body_mass_kg: np.ndarray
@@ -211,10 +208,15 @@ class Model:
         return state
 
     def arrays(self) -> dict[str, np.ndarray]:
-        """All array fields, for saving (topology.npz)."""
+        """All array fields, for saving (topology.npz); the bodies' parameters also as the per-shape arrays
+        frame folders have always held (body_radius_m, body_half_extents_m, body_normal)."""
+        from fraytool.sim.kernels.bodies import legacy_body_arrays
+
         out = {}
         for f in fields(self):
             v = getattr(self, f.name)
+            if f.name == "body_params":
+                out.update(legacy_body_arrays(self.body_shape, v))
             if isinstance(v, np.ndarray):
                 out[f.name] = v
             elif isinstance(v, (int, float, bool)):

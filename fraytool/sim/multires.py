@@ -293,8 +293,8 @@ def moving_body_reach(model, layout: CoarseLayout) -> tuple[np.ndarray, np.ndarr
     nodes = layout.cell_nodes(model.warp_yarns)
     rest = model.crossing_rest_position_m
     diagonal = float(np.max(np.linalg.norm(rest[nodes[:, 3]] - rest[nodes[:, 0]], axis=1)))
-    reach = np.array([bounding_radius(model.body_shape[k], model.body_radius_m[k], model.body_half_extents_m[k],
-                                      0.5 * model.thickness_m) + (model.refine_band_cells + 1) * diagonal
+    reach = np.array([bounding_radius(model.body_shape[k], model.body_params[k], 0.5 * model.thickness_m)
+                      + (model.refine_band_cells + 1) * diagonal
                       for k in bodies])
     return bodies, reach
 
@@ -317,11 +317,11 @@ def followed_by_interpolation(model, layout: CoarseLayout) -> np.ndarray:
 
 
 def dilate(cells: np.ndarray, cells_x: int, cells_y: int, band: int) -> np.ndarray:
-    """Cells within `band` cells (Chebyshev) of a True cell."""
+    """Cells within `band` cells (Chebyshev) of a True cell (a grid of cells or of crossings)."""
     grid = cells.reshape(cells_y, cells_x)
     out = grid.copy()
-    for dj in range(-band, band + 1):
-        for di in range(-band, band + 1):
+    for dj in range(-min(band, cells_y - 1), min(band, cells_y - 1) + 1):  # (a shift past the grid reaches nothing)
+        for di in range(-min(band, cells_x - 1), min(band, cells_x - 1) + 1):
             src = grid[max(0, -dj):cells_y - max(0, dj), max(0, -di):cells_x - max(0, di)]
             out[max(0, dj):cells_y - max(0, -dj), max(0, di):cells_x - max(0, -di)] |= src
     return out.ravel()

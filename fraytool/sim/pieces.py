@@ -8,6 +8,8 @@
 """
 from __future__ import annotations
 
+from typing import Optional
+
 import numpy as np
 
 from fraytool.sim.kernels.pieces import label_pieces, max_woven_strain, piece_masses
@@ -46,6 +48,65 @@ def woven_strain(model: Model, state: State) -> tuple[float, int]:
     version with its index arrays took 4.5 ms a frame on the 256 x 256 tablecloth)."""
     strain, spring = max_woven_strain(model.spring_kind, model.spring_crossing_a, model.spring_crossing_b,
                                       state.crossing_yarn_level, state.couple_connected, state.spring_alive,
+                                      state.spring_particle_a, state.spring_particle_b, state.spring_rest_length_m,
+                                      state.particle_position_m)
+    return float(strain), int(spring)
+
+
+NEAR_SPACINGS = 4
+"""A crossing within this many yarn spacings of a held crossing (on the grid) or of a colliding body's
+surface is near a grip or a body: strain there is the grip's or the body's doing."""
+
+
+def dilate_on_grid(model: Model, marked: np.ndarray, spacings: int = NEAR_SPACINGS) -> np.ndarray:
+    """Crossings within `spacings` grid steps (in i and in j) of a `marked` crossing, shape (crossing_count,)."""
+    from fraytool.sim.multires import dilate  # (cells or crossings: a grid all the same)
+
+    return dilate(marked, model.warp_yarns, model.weft_yarns, spacings)
+
+
+def crossings_near_grips(model: Model, spacings: int = NEAR_SPACINGS) -> np.ndarray:
+    """Crossings within `spacings` grid steps of a crossing held by an attachment, shape (crossing_count,)."""
+    held = np.zeros(model.crossing_count, bool)
+    held[model.attachment_particle % model.crossing_count] = True
+    return dilate_on_grid(model, held, spacings)
+
+
+def body_surface_distance_m(model: Model, state: State, body: int, x: np.ndarray) -> np.ndarray:
+    """Signed distance [m] of points `x` (N, 3) from body `body`'s surface (negative inside)."""
+    from fraytool.kinds import SHAPE_BOX, SHAPE_SPHERE
+
+    rel = x - state.body_position_m[body]
+    rot = model.body_rotation[body]
+    shape = int(model.body_shape[body])
+    params = model.body_params[body]
+    if shape == SHAPE_SPHERE:
+        return np.linalg.norm(rel, axis=1) - params[0]
+    if shape == SHAPE_BOX:
+        q = np.abs(rel @ rot) - params
+        return np.linalg.norm(np.maximum(q, 0.0), axis=1) + np.minimum(q.max(axis=1), 0.0)
+    return rel @ (rot @ params)  # a plane: its normal
+
+
+def woven_strain_away(model: Model, state: State, near_grips: np.ndarray, self_contact: Optional[np.ndarray] = None,
+                      spacings: int = NEAR_SPACINGS) -> tuple[float, int]:
+    """woven_strain over the springs whose two end crossings are farther than `spacings` yarn spacings
+    from a grip (`near_grips`, crossings_near_grips), from every colliding body, and (on the grid) from
+    the crossings in contact with the cloth itself (`self_contact`, a mask over particle slots, from the
+    self-collision stage): where strain past the limit is the step's or the limit's doing, not that of
+    a grip or a body pulling or pushing (the case a user can act on)."""
+    n = model.crossing_count
+    near = near_grips.copy()
+    if self_contact is not None and self_contact.any():
+        touching = np.zeros(n, bool)
+        touching[np.flatnonzero(self_contact) % n] = True
+        near |= dilate_on_grid(model, touching, spacings)
+    x = state.particle_position_m[:n]
+    for k in np.flatnonzero(model.body_collide):
+        near |= body_surface_distance_m(model, state, int(k), x) < spacings * model.spacing_m
+    alive = state.spring_alive & ~(near[model.spring_crossing_a] | near[model.spring_crossing_b])
+    strain, spring = max_woven_strain(model.spring_kind, model.spring_crossing_a, model.spring_crossing_b,
+                                      state.crossing_yarn_level, state.couple_connected, alive,
                                       state.spring_particle_a, state.spring_particle_b, state.spring_rest_length_m,
                                       state.particle_position_m)
     return float(strain), int(spring)

@@ -10,7 +10,9 @@ Per step of size dt:
  8. velocity post-process v = (x - x_prev) / dt, with the stability guard.
 The solver builds its own stages from the model (fraytool.sim.stages.build_stages): a stage that a
 scene does not use is not in the list (no rigid pass without bodies, no attachment pass without
-attachments, no yarn-level pass without tearing) and its kernels are never compiled.
+attachments, no yarn-level pass without tearing) and its kernels are never compiled. What the stages
+share lives in one StepContext (`solver.context`); what each reads and writes is declared on it, and the
+syncs a coarse base model needs are inserted from those declarations (fraytool.sim.stages.plan_syncs).
 """
 from __future__ import annotations
 
@@ -23,7 +25,7 @@ from fraytool.errors import RunError
 from fraytool.kinds import MOTION_DYNAMIC
 from fraytool.sim.diagnostic import unstable_diagnostic, unstable_message
 from fraytool.sim.model import Model
-from fraytool.sim.stages import STAGE_NAMES, StepBuffers, build_stages
+from fraytool.sim.stages import STAGE_NAMES, StepContext, build_stages, plan_syncs
 from fraytool.sim.stages.core import colour_ordered_structural_springs
 from fraytool.sim.state import State
 
@@ -45,122 +47,113 @@ class SolverExplicitPBD:
         self.model = model
         self.speed_limit_m_s = speed_limit_m_s
         """Guard: a particle faster than this [m/s] (or non-finite) stops the run."""
-        self.buffers = StepBuffers.for_model(model)
-        self.stages = build_stages(model, speed_limit_m_s)
-        """The step's stages in order (fraytool.sim.stages)."""
-        refinement = self._find("Refinement")
-        if refinement is not None:  # a multi-resolution model: its slaved crossings are not moving particles
-            self.buffers.lists.slaved_of = refinement.runtime.slaved_now
-        self.stage_s = dict.fromkeys(STAGE_NAMES, 0.0)
-        """Wall time spent per stage since construction [s]."""
-        self.stage_check: Optional[Callable[[str, str], None]] = None
-        """Called after every stage as stage_check(stage name, kernel name) while fraytool.sim.guard
-        replays a failed step to find the stage that went wrong; None (no cost) in normal runs."""
+        self.context = StepContext.for_model(model)
+        """What the stages share (fraytool.sim.stages.base.StepContext)."""
+        self._plan = build_stages(model, speed_limit_m_s, self.context)
+        self.stages = plan_syncs(self._plan.stages, self.context)
+        """The step's stages in order, with the coarse syncs the declarations call for (fraytool.sim.stages)."""
+        if self.context.coarse is not None:  # a multi-resolution model: its slaved crossings are not moving
+            self.context.lists.slaved_of = self.context.coarse.slaved_now
+        self.stage_check: Optional[Callable[[object], None]] = None
+        """Called after every stage as stage_check(stage) while fraytool.sim.guard replays a failed step
+        to find the stage that went wrong; None (no cost) in normal runs."""
         self._guard_bodies = bool((model.body_motion == MOTION_DYNAMIC).any())
 
-    # -- the stages, by role ------------------------------------------------------------------
-    def _find(self, cls_name: str):
-        for stage in self.stages:
-            if type(stage).__name__ == cls_name:
-                return stage
-        return None
-
+    # -- what tools read ---------------------------------------------------------------------------
     @property
     def tearing(self):
         """The yarn-level model (fraytool.sim.tearing.YarnTearing) of a tearing scene, else None."""
-        stage = self._find("TearingStage")
-        return stage.tearing if stage is not None else None
+        return self.context.yarn_tearing
 
     @property
     def self_collision(self):
         """The self-collision stage of a scene with self-collision on, else None."""
-        return self._find("SelfCollision")
+        return self._plan.self_collision
 
     @property
-    def yarn_contact(self):
-        """The couple-contact stage (tearing with the yarn-level model), else None."""
-        return self._find("YarnContactStage")
-
-    @property
-    def _strain(self):
-        return self._find("StrainLimiting")
+    def stage_s(self) -> dict:
+        """Wall time spent per stage since construction [s]."""
+        return self.context.counters.stage_s
 
     @property
     def strain_iterations_last(self) -> int:
-        return self._strain.iterations_last
+        return self.context.counters.strain_iterations_last
 
     @property
     def strain_iterations_max(self) -> int:
-        return self._strain.iterations_max
+        return self.context.counters.strain_iterations_max
 
     @property
     def strain_cap_hits(self) -> int:
         """Steps where strain limiting stopped at the iteration cap without converging."""
-        return self._strain.cap_hits
+        return self.context.counters.strain_cap_hits
 
     @property
     def rigid_contacts_last(self) -> int:
-        stage = self._find("RigidContact")
-        return stage.contacts_last if stage is not None else 0
+        return self.context.counters.rigid_contacts_last
 
-    def counters(self) -> tuple:
+    def counters(self):
         """The solver's running counters (timers, strain iterations, contacts), for save/restore."""
-        strain, rigid = self._strain, self._find("RigidContact")
-        return (dict(self.stage_s), strain.iterations_last, strain.iterations_max, strain.cap_hits,
-                rigid.contacts_last if rigid is not None else 0)
+        return self.context.counters.copy()
 
-    def restore_counters(self, saved: tuple) -> None:
-        strain, rigid = self._strain, self._find("RigidContact")
-        self.stage_s, strain.iterations_last, strain.iterations_max, strain.cap_hits, contacts = saved
-        if rigid is not None:
-            rigid.contacts_last = contacts
+    def restore_counters(self, saved) -> None:
+        self.context.counters = saved.copy()
 
     def insert_stage(self, stage) -> None:
         """Add a stage (fraytool.sim.stages.Stage) after the last stage of the same or an earlier
-        place in STAGE_NAMES (before the velocity post-process)."""
+        place in STAGE_NAMES (before the velocity post-process); the coarse syncs are planned again."""
+        stages = self._plan.stages
         rank = STAGE_NAMES.index(stage.name)
-        at = len(self.stages) - 1
-        while at > 0 and STAGE_NAMES.index(self.stages[at - 1].name) > rank:
+        at = len(stages) - 1
+        while at > 0 and STAGE_NAMES.index(stages[at - 1].name) > rank:
             at -= 1
-        self.stages.insert(at, stage)
+        stages.insert(at, stage)
+        self.stages = plan_syncs(stages, self.context)
 
     def summary(self, state: State) -> dict:
-        """Figures of every stage that has some (merged into `fraytool simulate --json`)."""
+        """Figures of every stage that has some, and the tear's (merged into `fraytool simulate --json`)."""
         out: dict = {}
         for stage in self.stages:
             out.update(stage.summary(state))
+        if self.context.yarn_tearing is not None:
+            out.update(self.context.yarn_tearing.summary(state))
         return out
 
     # -- the step --------------------------------------------------------------------------------
     def step(self, state: State, dt_s: float) -> None:
-        """Advance `state` by dt_s in place."""
-        buffers = self.buffers
-        buffers.bad_particle = -1
+        """Advance `state` by dt_s in place.
+
+        The state a step leaves is complete for the step's own needs but not for a reader outside it:
+        in a multi-resolution model the crossings slaved to coarse nodes are brought up to date only
+        where a stage reads them. Before reading a state (a frame's record, a checkpoint, a check, your
+        own code) call `complete(state, dt_s)` once: it is what `Simulation.advance_frame`, the run to
+        disk, the guard and the study call. It does nothing for a model without a coarse grid."""
+        ctx = self.context
+        ctx.bad_particle = -1
+        stage_s = ctx.counters.stage_s
         for stage in self.stages:
             t0 = time.perf_counter()
-            stage.run(state, buffers, dt_s)
-            self.stage_s[stage.name] += time.perf_counter() - t0
+            stage.run(state, ctx, dt_s)
+            stage_s[stage.name] += time.perf_counter() - t0
             if self.stage_check is not None:
-                self.stage_check(stage.name, stage.kernel)
+                self.stage_check(stage)
         state.time_s = state.time_s + dt_s
         state.step_index += 1
-        if buffers.bad_particle >= 0:
-            self._unstable(state, buffers.bad_particle, dt_s)
+        if ctx.bad_particle >= 0:
+            self._unstable(state, ctx.bad_particle, dt_s)
         if self._guard_bodies and not np.isfinite(state.body_position_m).all():
             self._unstable(state, -1, dt_s)  # a thrown body received a non-finite impulse
 
-    def slaved_crossings(self, state: State) -> np.ndarray:
-        """The crossings slaved to coarse nodes in `state` (multi-resolution model; else none): their
-        state is brought up to date where it is read and at the end of a frame (`end_frame`)."""
-        return self.buffers.lists.slaved(state)
+    def complete(self, state: State, dt_s: float) -> None:
+        """Bring what the steps leave out up to date (the slaved crossings of a multi-resolution model:
+        positions on their interpolation, velocities of the last step), so that every field of `state`
+        holds its value; call after your last step, before reading or saving the state."""
+        if self.context.coarse is not None:
+            self.context.coarse.complete(state, self.context, dt_s, self.speed_limit_m_s)
 
-    def end_frame(self, state: State, dt_s: float) -> None:
-        """Bring what the steps leave out up to date for the frame's record and checkpoint (the slaved
-        crossings' velocities of a multi-resolution model); call after the last step of a frame."""
-        for stage in self.stages:
-            finish = getattr(stage, "end_frame", None)
-            if finish is not None:
-                finish(state, self.buffers, dt_s)
+    def slaved_crossings(self, state: State) -> np.ndarray:
+        """The crossings slaved to coarse nodes in `state` (multi-resolution model; else none)."""
+        return self.context.slaved(state)
 
     def _unstable(self, state: State, particle: int, dt_s: float) -> None:
         """Stop the run: the end-of-step guard found `particle` (or, if -1, a rigid body) non-finite or
@@ -174,4 +167,4 @@ class SolverExplicitPBD:
         raise SimulationUnstable(unstable_message(diag), diag)
 
     def reset_timers(self) -> None:
-        self.stage_s = dict.fromkeys(STAGE_NAMES, 0.0)
+        self.context.counters.stage_s = dict.fromkeys(STAGE_NAMES, 0.0)

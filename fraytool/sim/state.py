@@ -2,12 +2,27 @@
 
 Tearing changes topology without resizing arrays: particles and springs have alive/active flags,
 and a split re-points spring ends (spring_particle_a/b) from the base slot to a couple mass.
+
+`topology_epoch` is the one change counter of the topology: every pass that changes it (split, cut,
+disconnect, refine) calls `bump_topology`, and every cache derived from the topology (particle lists,
+pieces, couple lists, the coarse model's work lists) is keyed on it. Epochs are drawn from one counter
+per process, so two states with the same epoch have the same topology (a copy keeps its original's
+epoch; a state loaded from arrays gets a new one). Code that edits masses, flags or spring ends by
+hand calls `bump_topology` after it.
 """
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass, field, fields
 
 import numpy as np
+
+_EPOCHS = itertools.count(1)
+
+
+def new_topology_epoch() -> int:
+    """An epoch no state of this process has had."""
+    return next(_EPOCHS)
 
 
 
@@ -50,6 +65,12 @@ class State:
     coarse_cell_refined: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
     """Multi-resolution model ([cloth.multires] factor > 1): the coarse cells refined to yarn resolution
     so far, shape (cell_count,), bool (fraytool.sim.multires); empty at yarn resolution everywhere."""
+    topology_epoch: int = field(default_factory=new_topology_epoch)
+    """The topology's change counter (module docstring): not saved, a loaded state gets a new one."""
+
+    def bump_topology(self) -> None:
+        """Record a change of topology (springs, couples, cells, masses or active flags)."""
+        self.topology_epoch = new_topology_epoch()
 
     def copy(self) -> "State":
         kw = {f.name: (getattr(self, f.name).copy() if isinstance(getattr(self, f.name), np.ndarray)
@@ -57,13 +78,15 @@ class State:
         return State(**kw)
 
     def arrays(self) -> dict[str, np.ndarray]:
-        """Every field as an array (full precision), for checkpoints."""
-        return {f.name: np.asarray(getattr(self, f.name)) for f in fields(self)}
+        """Every saved field as an array (full precision), for checkpoints (not the topology epoch)."""
+        return {f.name: np.asarray(getattr(self, f.name)) for f in fields(self) if f.name != "topology_epoch"}
 
     @staticmethod
     def from_arrays(data) -> "State":
         kw = {}
         for f in fields(State):
+            if f.name == "topology_epoch":
+                continue  # not saved: a new one
             if f.name == "coarse_cell_refined" and f.name not in data:
                 continue  # a checkpoint from before the multi-resolution model: the default (empty)
             v = np.asarray(data[f.name])

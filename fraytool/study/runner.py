@@ -163,7 +163,7 @@ def run_variant(spec: SceneSpec, frames: Optional[int] = None, record: bool = Fa
                 free = sim.state.particle_inv_mass > 0.0  # held masses follow their body
                 recent.append((sim.state.step_index, sim.state.particle_velocity_m_s[free].copy()))
                 del recent[:-3]
-            sim.solver.end_frame(sim.state, h)  # the frame's record as advance_frame leaves it
+            sim.complete()  # the frame's record as advance_frame leaves it
             out.steps = sim.state.step_index
             v_after = recent[-1][1]
             (n0, v0), (n1, v1), (n2, v2) = recent if len(recent) == 3 else [(0, None)] * 3

@@ -19,7 +19,7 @@ import numpy as np
 
 
 @nb.njit(cache=True, fastmath=False)
-def pbd_damping(particles, unit_bounds, particle_position_m, particle_velocity_m_s, particle_mass_kg, particle_inv_mass,
+def pbd_damping(particles, unit_bounds, particle_position_m, particle_velocity_m_s_inout, particle_mass_kg, particle_inv_mass,
                 k_damping):
     """Damp the velocities of all free particles (inverse mass > 0) together, in place."""
     m_sum = 0.0
@@ -33,7 +33,7 @@ def pbd_damping(particles, unit_bounds, particle_position_m, particle_velocity_m
         m_sum += m
         for d in range(3):
             xc[d] += m * particle_position_m[p, d]
-            vc[d] += m * particle_velocity_m_s[p, d]
+            vc[d] += m * particle_velocity_m_s_inout[p, d]
     if m_sum == 0.0:
         return
     xc /= m_sum
@@ -48,7 +48,7 @@ def pbd_damping(particles, unit_bounds, particle_position_m, particle_velocity_m
         rx = particle_position_m[p, 0] - xc[0]
         ry = particle_position_m[p, 1] - xc[1]
         rz = particle_position_m[p, 2] - xc[2]
-        vx, vy, vz = particle_velocity_m_s[p, 0], particle_velocity_m_s[p, 1], particle_velocity_m_s[p, 2]
+        vx, vy, vz = particle_velocity_m_s_inout[p, 0], particle_velocity_m_s_inout[p, 1], particle_velocity_m_s_inout[p, 2]
         L[0] += m * (ry * vz - rz * vy)
         L[1] += m * (rz * vx - rx * vz)
         L[2] += m * (rx * vy - ry * vx)
@@ -63,12 +63,12 @@ def pbd_damping(particles, unit_bounds, particle_position_m, particle_velocity_m
     I[2, 0] = I[0, 2]
     I[2, 1] = I[1, 2]
     w = _solve3(I, L)
-    _damp_toward(particles, unit_bounds, particle_position_m, particle_velocity_m_s, particle_inv_mass, xc, vc, w,
+    _damp_toward(particles, unit_bounds, particle_position_m, particle_velocity_m_s_inout, particle_inv_mass, xc, vc, w,
                  k_damping)
 
 
 @nb.njit(cache=True, fastmath=False, parallel=True)
-def _damp_toward(particles, unit_bounds, particle_position_m, particle_velocity_m_s, particle_inv_mass, xc, vc, w,
+def _damp_toward(particles, unit_bounds, particle_position_m, particle_velocity_m_s_inout, particle_inv_mass, xc, vc, w,
                  k_damping):
     """The last pass of `pbd_damping`, particle by particle in parallel over the units."""
     for u in nb.prange(unit_bounds.shape[0] - 1):
@@ -79,9 +79,9 @@ def _damp_toward(particles, unit_bounds, particle_position_m, particle_velocity_
             rx = particle_position_m[p, 0] - xc[0]
             ry = particle_position_m[p, 1] - xc[1]
             rz = particle_position_m[p, 2] - xc[2]
-            particle_velocity_m_s[p, 0] += k_damping * (vc[0] + w[1] * rz - w[2] * ry - particle_velocity_m_s[p, 0])
-            particle_velocity_m_s[p, 1] += k_damping * (vc[1] + w[2] * rx - w[0] * rz - particle_velocity_m_s[p, 1])
-            particle_velocity_m_s[p, 2] += k_damping * (vc[2] + w[0] * ry - w[1] * rx - particle_velocity_m_s[p, 2])
+            particle_velocity_m_s_inout[p, 0] += k_damping * (vc[0] + w[1] * rz - w[2] * ry - particle_velocity_m_s_inout[p, 0])
+            particle_velocity_m_s_inout[p, 1] += k_damping * (vc[1] + w[2] * rx - w[0] * rz - particle_velocity_m_s_inout[p, 1])
+            particle_velocity_m_s_inout[p, 2] += k_damping * (vc[2] + w[0] * ry - w[1] * rx - particle_velocity_m_s_inout[p, 2])
 
 
 @nb.njit(cache=True, fastmath=False)
@@ -109,7 +109,7 @@ def _solve3(A, b):
 
 
 @nb.njit(cache=True, fastmath=False)
-def pbd_damping_pieces(particles, unit_bounds, particle_position_m, particle_velocity_m_s, particle_mass_kg,
+def pbd_damping_pieces(particles, unit_bounds, particle_position_m, particle_velocity_m_s_inout, particle_mass_kg,
                        particle_inv_mass, particle_piece, piece_count, k_damping):
     """The same damping applied to each piece of a torn cloth on its own (fraytool.sim.kernels.pieces):
     every piece keeps its own linear and angular momentum, so pieces moving apart rigidly keep their
@@ -126,7 +126,7 @@ def pbd_damping_pieces(particles, unit_bounds, particle_position_m, particle_vel
         m_sum[k] += m
         for d in range(3):
             xc[k, d] += m * particle_position_m[p, d]
-            vc[k, d] += m * particle_velocity_m_s[p, d]
+            vc[k, d] += m * particle_velocity_m_s_inout[p, d]
     for k in range(piece_count):
         if m_sum[k] > 0.0:
             for d in range(3):
@@ -143,7 +143,7 @@ def pbd_damping_pieces(particles, unit_bounds, particle_position_m, particle_vel
         rx = particle_position_m[p, 0] - xc[k, 0]
         ry = particle_position_m[p, 1] - xc[k, 1]
         rz = particle_position_m[p, 2] - xc[k, 2]
-        vx, vy, vz = particle_velocity_m_s[p, 0], particle_velocity_m_s[p, 1], particle_velocity_m_s[p, 2]
+        vx, vy, vz = particle_velocity_m_s_inout[p, 0], particle_velocity_m_s_inout[p, 1], particle_velocity_m_s_inout[p, 2]
         L[k, 0] += m * (ry * vz - rz * vy)
         L[k, 1] += m * (rz * vx - rx * vz)
         L[k, 2] += m * (rx * vy - ry * vx)
@@ -159,12 +159,12 @@ def pbd_damping_pieces(particles, unit_bounds, particle_position_m, particle_vel
         I[k, 2, 0] = I[k, 0, 2]
         I[k, 2, 1] = I[k, 1, 2]
         w[k] = _solve3(I[k], L[k])
-    _damp_pieces_toward(particles, unit_bounds, particle_position_m, particle_velocity_m_s, particle_inv_mass,
+    _damp_pieces_toward(particles, unit_bounds, particle_position_m, particle_velocity_m_s_inout, particle_inv_mass,
                         particle_piece, xc, vc, w, k_damping)
 
 
 @nb.njit(cache=True, fastmath=False, parallel=True)
-def _damp_pieces_toward(particles, unit_bounds, particle_position_m, particle_velocity_m_s, particle_inv_mass,
+def _damp_pieces_toward(particles, unit_bounds, particle_position_m, particle_velocity_m_s_inout, particle_inv_mass,
                         particle_piece, xc, vc, w, k_damping):
     """The last pass of `pbd_damping_pieces`, particle by particle in parallel over the units."""
     for u in nb.prange(unit_bounds.shape[0] - 1):
@@ -176,9 +176,9 @@ def _damp_pieces_toward(particles, unit_bounds, particle_position_m, particle_ve
             rx = particle_position_m[p, 0] - xc[k, 0]
             ry = particle_position_m[p, 1] - xc[k, 1]
             rz = particle_position_m[p, 2] - xc[k, 2]
-            particle_velocity_m_s[p, 0] += k_damping * (vc[k, 0] + w[k, 1] * rz - w[k, 2] * ry
-                                                        - particle_velocity_m_s[p, 0])
-            particle_velocity_m_s[p, 1] += k_damping * (vc[k, 1] + w[k, 2] * rx - w[k, 0] * rz
-                                                        - particle_velocity_m_s[p, 1])
-            particle_velocity_m_s[p, 2] += k_damping * (vc[k, 2] + w[k, 0] * ry - w[k, 1] * rx
-                                                        - particle_velocity_m_s[p, 2])
+            particle_velocity_m_s_inout[p, 0] += k_damping * (vc[k, 0] + w[k, 1] * rz - w[k, 2] * ry
+                                                        - particle_velocity_m_s_inout[p, 0])
+            particle_velocity_m_s_inout[p, 1] += k_damping * (vc[k, 1] + w[k, 2] * rx - w[k, 0] * rz
+                                                        - particle_velocity_m_s_inout[p, 1])
+            particle_velocity_m_s_inout[p, 2] += k_damping * (vc[k, 2] + w[k, 0] * ry - w[k, 1] * rx
+                                                        - particle_velocity_m_s_inout[p, 2])

@@ -14,7 +14,7 @@ from fraytool.kinds import SHEAR, SHEAR_TWIN
 
 @nb.njit(cache=True, fastmath=False, inline="always")
 def add_spring_force(s, stiffness_n_per_m, spring_kind, spring_rest_length_m, particle_position_m, spring_particle_a,
-                     spring_particle_b, particle_force_n):
+                     spring_particle_b, particle_force_n_inout):
     """Add spring s's Hooke force, with stiffness `stiffness_n_per_m`, to its two end particles."""
     a = spring_particle_a[s]
     b = spring_particle_b[s]
@@ -34,12 +34,12 @@ def add_spring_force(s, stiffness_n_per_m, spring_kind, spring_rest_length_m, pa
     if stretch > 0.0 and shear:
         return  # shear springs resist compression only (§3.2)
     f = stiffness_n_per_m * stretch / length
-    particle_force_n[a, 0] += f * dx
-    particle_force_n[a, 1] += f * dy
-    particle_force_n[a, 2] += f * dz
-    particle_force_n[b, 0] -= f * dx
-    particle_force_n[b, 1] -= f * dy
-    particle_force_n[b, 2] -= f * dz
+    particle_force_n_inout[a, 0] += f * dx
+    particle_force_n_inout[a, 1] += f * dy
+    particle_force_n_inout[a, 2] += f * dz
+    particle_force_n_inout[b, 0] -= f * dx
+    particle_force_n_inout[b, 1] -= f * dy
+    particle_force_n_inout[b, 2] -= f * dz
 
 
 @nb.njit(cache=True, fastmath=False)
@@ -49,12 +49,12 @@ def accumulate_spring_forces(
     # state in
     particle_position_m, spring_particle_a, spring_particle_b, spring_alive, spring_stiffness_n_per_m,
     # state out
-    particle_force_n,
+    particle_force_n_inout,
 ):
     """Zero `particle_force_n` and add every live spring's force; serial, so sums are deterministic."""
-    particle_force_n[:] = 0.0
+    particle_force_n_inout[:] = 0.0
     for s in range(spring_kind.shape[0]):
         if not spring_alive[s]:
             continue  # cut springs and unborn shear twins carry no force
         add_spring_force(s, spring_stiffness_n_per_m[s], spring_kind, spring_rest_length_m, particle_position_m,
-                         spring_particle_a, spring_particle_b, particle_force_n)
+                         spring_particle_a, spring_particle_b, particle_force_n_inout)

@@ -13,7 +13,7 @@ import numpy as np
 
 
 @nb.njit(cache=True, fastmath=False, parallel=True)
-def integrate_velocities(particles, unit_bounds, particle_velocity_m_s, particle_force_n, particle_inv_mass, gravity_m_s2, dt_s):
+def integrate_velocities(particles, unit_bounds, particle_velocity_m_s_inout, particle_force_n, particle_inv_mass, gravity_m_s2, dt_s):
     """v += dt (g + f / m) for free particles (inverse mass > 0)."""
     for u in nb.prange(unit_bounds.shape[0] - 1):
         for i in range(unit_bounds[u], unit_bounds[u + 1]):
@@ -22,11 +22,11 @@ def integrate_velocities(particles, unit_bounds, particle_velocity_m_s, particle
             if w == 0.0:
                 continue  # inactive slot or held by a rigid body
             for d in range(3):
-                particle_velocity_m_s[p, d] += dt_s * (gravity_m_s2[d] + particle_force_n[p, d] * w)
+                particle_velocity_m_s_inout[p, d] += dt_s * (gravity_m_s2[d] + particle_force_n[p, d] * w)
 
 
 @nb.njit(cache=True, fastmath=False, parallel=True)
-def integrate_positions(particles, unit_bounds, particle_position_m, particle_velocity_m_s, particle_active,
+def integrate_positions(particles, unit_bounds, particle_position_m_inout, particle_velocity_m_s, particle_active,
                         prev_position_m_out, dt_s):
     """For the particles listed: save the start-of-step position, then x += dt v if active. (The
     solver lists the moving particles: other slots' start-of-step positions are not read, or are set
@@ -36,15 +36,15 @@ def integrate_positions(particles, unit_bounds, particle_position_m, particle_ve
         for i in range(unit_bounds[u], unit_bounds[u + 1]):
             p = particles[i]
             for d in range(3):
-                prev_position_m_out[p, d] = particle_position_m[p, d]
+                prev_position_m_out[p, d] = particle_position_m_inout[p, d]
             if not particle_active[p]:
                 continue
             for d in range(3):
-                particle_position_m[p, d] += dt_s * particle_velocity_m_s[p, d]
+                particle_position_m_inout[p, d] += dt_s * particle_velocity_m_s[p, d]
 
 
 @nb.njit(cache=True, fastmath=False, parallel=True)
-def velocities_from_positions(particles, unit_bounds, particle_position_m, prev_position_m, particle_active, particle_velocity_m_s,
+def velocities_from_positions(particles, unit_bounds, particle_position_m, prev_position_m, particle_active, particle_velocity_m_s_out,
                               dt_s, speed_limit_m_s):
     """PBD post-process v = (x - x_prev) / dt; returns the first particle that is non-finite or faster
     than speed_limit_m_s (the stability guard), or -1 when all are sane."""
@@ -59,7 +59,7 @@ def velocities_from_positions(particles, unit_bounds, particle_position_m, prev_
             s2 = 0.0
             for d in range(3):
                 v = (particle_position_m[p, d] - prev_position_m[p, d]) * inv_dt
-                particle_velocity_m_s[p, d] = v
+                particle_velocity_m_s_out[p, d] = v
                 s2 += v * v
             if first_bad[u] < 0 and not (math.sqrt(s2) <= speed_limit_m_s):  # NaN fails the comparison too
                 first_bad[u] = p

@@ -17,10 +17,10 @@ from fraytool.kinds import STRUCT_WARP, STRUCT_WEFT
 
 
 @nb.njit(cache=True, fastmath=False, inline="always")
-def _find(parent, p):
-    while parent[p] != p:
-        parent[p] = parent[parent[p]]  # path halving
-        p = parent[p]
+def _find(parent_inout, p):
+    while parent_inout[p] != p:
+        parent_inout[p] = parent_inout[parent_inout[p]]  # path halving
+        p = parent_inout[p]
     return p
 
 

@@ -1,5 +1,8 @@
 """Cloth masses against rigid spheres, boxes and planes, with friction (docs/method.md §4.3).
 
+Bodies come as one argument group, `bodies_in` (fraytool.sim.kernels.bodies.BodiesIn): a kind and a
+parameter vector per body; `surface_contact` and `bounding_radius` hold the one branch per kind.
+
 A particle closer than `margin` (half the cloth thickness) to a body's surface is projected out
 along the surface normal n by the penetration depth d. Friction acts on the tangential
 displacement relative to the body over the step, Δt (position-based Coulomb friction, Macklin
@@ -18,9 +21,11 @@ from fraytool.kinds import SHAPE_PLANE, SHAPE_SPHERE
 
 
 @nb.njit(cache=True, fastmath=False, inline="always")
-def surface_contact(shape, center, rotation, radius, half_extents, normal, x, margin):
-    """Signed distance (negative inside, margin included) and outward unit normal at point x."""
+def surface_contact(shape, center, rotation, params, x, margin):
+    """Signed distance (negative inside, margin included) and outward unit normal at point x, for a body
+    of kind `shape` with parameter vector `params` (fraytool.sim.kernels.bodies)."""
     if shape == SHAPE_SPHERE:
+        radius = params[0]
         dx = x[0] - center[0]
         dy = x[1] - center[1]
         dz = x[2] - center[2]
@@ -29,12 +34,14 @@ def surface_contact(shape, center, rotation, radius, half_extents, normal, x, ma
             return -(radius + margin), 0.0, 1.0, 0.0
         return r - radius - margin, dx / r, dy / r, dz / r
     if shape == SHAPE_PLANE:
+        normal = params
         nx = rotation[0, 0] * normal[0] + rotation[0, 1] * normal[1] + rotation[0, 2] * normal[2]
         ny = rotation[1, 0] * normal[0] + rotation[1, 1] * normal[1] + rotation[1, 2] * normal[2]
         nz = rotation[2, 0] * normal[0] + rotation[2, 1] * normal[1] + rotation[2, 2] * normal[2]
         return plane_distance(rotation, normal, x[0] - center[0], x[1] - center[1], x[2] - center[2], margin), \
             nx, ny, nz
     # box: work in the body frame, local = R^T (x - c); scalars only (no allocation per call)
+    half_extents = params
     l0 = rotation[0, 0] * (x[0] - center[0]) + rotation[1, 0] * (x[1] - center[1]) + rotation[2, 0] * (x[2] - center[2])
     l1 = rotation[0, 1] * (x[0] - center[0]) + rotation[1, 1] * (x[1] - center[1]) + rotation[2, 1] * (x[2] - center[2])
     l2 = rotation[0, 2] * (x[0] - center[0]) + rotation[1, 2] * (x[1] - center[1]) + rotation[2, 2] * (x[2] - center[2])
@@ -73,69 +80,69 @@ def plane_distance(rotation, normal, ex, ey, ez, margin):
 
 
 @nb.njit(cache=True, fastmath=False)
-def bounding_radius(shape, radius, half_extents, margin):
+def bounding_radius(shape, params, margin):
     """Radius about the body centre beyond which no point is in contact (margin included, with a
     relative slack of 1e-9 so the skip never disagrees with `surface_contact` by a rounding);
     infinite for a plane."""
     if shape == SHAPE_SPHERE:
-        return (radius + margin) * (1.0 + 1e-9)
+        return (params[0] + margin) * (1.0 + 1e-9)
     if shape == SHAPE_PLANE:
         return math.inf
-    he = math.sqrt(half_extents[0] ** 2 + half_extents[1] ** 2 + half_extents[2] ** 2)
+    he = math.sqrt(params[0] ** 2 + params[1] ** 2 + params[2] ** 2)
     return (he + margin) * (1.0 + 1e-9)
 
 
 @nb.njit(cache=True, fastmath=False)
-def project_out_of_body(k, body_shape, body_rotation, body_radius_m, body_half_extents_m, body_normal,
-                        body_position_m, margin_m, x):
+def project_out_of_body(k, bodies_in, margin_m, x_inout):
     """Move point x (in place) out of body k along the surface normal when it is inside (margin
     included). Returns (signed distance before, normal): d >= 0 means x was outside and is unchanged."""
-    d, nx, ny, nz = surface_contact(body_shape[k], body_position_m[k], body_rotation[k], body_radius_m[k],
-                                    body_half_extents_m[k], body_normal[k], x, margin_m)
+    d, nx, ny, nz = surface_contact(bodies_in.shape[k], bodies_in.position_m[k], bodies_in.rotation[k],
+                                    bodies_in.params[k], x_inout, margin_m)
     if d < 0.0:
-        x[0] -= d * nx
-        x[1] -= d * ny
-        x[2] -= d * nz
+        x_inout[0] -= d * nx
+        x_inout[1] -= d * ny
+        x_inout[2] -= d * nz
     return d, nx, ny, nz
 
 
 @nb.njit(cache=True, fastmath=False)
-def _contact_range(particles, lo, hi, k, plane, sphere, pnx, pny, pnz, cx, cy, cz, reach2, step_x, step_y, step_z,
-                   friction, dynamic, dt_s, body_shape, body_rotation, body_radius_m, body_half_extents_m,
-                   body_normal, body_position_m, margin_m, particle_inv_mass, particle_mass_kg, prev_position_m,
-                   particle_position_m, body_impulse_out):
-    """Particles particles[lo:hi] against body k (the body's constants passed in): each one in contact is
-    moved out with friction, and for a dynamic body its impulse m dx / dt is added to
-    body_impulse_out[k] in index order. Returns the number of contacts."""
+def _contact_range(particles, lo, hi, k, frame, dynamic, dt_s, bodies_in, margin_m, particles_in,
+                   particle_position_m_inout, body_impulse_out):
+    """Particles particles[lo:hi] against body k: each one in contact is moved out with friction, and for a
+    dynamic body its impulse m dx / dt is added to body_impulse_out[k] in index order. `frame` holds the
+    body's constants of the call (collide_rigid): (plane, sphere, world normal x, y, z of a plane, centre
+    x, y, z, squared reach, the body's move over the step x, y, z, friction); `particles_in` the particles'
+    (inverse mass, mass, start-of-step position). Returns the number of contacts."""
+    plane, sphere, pnx, pny, pnz, cx, cy, cz, reach2, step_x, step_y, step_z, friction = frame
+    particle_inv_mass, particle_mass_kg, prev_position_m = particles_in
     hits = 0
     for i in range(lo, hi):
         p = particles[i]
         if particle_inv_mass[p] == 0.0:
             continue  # inactive or held: held particles follow their body, not contacts
-        ex = particle_position_m[p, 0] - cx
-        ey = particle_position_m[p, 1] - cy
-        ez = particle_position_m[p, 2] - cz
+        ex = particle_position_m_inout[p, 0] - cx
+        ey = particle_position_m_inout[p, 1] - cy
+        ez = particle_position_m_inout[p, 2] - cz
         if plane:
             if ex * pnx + ey * pny + ez * pnz - margin_m >= 0.0:
                 continue  # above the plane: the signed distance `surface_contact` computes
         elif ex * ex + ey * ey + ez * ez > reach2:
             continue  # beyond the body's bounding sphere: no contact (the test below would say so)
-        x0 = particle_position_m[p, 0]
-        x1 = particle_position_m[p, 1]
-        x2 = particle_position_m[p, 2]
+        x0 = particle_position_m_inout[p, 0]
+        x1 = particle_position_m_inout[p, 1]
+        x2 = particle_position_m_inout[p, 2]
         if plane:  # `surface_contact` for a plane, inlined: the same expressions
             d = ex * pnx + ey * pny + ez * pnz - margin_m
             nx, ny, nz = pnx, pny, pnz
         elif sphere:  # likewise for a sphere
             r = math.sqrt(ex * ex + ey * ey + ez * ez)
             if r < 1e-15:
-                d, nx, ny, nz = -(body_radius_m[k] + margin_m), 0.0, 1.0, 0.0
+                d, nx, ny, nz = -(bodies_in.params[k, 0] + margin_m), 0.0, 1.0, 0.0
             else:
-                d, nx, ny, nz = r - body_radius_m[k] - margin_m, ex / r, ey / r, ez / r
+                d, nx, ny, nz = r - bodies_in.params[k, 0] - margin_m, ex / r, ey / r, ez / r
         else:
-            d, nx, ny, nz = surface_contact(body_shape[k], body_position_m[k], body_rotation[k], body_radius_m[k],
-                                            body_half_extents_m[k], body_normal[k], particle_position_m[p],
-                                            margin_m)
+            d, nx, ny, nz = surface_contact(bodies_in.shape[k], bodies_in.position_m[k], bodies_in.rotation[k],
+                                            bodies_in.params[k], particle_position_m_inout[p], margin_m)
         if d >= 0.0:
             continue
         # out along the normal (`project_out_of_body`), in registers until written back
@@ -158,9 +165,9 @@ def _contact_range(particles, lo, hi, k, plane, sphere, pnx, pny, pnz, cx, cy, c
             px -= scale * tx
             py -= scale * ty
             pz -= scale * tz
-        particle_position_m[p, 0] = px
-        particle_position_m[p, 1] = py
-        particle_position_m[p, 2] = pz
+        particle_position_m_inout[p, 0] = px
+        particle_position_m_inout[p, 1] = py
+        particle_position_m_inout[p, 2] = pz
         if dynamic:
             m = particle_mass_kg[p] / dt_s
             body_impulse_out[k, 0] += m * (px - x0)
@@ -174,13 +181,12 @@ def collide_rigid(
     # the particles in contact with bodies (the free ones, ascending) and their units
     # (fraytool.sim.kernels.work_split)
     particles, unit_bounds,
-    # model
-    body_shape, body_rotation, body_radius_m, body_half_extents_m, body_normal, body_friction, body_collide,
-    body_dynamic, margin_m, dt_s,
+    # model and state: the bodies (fraytool.sim.kernels.bodies.BodiesIn)
+    bodies_in, margin_m, dt_s,
     # state in
-    body_position_m, body_velocity_m_s, particle_inv_mass, particle_mass_kg, prev_position_m,
+    particle_inv_mass, particle_mass_kg, prev_position_m,
     # state in/out
-    particle_position_m,
+    particle_position_m_inout,
     # out
     body_impulse_out,
 ):
@@ -194,51 +200,42 @@ def collide_rigid(
     order on any number of threads."""
     contacts = 0
     body_impulse_out[:] = 0.0
-    for k in range(body_shape.shape[0]):
-        if not body_collide[k]:
+    particles_in = (particle_inv_mass, particle_mass_kg, prev_position_m)
+    for k in range(bodies_in.shape.shape[0]):
+        if not bodies_in.collide[k]:
             continue
-        reach = bounding_radius(body_shape[k], body_radius_m[k], body_half_extents_m[k], margin_m)
-        reach2 = reach * reach
-        plane = body_shape[k] == SHAPE_PLANE
-        sphere = body_shape[k] == SHAPE_SPHERE
-        rotation = body_rotation[k]
-        normal = body_normal[k]
+        shape = bodies_in.shape[k]
+        reach = bounding_radius(shape, bodies_in.params[k], margin_m)
+        rotation = bodies_in.rotation[k]
+        normal = bodies_in.params[k]  # (read as a plane's normal only where the body is a plane)
         pnx = rotation[0, 0] * normal[0] + rotation[0, 1] * normal[1] + rotation[0, 2] * normal[2]
         pny = rotation[1, 0] * normal[0] + rotation[1, 1] * normal[1] + rotation[1, 2] * normal[2]
         pnz = rotation[2, 0] * normal[0] + rotation[2, 1] * normal[1] + rotation[2, 2] * normal[2]
-        cx = body_position_m[k, 0]
-        cy = body_position_m[k, 1]
-        cz = body_position_m[k, 2]
-        step_x = dt_s * body_velocity_m_s[k, 0]  # the body's displacement over the step
-        step_y = dt_s * body_velocity_m_s[k, 1]
-        step_z = dt_s * body_velocity_m_s[k, 2]
-        friction = body_friction[k]
-        if body_dynamic[k]:
-            contacts += _contact_range(particles, 0, particles.shape[0], k, plane, sphere, pnx, pny, pnz, cx, cy,
-                                       cz, reach2, step_x, step_y, step_z, friction, True, dt_s, body_shape,
-                                       body_rotation, body_radius_m, body_half_extents_m, body_normal,
-                                       body_position_m, margin_m, particle_inv_mass, particle_mass_kg,
-                                       prev_position_m, particle_position_m, body_impulse_out)
+        position, velocity = bodies_in.position_m, bodies_in.velocity_m_s
+        frame = (shape == SHAPE_PLANE, shape == SHAPE_SPHERE, pnx, pny, pnz, position[k, 0], position[k, 1],
+                 position[k, 2], reach * reach,
+                 dt_s * velocity[k, 0], dt_s * velocity[k, 1], dt_s * velocity[k, 2],  # the body's move over the step
+                 bodies_in.friction[k])
+        if bodies_in.dynamic[k]:
+            contacts += _contact_range(particles, 0, particles.shape[0], k, frame, True, dt_s, bodies_in, margin_m,
+                                       particles_in, particle_position_m_inout, body_impulse_out)
         else:
             hits = 0
             for u in nb.prange(unit_bounds.shape[0] - 1):
-                hits += _contact_range(particles, unit_bounds[u], unit_bounds[u + 1], k, plane, sphere, pnx, pny,
-                                       pnz, cx, cy, cz, reach2, step_x, step_y, step_z, friction, False, dt_s,
-                                       body_shape, body_rotation, body_radius_m, body_half_extents_m, body_normal,
-                                       body_position_m, margin_m, particle_inv_mass, particle_mass_kg,
-                                       prev_position_m, particle_position_m, body_impulse_out)
+                hits += _contact_range(particles, unit_bounds[u], unit_bounds[u + 1], k, frame, False, dt_s,
+                                       bodies_in, margin_m, particles_in, particle_position_m_inout, body_impulse_out)
             contacts += hits
     return contacts
 
 
 @nb.njit(cache=True, fastmath=False)
 def place_outside_bodies(
-    # model
-    body_shape, body_rotation, body_radius_m, body_half_extents_m, body_normal, body_collide, margin_m,
+    # model and state: the bodies (fraytool.sim.kernels.bodies.BodiesIn)
+    bodies_in, margin_m,
     # state in
-    body_position_m, particles, particle_inv_mass,
+    particles, particle_inv_mass,
     # state in/out
-    particle_position_m,
+    particle_position_m_inout,
 ):
     """Move each free particle of `particles` that lies inside a colliding body out along the surface
     normal, without friction and without a reaction on the body: a placement, not a collision (the
@@ -248,8 +245,7 @@ def place_outside_bodies(
         p = particles[i]
         if particle_inv_mass[p] == 0.0:
             continue
-        for k in range(body_shape.shape[0]):
-            if not body_collide[k]:
+        for k in range(bodies_in.shape.shape[0]):
+            if not bodies_in.collide[k]:
                 continue
-            project_out_of_body(k, body_shape, body_rotation, body_radius_m, body_half_extents_m, body_normal,
-                                body_position_m, margin_m, particle_position_m[p])
+            project_out_of_body(k, bodies_in, margin_m, particle_position_m_inout[p])

@@ -82,21 +82,21 @@ def _normal(xs, xe, i1, i2, i3, i4, t):
 
 
 @nb.njit(cache=True, fastmath=False)
-def _correct_pair(contact_distance_m, friction, x_start, i1, i2, i3, i4, n0, n1, n2, particle_inv_mass, x_end):
+def _correct_pair(contact_distance_m, friction, x_start, i1, i2, i3, i4, n0, n1, n2, particle_inv_mass, x_end_inout):
     """Move the four end points so the closest points are contact_distance_m apart along n, with
     friction on the tangential relative motion (module docstring, steps 2-3). Returns True if moved.
     Scalars throughout: no allocation per pair."""
-    s, u = closest_parameters(x_end[i1], x_end[i2], x_end[i3], x_end[i4])
+    s, u = closest_parameters(x_end_inout[i1], x_end_inout[i2], x_end_inout[i3], x_end_inout[i4])
     w1, w2, w3, w4 = particle_inv_mass[i1], particle_inv_mass[i2], particle_inv_mass[i3], particle_inv_mass[i4]
     denom = (1.0 - s) ** 2 * w1 + s * s * w2 + (1.0 - u) ** 2 * w3 + u * u * w4
     if denom == 0.0:
         return False  # all four ends held by bodies: nothing can move
-    a0 = (1.0 - s) * x_end[i1, 0] + s * x_end[i2, 0]
-    a1 = (1.0 - s) * x_end[i1, 1] + s * x_end[i2, 1]
-    a2 = (1.0 - s) * x_end[i1, 2] + s * x_end[i2, 2]
-    b0 = (1.0 - u) * x_end[i3, 0] + u * x_end[i4, 0]
-    b1 = (1.0 - u) * x_end[i3, 1] + u * x_end[i4, 1]
-    b2 = (1.0 - u) * x_end[i3, 2] + u * x_end[i4, 2]
+    a0 = (1.0 - s) * x_end_inout[i1, 0] + s * x_end_inout[i2, 0]
+    a1 = (1.0 - s) * x_end_inout[i1, 1] + s * x_end_inout[i2, 1]
+    a2 = (1.0 - s) * x_end_inout[i1, 2] + s * x_end_inout[i2, 2]
+    b0 = (1.0 - u) * x_end_inout[i3, 0] + u * x_end_inout[i4, 0]
+    b1 = (1.0 - u) * x_end_inout[i3, 1] + u * x_end_inout[i4, 1]
+    b2 = (1.0 - u) * x_end_inout[i3, 2] + u * x_end_inout[i4, 2]
     gap = (a0 - b0) * n0 + (a1 - b1) * n1 + (a2 - b2) * n2
     if gap >= contact_distance_m:
         return False
@@ -122,18 +122,18 @@ def _correct_pair(contact_distance_m, friction, x_start, i1, i2, i3, i4, n0, n1,
     k2 = s * w2
     k3 = (1.0 - u) * w3
     k4 = u * w4
-    x_end[i1, 0] += k1 * c0
-    x_end[i1, 1] += k1 * c1
-    x_end[i1, 2] += k1 * c2
-    x_end[i2, 0] += k2 * c0
-    x_end[i2, 1] += k2 * c1
-    x_end[i2, 2] += k2 * c2
-    x_end[i3, 0] -= k3 * c0
-    x_end[i3, 1] -= k3 * c1
-    x_end[i3, 2] -= k3 * c2
-    x_end[i4, 0] -= k4 * c0
-    x_end[i4, 1] -= k4 * c1
-    x_end[i4, 2] -= k4 * c2
+    x_end_inout[i1, 0] += k1 * c0
+    x_end_inout[i1, 1] += k1 * c1
+    x_end_inout[i1, 2] += k1 * c2
+    x_end_inout[i2, 0] += k2 * c0
+    x_end_inout[i2, 1] += k2 * c1
+    x_end_inout[i2, 2] += k2 * c2
+    x_end_inout[i3, 0] -= k3 * c0
+    x_end_inout[i3, 1] -= k3 * c1
+    x_end_inout[i3, 2] -= k3 * c2
+    x_end_inout[i4, 0] -= k4 * c0
+    x_end_inout[i4, 1] -= k4 * c1
+    x_end_inout[i4, 2] -= k4 * c2
     return True
 
 
@@ -144,9 +144,9 @@ def respond_pairs(
     # state in
     x_start, pairs, t_hit, spring_particle_a, spring_particle_b, particle_inv_mass, reach,
     # state in/out
-    x_end,
+    x_end_inout,
     # out: (P,) flags; scratch: (P, 3)
-    changed, before,
+    changed_inout, before_inout,
 ):
     """Resolve colliding pairs (CCD hits at times t_hit): normal from the contact time, then the
     inelastic correction with friction. Returns the number of pairs moved and whether a moved
@@ -155,7 +155,7 @@ def respond_pairs(
     copying x)."""
     moved = 0
     left = False
-    changed[:] = False  # first used as "seen": its position before the call is in ``before``
+    changed_inout[:] = False  # first used as "seen": its position before the call is in ``before``
     touched = np.empty(4 * pairs.shape[0], np.int64)
     n_touched = 0
     for k in range(pairs.shape[0]):
@@ -164,20 +164,20 @@ def respond_pairs(
         i1, i2 = spring_particle_a[i], spring_particle_b[i]
         i3, i4 = spring_particle_a[j], spring_particle_b[j]
         for p in (i1, i2, i3, i4):
-            if not changed[p]:
-                changed[p] = True
-                before[p, 0] = x_end[p, 0]
-                before[p, 1] = x_end[p, 1]
-                before[p, 2] = x_end[p, 2]
+            if not changed_inout[p]:
+                changed_inout[p] = True
+                before_inout[p, 0] = x_end_inout[p, 0]
+                before_inout[p, 1] = x_end_inout[p, 1]
+                before_inout[p, 2] = x_end_inout[p, 2]
                 touched[n_touched] = p
                 n_touched += 1
-        n0, n1, n2 = _normal(x_start, x_end, i1, i2, i3, i4, t_hit[k])
-        if _correct_pair(contact_distance_m, friction, x_start, i1, i2, i3, i4, n0, n1, n2, particle_inv_mass, x_end):
+        n0, n1, n2 = _normal(x_start, x_end_inout, i1, i2, i3, i4, t_hit[k])
+        if _correct_pair(contact_distance_m, friction, x_start, i1, i2, i3, i4, n0, n1, n2, particle_inv_mass, x_end_inout):
             moved += 1
-            left = left or _outside_reach(x_end, reach, i1, i2, i3, i4)
+            left = left or _outside_reach(x_end_inout, reach, i1, i2, i3, i4)
     for q in range(n_touched):
         p = touched[q]
-        changed[p] = x_end[p, 0] != before[p, 0] or x_end[p, 1] != before[p, 1] or x_end[p, 2] != before[p, 2]
+        changed_inout[p] = x_end_inout[p, 0] != before_inout[p, 0] or x_end_inout[p, 1] != before_inout[p, 1] or x_end_inout[p, 2] != before_inout[p, 2]
     return moved, left
 
 
@@ -185,13 +185,14 @@ def respond_pairs(
 def repel_close_pairs(
     # model
     contact_distance_m, friction,
-    # state in
-    x_start, candidates, first, spring_particle_a, spring_particle_b, spring_alive, particle_inv_mass, reach,
+    # state in: start-of-step positions, the candidate pairs and where to start in them, the springs'
+    # (ends a, ends b, alive flags), inverse masses, each particle's reach
+    x_start, candidates, first, springs_in, particle_inv_mass, reach,
     # state in/out
-    x_end,
-    # scratch: the segments listed (every segment of the candidates), their rows in the boxes
-    # (box_row[slot], narrow.swept_segment_boxes), the boxes (>= 6 columns), (P,) flags
-    segments, box_row, box, dirty,
+    x_end_inout,
+    # the segments listed (every segment of the candidates) and their rows in the boxes (box_row[slot],
+    # narrow.swept_segment_boxes); scratch: (the boxes (>= 6 columns), (P,) flags)
+    listed_in, scratch_inout,
 ):
     """Proximity pass over ``candidates[first:]``, in their (sorted) order: pairs whose segments end
     the step closer than the contact distance are pushed apart along their end-of-step separation.
@@ -207,9 +208,12 @@ def repel_close_pairs(
     between the two lines (``_lines_apart``, a lower bound of the segments' distance: it skips only
     pairs the distance test skips, without its divisions), then the closest distance itself
     decides. No allocation per pair."""
+    spring_particle_a, spring_particle_b, spring_alive = springs_in
+    segments, box_row = listed_in
+    box_inout, dirty_inout = scratch_inout
     moved = 0
-    end_segment_boxes(x_end, spring_particle_a, spring_particle_b, segments, box_row, box)
-    dirty[:] = False
+    end_segment_boxes(x_end_inout, spring_particle_a, spring_particle_b, segments, box_row, box_inout)
+    dirty_inout[:] = False
     for k in range(first, candidates.shape[0]):
         i = candidates[k, 0]
         j = candidates[k, 1]
@@ -217,39 +221,39 @@ def repel_close_pairs(
             continue  # cut since the candidates were built
         i1, i2 = spring_particle_a[i], spring_particle_b[i]
         i3, i4 = spring_particle_a[j], spring_particle_b[j]
-        if not (dirty[i1] or dirty[i2] or dirty[i3] or dirty[i4]):
-            if _apart_boxes_end(box, box_row[i], box_row[j], contact_distance_m):
+        if not (dirty_inout[i1] or dirty_inout[i2] or dirty_inout[i3] or dirty_inout[i4]):
+            if _apart_boxes_end(box_inout, box_row[i], box_row[j], contact_distance_m):
                 continue  # (the distance below would be >= d_c)
             if _share_end(i1, i2, i3, i4):
                 continue
-        elif _share_end(i1, i2, i3, i4) or _apart_at_end(x_end, i1, i2, i3, i4, contact_distance_m):
+        elif _share_end(i1, i2, i3, i4) or _apart_at_end(x_end_inout, i1, i2, i3, i4, contact_distance_m):
             continue  # (the distance below would be >= d_c)
-        if _lines_apart(x_end, i1, i2, i3, i4, contact_distance_m):
+        if _lines_apart(x_end_inout, i1, i2, i3, i4, contact_distance_m):
             continue  # (likewise: fraytool.collision.narrow)
-        s, u = closest_parameters(x_end[i1], x_end[i2], x_end[i3], x_end[i4])
-        d0 = (1.0 - s) * x_end[i1, 0] + s * x_end[i2, 0] - (1.0 - u) * x_end[i3, 0] - u * x_end[i4, 0]
-        d1 = (1.0 - s) * x_end[i1, 1] + s * x_end[i2, 1] - (1.0 - u) * x_end[i3, 1] - u * x_end[i4, 1]
-        d2 = (1.0 - s) * x_end[i1, 2] + s * x_end[i2, 2] - (1.0 - u) * x_end[i3, 2] - u * x_end[i4, 2]
+        s, u = closest_parameters(x_end_inout[i1], x_end_inout[i2], x_end_inout[i3], x_end_inout[i4])
+        d0 = (1.0 - s) * x_end_inout[i1, 0] + s * x_end_inout[i2, 0] - (1.0 - u) * x_end_inout[i3, 0] - u * x_end_inout[i4, 0]
+        d1 = (1.0 - s) * x_end_inout[i1, 1] + s * x_end_inout[i2, 1] - (1.0 - u) * x_end_inout[i3, 1] - u * x_end_inout[i4, 1]
+        d2 = (1.0 - s) * x_end_inout[i1, 2] + s * x_end_inout[i2, 2] - (1.0 - u) * x_end_inout[i3, 2] - u * x_end_inout[i4, 2]
         dist = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
         if dist >= contact_distance_m:
             continue
         if dist > 1e-12:
             n0, n1, n2 = d0 / dist, d1 / dist, d2 / dist
         else:
-            n0, n1, n2 = _normal(x_start, x_end, i1, i2, i3, i4, 0.0)
-        if _correct_pair(contact_distance_m, friction, x_start, i1, i2, i3, i4, n0, n1, n2, particle_inv_mass, x_end):
+            n0, n1, n2 = _normal(x_start, x_end_inout, i1, i2, i3, i4, 0.0)
+        if _correct_pair(contact_distance_m, friction, x_start, i1, i2, i3, i4, n0, n1, n2, particle_inv_mass, x_end_inout):
             moved += 1
-            dirty[i1] = True
-            dirty[i2] = True
-            dirty[i3] = True
-            dirty[i4] = True
-            if _outside_reach(x_end, reach, i1, i2, i3, i4):
+            dirty_inout[i1] = True
+            dirty_inout[i2] = True
+            dirty_inout[i3] = True
+            dirty_inout[i4] = True
+            if _outside_reach(x_end_inout, reach, i1, i2, i3, i4):
                 return moved, k
     return moved, -1
 
 
 @nb.njit(cache=True, fastmath=False)
-def freeze_pairs(pairs, spring_particle_a, spring_particle_b, particle_inv_mass, x_start, x_end):
+def freeze_pairs(pairs, spring_particle_a, spring_particle_b, particle_inv_mass, x_start, x_end_inout):
     """Failsafe: the free end particles of pairs still crossing after the last pass go back to their
     start-of-step positions (which did not cross), as in an inelastic impact zone that stops for
     this step. Returns how many particles moved (0: every free end was already back, so another
@@ -259,7 +263,36 @@ def freeze_pairs(pairs, spring_particle_a, spring_particle_b, particle_inv_mass,
         for s in (pairs[k, 0], pairs[k, 1]):
             for p in (spring_particle_a[s], spring_particle_b[s]):
                 if particle_inv_mass[p] > 0.0:
-                    if x_end[p, 0] != x_start[p, 0] or x_end[p, 1] != x_start[p, 1] or x_end[p, 2] != x_start[p, 2]:
+                    if x_end_inout[p, 0] != x_start[p, 0] or x_end_inout[p, 1] != x_start[p, 1] or x_end_inout[p, 2] != x_start[p, 2]:
                         restored += 1
-                    x_end[p] = x_start[p]
+                    x_end_inout[p] = x_start[p]
     return restored
+
+
+@nb.njit(cache=True, fastmath=False)
+def mark_touching_pairs(candidates_in, spring_particle_a, spring_particle_b, spring_alive, particle_position_m,
+                        distance_m, touching_out):
+    """touching_out[p] = True for the four ends of every candidate pair of live segments that share no
+    end and lie closer than `distance_m` (closest points of the two segments); touching_out is not
+    cleared. For the woven-strain figure away from contact (fraytool.sim.pieces.woven_strain_away)."""
+    x = particle_position_m
+    for k in range(candidates_in.shape[0]):
+        i = candidates_in[k, 0]
+        j = candidates_in[k, 1]
+        if not (spring_alive[i] and spring_alive[j]):
+            continue
+        i1, i2 = spring_particle_a[i], spring_particle_b[i]
+        i3, i4 = spring_particle_a[j], spring_particle_b[j]
+        if i1 == i3 or i1 == i4 or i2 == i3 or i2 == i4:
+            continue
+        s, t = segment_closest_params(x[i1, 0], x[i1, 1], x[i1, 2], x[i2, 0], x[i2, 1], x[i2, 2],
+                                      x[i3, 0], x[i3, 1], x[i3, 2], x[i4, 0], x[i4, 1], x[i4, 2])
+        d2 = 0.0
+        for d in range(3):
+            v = (x[i1, d] + s * (x[i2, d] - x[i1, d])) - (x[i3, d] + t * (x[i4, d] - x[i3, d]))
+            d2 += v * v
+        if d2 < distance_m * distance_m:
+            touching_out[i1] = True
+            touching_out[i2] = True
+            touching_out[i3] = True
+            touching_out[i4] = True

@@ -19,19 +19,19 @@ import numba as nb
 
 
 @nb.njit(cache=True, fastmath=False, inline="always")
-def _move_ends(particle_position_m, a, b, k_a, k_b, ux, uy, uz):
+def _move_ends(particle_position_m_inout, a, b, k_a, k_b, ux, uy, uz):
     """x_a += k_a u, x_b -= k_b u: a spring's two ends moved along u, each by its own share."""
-    particle_position_m[a, 0] += k_a * ux
-    particle_position_m[a, 1] += k_a * uy
-    particle_position_m[a, 2] += k_a * uz
-    particle_position_m[b, 0] -= k_b * ux
-    particle_position_m[b, 1] -= k_b * uy
-    particle_position_m[b, 2] -= k_b * uz
+    particle_position_m_inout[a, 0] += k_a * ux
+    particle_position_m_inout[a, 1] += k_a * uy
+    particle_position_m_inout[a, 2] += k_a * uz
+    particle_position_m_inout[b, 0] -= k_b * ux
+    particle_position_m_inout[b, 1] -= k_b * uy
+    particle_position_m_inout[b, 2] -= k_b * uz
 
 
 @nb.njit(cache=True, fastmath=False, inline="always")
 def _project_stretched(s, stretch, spring_rest_length_m, particle_inv_mass, spring_particle_a, spring_particle_b,
-                       spring_alive, particle_position_m):
+                       spring_alive, particle_position_m_inout):
     """Project spring s back to `stretch` x its rest length if it is longer (module docstring); returns
     its excess strain, 0 when it was not projected (within the limit, cut, or both ends held). A spring
     within its limit costs one squared length and a compare; only stretched ones pay for the root."""
@@ -40,9 +40,9 @@ def _project_stretched(s, stretch, spring_rest_length_m, particle_inv_mass, spri
     a = spring_particle_a[s]
     b = spring_particle_b[s]
     max_length = stretch * spring_rest_length_m[s]
-    dx = particle_position_m[b, 0] - particle_position_m[a, 0]
-    dy = particle_position_m[b, 1] - particle_position_m[a, 1]
-    dz = particle_position_m[b, 2] - particle_position_m[a, 2]
+    dx = particle_position_m_inout[b, 0] - particle_position_m_inout[a, 0]
+    dy = particle_position_m_inout[b, 1] - particle_position_m_inout[a, 1]
+    dz = particle_position_m_inout[b, 2] - particle_position_m_inout[a, 2]
     d2 = dx * dx + dy * dy + dz * dz
     if d2 <= max_length * max_length:
         return 0.0
@@ -53,7 +53,7 @@ def _project_stretched(s, stretch, spring_rest_length_m, particle_inv_mass, spri
         return 0.0  # both ends held by bodies: nothing can move
     length = math.sqrt(d2)
     c = (length - max_length) / (length * w)
-    _move_ends(particle_position_m, a, b, w_a * c, w_b * c, dx, dy, dz)
+    _move_ends(particle_position_m_inout, a, b, w_a * c, w_b * c, dx, dy, dz)
     return (length - max_length) / spring_rest_length_m[s]
 
 
@@ -64,7 +64,7 @@ def limit_strain(
     # state in
     particle_inv_mass, spring_particle_a, spring_particle_b, spring_alive,
     # state in/out
-    particle_position_m,
+    particle_position_m_inout,
 ):
     """Project the springs listed in `limited_springs`; returns (sweeps used, converged)."""
     n = limited_springs.shape[0]
@@ -74,7 +74,7 @@ def limit_strain(
         for k in range(n):
             s = limited_springs[k] if it % 2 == 0 else limited_springs[n - 1 - k]
             excess = _project_stretched(s, stretch, spring_rest_length_m, particle_inv_mass, spring_particle_a,
-                                        spring_particle_b, spring_alive, particle_position_m)
+                                        spring_particle_b, spring_alive, particle_position_m_inout)
             if excess > worst:
                 worst = excess
         if worst <= tolerance:
@@ -84,14 +84,14 @@ def limit_strain(
 
 @nb.njit(cache=True, fastmath=False, parallel=True)
 def limit_strain_groups(
-    # model
-    limited_springs, group_start, spring_rest_length_m, strain_limit, tolerance, max_iterations,
-    # state in
-    particle_inv_mass, spring_particle_a, spring_particle_b, spring_alive,
+    # model: the springs limited, in colour groups; (strain limit, tolerance, most sweeps)
+    limited_springs, group_start, limit_in,
+    # state in: (rest lengths, inverse masses, ends a, ends b, alive flags)
+    springs_in,
     # scratch: per limited spring (overwritten), per particle (zeroed here)
-    checked_at, moved_at,
+    checked_at_inout, moved_at_inout,
     # state in/out
-    particle_position_m,
+    particle_position_m_inout,
 ):
     """`limit_strain` over springs in groups that share no mass (limited_springs[group_start[g]:
     group_start[g + 1]]): the groups one after another, the springs of a group in parallel; returns
@@ -110,10 +110,12 @@ def limit_strain_groups(
     projection, negative when it moved its ends. A particle is moved by one spring per group at most,
     so the stamps are written race-free. The group's largest excess is a parallel maximum (exact, so
     the same whatever the threads' shares; NaN excesses count as 0, as in the serial sweep)."""
+    strain_limit, tolerance, max_iterations = limit_in
+    spring_rest_length_m, particle_inv_mass, spring_particle_a, spring_particle_b, spring_alive = springs_in
     stretch = 1.0 + strain_limit
     groups = group_start.shape[0] - 1
-    for p in nb.prange(moved_at.shape[0]):
-        moved_at[p] = 0
+    for p in nb.prange(moved_at_inout.shape[0]):
+        moved_at_inout[p] = 0
     for it in range(max_iterations):
         worst = 0.0
         for step in range(groups):
@@ -126,18 +128,18 @@ def limit_strain_groups(
                 s = limited_springs[k]
                 a = spring_particle_a[s]
                 b = spring_particle_b[s]
-                since = checked_at[k]
-                if it > 0 and since > 0 and moved_at[a] <= since and moved_at[b] <= since:
+                since = checked_at_inout[k]
+                if it > 0 and since > 0 and moved_at_inout[a] <= since and moved_at_inout[b] <= since:
                     continue  # left alone: an excess of 0
                 excess = _project_stretched(s, stretch, spring_rest_length_m, particle_inv_mass, spring_particle_a,
-                                            spring_particle_b, spring_alive, particle_position_m)
+                                            spring_particle_b, spring_alive, particle_position_m_inout)
                 if excess > 0.0:
-                    moved_at[a] = stamp
-                    moved_at[b] = stamp
-                    checked_at[k] = -stamp
+                    moved_at_inout[a] = stamp
+                    moved_at_inout[b] = stamp
+                    checked_at_inout[k] = -stamp
                     group_worst = max(group_worst, excess)  # a maximum: exact in any order
                 else:
-                    checked_at[k] = stamp
+                    checked_at_inout[k] = stamp
             if group_worst > worst:
                 worst = group_worst
         if worst <= tolerance:
@@ -152,7 +154,7 @@ def damp_overstretched(
     # state in
     particle_inv_mass, spring_particle_a, spring_particle_b, spring_alive, prev_position_m,
     # state in/out
-    particle_position_m,
+    particle_position_m_inout,
 ):
     """A dashpot of `damping_n_s_per_m` along every live spring in `limited_springs` that is past
     (1 + strain_limit) x rest length and lengthening in this step, integrated exactly: the rate of
@@ -175,9 +177,9 @@ def damp_overstretched(
             continue
         a = spring_particle_a[s]
         b = spring_particle_b[s]
-        dx = particle_position_m[b, 0] - particle_position_m[a, 0]
-        dy = particle_position_m[b, 1] - particle_position_m[a, 1]
-        dz = particle_position_m[b, 2] - particle_position_m[a, 2]
+        dx = particle_position_m_inout[b, 0] - particle_position_m_inout[a, 0]
+        dy = particle_position_m_inout[b, 1] - particle_position_m_inout[a, 1]
+        dz = particle_position_m_inout[b, 2] - particle_position_m_inout[a, 2]
         d2 = dx * dx + dy * dy + dz * dz
         max_length = stretch * spring_rest_length_m[s]
         if d2 <= max_length * max_length:
@@ -198,18 +200,23 @@ def damp_overstretched(
             continue
         g = damping_n_s_per_m * dt_s * w
         f = stretched * -math.expm1(-g) / w  # the impulse along u, times dt / m-weights
-        _move_ends(particle_position_m, a, b, w_a * f, w_b * f, ux, uy, uz)
+        _move_ends(particle_position_m_inout, a, b, w_a * f, w_b * f, ux, uy, uz)
 
 
 @nb.njit(cache=True, fastmath=False)
 def _solve_line(
-    first, last, line_springs, spring_rest_length_m, stretch, alpha,
-    particle_inv_mass, spring_particle_a, spring_particle_b, spring_alive,
-    tension, diag, upper, rhs, unit, particle_position_m, stamp, moved_at,
+    first, last, line_springs, stretch, alpha,
+    # state in: (rest lengths, inverse masses, ends a, ends b, alive flags)
+    springs_in,
+    # scratch: (tension, diag, upper, rhs, unit), indexed like line_springs
+    solve_inout,
+    particle_position_m_inout, stamp, moved_at_out,
 ):
     """One block-Gauss-Seidel update of the yarn line line_springs[first:last] (see
     `limit_strain_lines`); returns the largest residual strain it met (before its update) and
     whether it had a block (an active spring). The particles it moves get ``moved_at[p] = stamp``."""
+    spring_rest_length_m, particle_inv_mass, spring_particle_a, spring_particle_b, spring_alive = springs_in
+    tension_inout, diag_inout, upper_inout, rhs_inout, unit_inout = solve_inout
     worst = 0.0
     had_block = False
     k = first
@@ -231,28 +238,28 @@ def _solve_line(
                 break
             rest = spring_rest_length_m[s]
             max_length = stretch * rest
-            dx = particle_position_m[b, 0] - particle_position_m[a, 0]
-            dy = particle_position_m[b, 1] - particle_position_m[a, 1]
-            dz = particle_position_m[b, 2] - particle_position_m[a, 2]
+            dx = particle_position_m_inout[b, 0] - particle_position_m_inout[a, 0]
+            dy = particle_position_m_inout[b, 1] - particle_position_m_inout[a, 1]
+            dz = particle_position_m_inout[b, 2] - particle_position_m_inout[a, 2]
             d2 = dx * dx + dy * dy + dz * dz
-            mu = tension[end]
+            mu = tension_inout[end]
             if (mu == 0.0 and d2 <= max_length * max_length) or d2 == 0.0:
                 break  # slack and not pulling (or degenerate): not in the block
             length = math.sqrt(d2)
-            unit[end, 0] = dx / length
-            unit[end, 1] = dy / length
-            unit[end, 2] = dz / length
+            unit_inout[end, 0] = dx / length
+            unit_inout[end, 1] = dy / length
+            unit_inout[end, 2] = dz / length
             residual = length - max_length - alpha * mu
             r = residual / rest
             if r > worst:
                 worst = r
             elif mu > 0.0 and -r > worst:
                 worst = -r  # pulling harder than the stretch asks: also a residual
-            rhs[end] = residual
-            diag[end] = w_a + w_b + alpha
+            rhs_inout[end] = residual
+            diag_inout[end] = w_a + w_b + alpha
             if end > start:
-                upper[end - 1] = -w_a * (unit[end - 1, 0] * unit[end, 0] + unit[end - 1, 1] * unit[end, 1]
-                                         + unit[end - 1, 2] * unit[end, 2])
+                upper_inout[end - 1] = -w_a * (unit_inout[end - 1, 0] * unit_inout[end, 0] + unit_inout[end - 1, 1] * unit_inout[end, 1]
+                                         + unit_inout[end - 1, 2] * unit_inout[end, 2])
             end += 1
         if end == start:
             k = start + 1  # an inactive spring: skip it
@@ -260,29 +267,29 @@ def _solve_line(
         had_block = True
         # -- Thomas algorithm on the symmetric tridiagonal block [start, end) -------------------
         for i in range(start + 1, end):
-            f = upper[i - 1] / diag[i - 1]
-            diag[i] -= f * upper[i - 1]
-            rhs[i] -= f * rhs[i - 1]
-        rhs[end - 1] /= diag[end - 1]
+            f = upper_inout[i - 1] / diag_inout[i - 1]
+            diag_inout[i] -= f * upper_inout[i - 1]
+            rhs_inout[i] -= f * rhs_inout[i - 1]
+        rhs_inout[end - 1] /= diag_inout[end - 1]
         for i in range(end - 2, start - 1, -1):
-            rhs[i] = (rhs[i] - upper[i] * rhs[i + 1]) / diag[i]
+            rhs_inout[i] = (rhs_inout[i] - upper_inout[i] * rhs_inout[i + 1]) / diag_inout[i]
         # -- new tensions (>= 0) and the moves they make ------------------------------------
         for i in range(start, end):
             s = line_springs[i]
-            mu = tension[i]
-            new_mu = mu + rhs[i]
+            mu = tension_inout[i]
+            new_mu = mu + rhs_inout[i]
             if new_mu < 0.0:
                 new_mu = 0.0
             dmu = new_mu - mu
-            tension[i] = new_mu
+            tension_inout[i] = new_mu
             if dmu == 0.0:
                 continue
             a = spring_particle_a[s]
             b = spring_particle_b[s]
-            _move_ends(particle_position_m, a, b, particle_inv_mass[a] * dmu, particle_inv_mass[b] * dmu,
-                       unit[i, 0], unit[i, 1], unit[i, 2])
-            moved_at[a] = stamp
-            moved_at[b] = stamp
+            _move_ends(particle_position_m_inout, a, b, particle_inv_mass[a] * dmu, particle_inv_mass[b] * dmu,
+                       unit_inout[i, 0], unit_inout[i, 1], unit_inout[i, 2])
+            moved_at_out[a] = stamp
+            moved_at_out[b] = stamp
         k = end
     return worst, had_block
 
@@ -299,15 +306,15 @@ def _moved_since(first, last, line_springs, spring_particle_a, spring_particle_b
 
 @nb.njit(cache=True, fastmath=False, parallel=True)
 def limit_strain_lines(
-    # model
-    line_springs, line_start, group_start, spring_rest_length_m, strain_limit, tolerance, max_iterations,
-    compliance_s2_per_kg,
-    # state in
-    particle_inv_mass, spring_particle_a, spring_particle_b, spring_alive,
-    # scratch (tension, moved_at zeroed here; the others overwritten)
-    tension, diag, upper, rhs, unit, line_worst, line_status, moved_at,
+    # model: the yarn lines, their groups; (strain limit, tolerance, most sweeps); the compliance
+    line_springs, line_start, group_start, limit_in, compliance_s2_per_kg,
+    # state in: (rest lengths, inverse masses, ends a, ends b, alive flags)
+    springs_in,
+    # scratch: (tension, diag, upper, rhs, unit, line_worst, line_status, moved_at); tension, moved_at
+    # zeroed here, the others overwritten
+    scratch_inout,
     # state in/out
-    particle_position_m,
+    particle_position_m_inout,
 ):
     """Strain limiting as a compliant inequality constraint (XPBD, Macklin, Müller & Chentanez 2016),
     solved a whole yarn at a time (block Gauss-Seidel over yarn lines). C = l - (1 + limit) L >= 0 is
@@ -345,12 +352,17 @@ def limit_strain_lines(
     block) would form no block again and change nothing, so after the first sweep it is skipped, with
     a residual of 0 as its update would report: the same result, bit for bit, for a fraction of the
     work (in fig7 about 11 of the 128 yarns have a stretched spring at a step's start)."""
+    strain_limit, tolerance, max_iterations = limit_in
+    spring_rest_length_m, particle_inv_mass, spring_particle_a, spring_particle_b, spring_alive = springs_in
+    (tension_inout, diag_inout, upper_inout, rhs_inout, unit_inout, line_worst_inout, line_status_inout,
+     moved_at_inout) = scratch_inout
+    solve_inout = (tension_inout, diag_inout, upper_inout, rhs_inout, unit_inout)
     stretch = 1.0 + strain_limit
     alpha = compliance_s2_per_kg
-    for k in range(tension.shape[0]):
-        tension[k] = 0.0
-    for p in range(moved_at.shape[0]):
-        moved_at[p] = 0
+    for k in range(tension_inout.shape[0]):
+        tension_inout[k] = 0.0
+    for p in range(moved_at_inout.shape[0]):
+        moved_at_inout[p] = 0
     groups = group_start.shape[0] - 1
     for it in range(max_iterations):
         worst = 0.0
@@ -359,19 +371,18 @@ def limit_strain_lines(
             hi = group_start[g + 1]
             stamp = it * groups + g + 1
             for l in nb.prange(lo, hi):
-                if it > 0 and line_status[l] % 2 == 0 and not _moved_since(
+                if it > 0 and line_status_inout[l] % 2 == 0 and not _moved_since(
                         line_start[l], line_start[l + 1], line_springs, spring_particle_a, spring_particle_b,
-                        spring_alive, moved_at, line_status[l] // 2):
-                    line_worst[l] = 0.0
+                        spring_alive, moved_at_inout, line_status_inout[l] // 2):
+                    line_worst_inout[l] = 0.0
                     continue
-                line_worst[l], had_block = _solve_line(
-                    line_start[l], line_start[l + 1], line_springs, spring_rest_length_m, stretch, alpha,
-                    particle_inv_mass, spring_particle_a, spring_particle_b, spring_alive, tension, diag, upper,
-                    rhs, unit, particle_position_m, stamp, moved_at)
-                line_status[l] = 2 * stamp + (1 if had_block else 0)
+                line_worst_inout[l], had_block = _solve_line(
+                    line_start[l], line_start[l + 1], line_springs, stretch, alpha, springs_in, solve_inout,
+                    particle_position_m_inout, stamp, moved_at_inout)
+                line_status_inout[l] = 2 * stamp + (1 if had_block else 0)
             for l in range(lo, hi):
-                if line_worst[l] > worst:
-                    worst = line_worst[l]
+                if line_worst_inout[l] > worst:
+                    worst = line_worst_inout[l]
         if worst <= tolerance:
             return it + 1, True
     return max_iterations, max_iterations == 0

@@ -32,45 +32,28 @@ def all_slots(count: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 class ParticleLists:
-    """The solver's lists of particle slots, rebuilt when the sets may have changed.
+    """The solver's lists of particle slots, rebuilt when State.topology_epoch changed.
 
     - free: slots with inverse mass > 0 (integrated, damped, in contact with bodies);
     - moving: active slots minus the crossings slaved to coarse nodes (positions integrated, velocities
-      from positions; a slaved crossing's position is its interpolation, its velocity is set once per
-      frame, fraytool.sim.stages.core.VelocityPostProcess).
-    Within a run, a split (activates a slot, sets masses) raises the active count, and a refinement
-    (frees crossings) the refined-cell count; so equal counts on the same arrays mean the same sets.
-    A tool that edits inverse masses or active flags in place some other way (pinning a particle
-    mid-run) calls `invalidate` after it."""
+      from positions; a slaved crossing's position is its interpolation, its velocity is set by the
+      solver's completion call, SolverExplicitPBD.complete).
+    A tool that edits inverse masses or active flags in place calls State.bump_topology after it."""
 
     def __init__(self) -> None:
         self.slaved_of: Optional[Callable[[object], np.ndarray]] = None
         """slaved_of(state): the crossings slaved to coarse nodes now (multi-resolution model, set by the
-        solver from its stages); None: none."""
-        self._free_key: tuple = ()
-        self._moving_key: tuple = ()
+        solver from its step context); None: none."""
+        self._free_at: Optional[int] = None
+        self._moving_at: Optional[int] = None
         self._free = (np.zeros(0, np.int32), even_units(0))
         self._moving = (np.zeros(0, np.int32), even_units(0))
 
-    def invalidate(self) -> None:
-        """Rebuild both lists at their next use."""
-        self._free_key = self._moving_key = ()
-
-    @staticmethod
-    def _key(array: np.ndarray, state) -> tuple:
-        return (array, int(np.count_nonzero(state.particle_active)),
-                int(np.count_nonzero(state.coarse_cell_refined)))
-
-    @staticmethod
-    def _same(a: tuple, b: tuple) -> bool:
-        return len(a) == 3 and a[0] is b[0] and a[1:] == b[1:]
-
     def free(self, state) -> tuple[np.ndarray, np.ndarray]:
         """(free slots ascending, their units)."""
-        key = self._key(state.particle_inv_mass, state)
-        if not self._same(self._free_key, key):
+        if state.topology_epoch != self._free_at:
             listed = np.flatnonzero(state.particle_inv_mass > 0.0).astype(np.int32)
-            self._free, self._free_key = (listed, even_units(listed.shape[0])), key
+            self._free, self._free_at = (listed, even_units(listed.shape[0])), state.topology_epoch
         return self._free
 
     def slaved(self, state) -> np.ndarray:
@@ -79,10 +62,9 @@ class ParticleLists:
 
     def moving(self, state) -> tuple[np.ndarray, np.ndarray]:
         """(active slots that are not slaved crossings, ascending, their units)."""
-        key = self._key(state.particle_active, state)
-        if not self._same(self._moving_key, key):
+        if state.topology_epoch != self._moving_at:
             mask = state.particle_active.copy()
             mask[self.slaved(state)] = False
             listed = np.flatnonzero(mask).astype(np.int32)
-            self._moving, self._moving_key = (listed, even_units(listed.shape[0])), key
+            self._moving, self._moving_at = (listed, even_units(listed.shape[0])), state.topology_epoch
         return self._moving

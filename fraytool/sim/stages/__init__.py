@@ -3,73 +3,125 @@
 A stage is an object with
 - ``name``: its place in the step and its timing bucket (one of ``STAGE_NAMES``, in step order);
 - ``kernel``: the name the stability guard reports when the stage produced a bad value;
-- ``run(state, buffers, dt_s)``: advance ``state`` in place, reading and writing the step's scratch
-  ``buffers`` (start-of-step positions, forces, body impulses);
+- ``reads`` / ``writes``: what it touches (the names in fraytool.sim.stages.base: positions, forces,
+  topology, the coarse model's views of its slaved crossings, ...);
+- ``run(state, ctx, dt_s)``: advance ``state`` in place, reading and writing the step context ``ctx``
+  (StepContext: start-of-step positions, forces, particle lists, the coarse model's work lists, the
+  yarn-level model, counters);
 - ``summary(state) -> dict``: figures for ``fraytool simulate --json`` (empty when it has none).
 
-``build_stages(model)`` makes exactly the stages a model needs, in the paper's order (with one
+``build_stages(model, ...)`` makes exactly the stages a model needs, in the paper's order (with one
 addition: a scene that tears and has a colliding body also runs rigid contact before strain limiting,
-docs/tearing.md "Contact with bodies before the strain limit"); the optional
-ones (yarn contact and tearing, self-collision) are imported only when the model uses them, so a
-scene pays only for what it uses and their numba kernels are never compiled otherwise.
+docs/tearing.md "Contact with bodies before the strain limit"), then ``plan_syncs`` inserts, from the
+declarations alone, the syncs a coarse base model needs. The optional stages (yarn contact and
+tearing, self-collision, multi-resolution) are imported only when the model uses them, so a scene pays
+only for what it uses and their numba kernels are never compiled otherwise.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import Optional
+
 from fraytool.sim.model import Model
-from fraytool.sim.stages.base import STAGE_NAMES, HookStage, Stage, StepBuffers
+from fraytool.sim.stages.base import (COARSE_VIEWS, HANGING, SLAVED, SLAVED_NEAR_HOT, STAGE_NAMES, STALES_VIEWS,
+                                      HookStage, Stage, StepContext, StepCounters)
 
-__all__ = ["STAGE_NAMES", "HookStage", "Stage", "StepBuffers", "build_stages"]
+__all__ = ["STAGE_NAMES", "HookStage", "Stage", "StepContext", "StepCounters", "StepPlan", "build_stages",
+           "plan_syncs"]
 
 
-def build_stages(model: Model, speed_limit_m_s: float) -> list:
-    """The stages of one step for `model`, in the order of docs/method.md §4 (and its one departure)."""
+@dataclass(eq=False)
+class StepPlan:
+    """The stages a model declares, in step order (before syncs), and the handles tools read."""
+
+    stages: list
+    """The model's stages in step order, without the coarse syncs (plan_syncs adds them)."""
+    self_collision: Optional[Stage] = None
+    """The self-collision stage (its counters and settings, for tools and tests), else None."""
+
+
+def build_stages(model: Model, speed_limit_m_s: float, ctx: StepContext) -> StepPlan:
+    """The stages of one step for `model`, in the order of docs/method.md §4 (and its one departure);
+    sets the parts of `ctx` the stages share (the coarse model's work lists, the yarn-level model)."""
     from fraytool.sim.stages import core
 
-    runtime = None
-    if model.coarse_factor > 1:
+    coarse = model.coarse_factor > 1
+    if coarse:
         from fraytool.sim.stages import multires  # only multi-resolution scenes
 
-        runtime = multires.MultiresRuntime(model)
-        stages: list = [multires.MultiresForces(model, runtime)]
+        ctx.coarse = multires.CoarseWork(model)
+        stages: list = [multires.MultiresForces(model)]
     else:
         stages = [core.SpringForces(model)]
     stages.append(core.VelocityUpdate(model))
     if model.damping > 0.0:
         stages.append(core.Damping(model))
     stages.append(core.PositionUpdate(model))
-    if runtime is not None:
-        stages.append(multires.SyncSlaved(runtime, "integration", hanging_only=True))
     if model.attachment_count > 0:
         stages.append(core.Attachments(model))
     contact = model.body_count > 0 and bool(model.body_collide.any())
     if contact and model.tearing:
         stages.append(core.RigidContactBeforeLimit(model))  # the limit sees a body's push before breaks
-    strain = core.StrainLimiting(model)
-    stages.append(strain)
-    if runtime is not None:
-        runtime.strain_stage = strain  # limits only the springs of refined cells
-    tearing = None
+    stages.append(core.StrainLimiting(model))
+    tearing_stage = None
     if model.tearing:
         from fraytool.sim.stages.tearing import TearingStage, YarnContactStage  # only scenes that tear
+        from fraytool.sim.tearing import YarnTearing
 
-        tearing = TearingStage(model)
-        if runtime is not None:
-            runtime.tearing = tearing.tearing  # scans only the springs of refined cells
-        if tearing.yarn_level:
-            stages.append(YarnContactStage(tearing.tearing))
+        ctx.yarn_tearing = YarnTearing(model)
+        if ctx.yarn_tearing.yarn_level:
+            stages.append(YarnContactStage())
+        tearing_stage = TearingStage()
     if contact:
         stages.append(core.RigidContact(model))
-        if runtime is not None:
-            stages.append(multires.SlavedContact(model, runtime))
+        if coarse:
+            stages.append(multires.SlavedContact(model))
+    self_collision = None
     if model.self_collision:
         from fraytool.sim.stages.self_collision import SelfCollision  # only scenes with self-collision
 
-        if runtime is not None:
-            stages.append(multires.SyncSlaved(runtime, "self_collision", hanging_only=False))
-        stages.append(SelfCollision(model))
-    if runtime is not None:
-        stages.append(multires.Refinement(model, runtime))
-    if tearing is not None:
-        stages.append(tearing)
+        self_collision = SelfCollision(model)
+        stages.append(self_collision)
+    if coarse:
+        stages.append(multires.Refinement(model))
+    if tearing_stage is not None:
+        stages.append(tearing_stage)
     stages.append(core.VelocityPostProcess(model, speed_limit_m_s))
-    return stages
+    return StepPlan(stages, self_collision)
+
+
+def _covers(view: str) -> tuple:
+    """The views a sync of `view` brings up to date (every slaved crossing covers the others)."""
+    return (SLAVED, HANGING, SLAVED_NEAR_HOT) if view == SLAVED else (view,)
+
+
+def _walk(stages: list, fresh: set, sync_factory) -> tuple[list, set]:
+    out: list = []
+    for stage in stages:
+        need = [v for v in COARSE_VIEWS if v in stage.reads and v not in fresh]
+        if SLAVED in need:
+            need = [SLAVED]
+        if need:
+            out.append(sync_factory(tuple(need), stage.name))
+            for v in need:
+                fresh.update(_covers(v))
+        out.append(stage)
+        if stage.writes & set(STALES_VIEWS):
+            fresh = set()
+    return out, fresh
+
+
+def plan_syncs(stages: list, ctx: StepContext) -> list:
+    """`stages` with a coarse sync (fraytool.sim.stages.multires.CoarseSync) before every stage that
+    reads a view of the slaved crossings (``reads`` holds HANGING, SLAVED or SLAVED_NEAR_HOT) which a
+    stage since the last sync left out of date (``writes`` holds positions, start positions or
+    topology). The step repeats, so the walk starts from what the previous step left: every view is
+    up to date after the solver's completion call, and after a step what the last writer left. No
+    coarse model: the stages as they are."""
+    if ctx.coarse is None:
+        return list(stages)
+    from fraytool.sim.stages.multires import CoarseSync
+
+    _, after_step = _walk(stages, set(COARSE_VIEWS), CoarseSync)
+    planned, _ = _walk(stages, after_step, CoarseSync)
+    return planned

@@ -11,6 +11,7 @@ import numpy as np
 
 from fraytool.kinds import MOTION_DYNAMIC
 from fraytool.sim.kernels.attachments import apply_attachments
+from fraytool.sim.kernels.bodies import bodies_in
 from fraytool.sim.kernels.damping import pbd_damping, pbd_damping_pieces
 from fraytool.sim.kernels.forces import accumulate_spring_forces
 from fraytool.sim.kernels.integrate import (
@@ -21,10 +22,10 @@ from fraytool.sim.kernels.integrate import (
 from fraytool.sim.kernels.pieces import label_pieces
 from fraytool.sim.kernels.rigid_contact import collide_rigid
 from fraytool.sim.kernels.strain_limit import damp_overstretched, limit_strain_groups, limit_strain_lines
-from fraytool.sim.kernels.work_split import even_units
 from fraytool.sim.model import Model
 from fraytool.sim.rigid import advance_bodies, apply_cloth_impulse
-from fraytool.sim.stages.base import StepBuffers
+from fraytool.sim.stages.base import (BODIES, FORCES, HANGING, POSITIONS, START_POSITIONS, TOPOLOGY, VELOCITIES,
+                                      StepContext)
 from fraytool.sim.state import State
 
 
@@ -76,20 +77,22 @@ class _NoSummary:
 
 
 class SpringForces(_NoSummary):
-    """Step 1: spring forces (structural, bend, compression-only shear; §3.2) into buffers.force_n,
+    """Step 1: spring forces (structural, bend, compression-only shear; §3.2) into ctx.force_n,
     on one thread (fraytool/threads.py says why)."""
 
     name = "forces"
     kernel = "accumulate_spring_forces"
+    reads = frozenset({POSITIONS, TOPOLOGY})
+    writes = frozenset({FORCES})
 
     def __init__(self, model: Model):
         self.model = model
 
-    def run(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
+    def run(self, state: State, ctx: StepContext, dt_s: float) -> None:
         m = self.model
         accumulate_spring_forces(m.spring_kind, state.spring_rest_length_m, state.particle_position_m,
                                  state.spring_particle_a, state.spring_particle_b, state.spring_alive,
-                                 state.spring_stiffness_n_per_m, buffers.force_n)
+                                 state.spring_stiffness_n_per_m, ctx.force_n)
 
 
 class VelocityUpdate(_NoSummary):
@@ -97,12 +100,14 @@ class VelocityUpdate(_NoSummary):
 
     name = "integration"
     kernel = "integrate_velocities"
+    reads = frozenset({FORCES, VELOCITIES})
+    writes = frozenset({VELOCITIES})
 
     def __init__(self, model: Model):
         self.gravity_m_s2 = model.gravity_m_s2
 
-    def run(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
-        integrate_velocities(*buffers.lists.free(state), state.particle_velocity_m_s, buffers.force_n,
+    def run(self, state: State, ctx: StepContext, dt_s: float) -> None:
+        integrate_velocities(*ctx.lists.free(state), state.particle_velocity_m_s, ctx.force_n,
                              state.particle_inv_mass, self.gravity_m_s2, dt_s)
 
 
@@ -111,13 +116,13 @@ class Damping(_NoSummary):
 
     Müller's damping keeps an object's linear and angular momentum; a torn cloth is several objects,
     so in a scene that tears every piece (fraytool.sim.pieces) is damped about its own centre of mass
-    and two pieces moving apart keep their relative velocity. The pieces are relabelled only when
-    the topology changed: a cut lowers the live spring count, a disconnection the connected couple
-    count, a split raises the active particle count (each strictly), so equal counts mean the same
-    pieces. An untorn cloth is one piece (the single-body kernel)."""
+    and two pieces moving apart keep their relative velocity. The pieces are relabelled when
+    State.topology_epoch changed. An untorn cloth is one piece (the single-body kernel)."""
 
     name = "damping"
     kernel = "pbd_damping"
+    reads = frozenset({POSITIONS, VELOCITIES, TOPOLOGY})
+    writes = frozenset({VELOCITIES})
 
     def __init__(self, model: Model):
         self.model = model
@@ -125,23 +130,22 @@ class Damping(_NoSummary):
         self.per_piece = bool(model.tearing)
         self._labels = np.zeros(model.particle_count if self.per_piece else 0, np.int64)
         self._piece_count = 0
-        self._topology_key: tuple = ()
+        self._labelled_at: Optional[int] = None
+        """State.topology_epoch the piece labels were made at."""
 
-    def run(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
+    def run(self, state: State, ctx: StepContext, dt_s: float) -> None:
         if not self.per_piece:
-            pbd_damping(*buffers.lists.free(state), state.particle_position_m, state.particle_velocity_m_s,
+            pbd_damping(*ctx.lists.free(state), state.particle_position_m, state.particle_velocity_m_s,
                         state.particle_mass_kg, state.particle_inv_mass, self.damping)
             return
-        key = (int(np.count_nonzero(state.spring_alive)), int(np.count_nonzero(state.couple_connected)),
-               int(np.count_nonzero(state.particle_active)))
-        if key != self._topology_key:
+        if state.topology_epoch != self._labelled_at:
             m = self.model
             self._piece_count = label_pieces(m.spring_kind, m.crossing_count, state.particle_active,
                                              state.crossing_yarn_level, state.couple_connected,
                                              state.spring_particle_a, state.spring_particle_b,
                                              state.spring_alive, self._labels)
-            self._topology_key = key
-        pbd_damping_pieces(*buffers.lists.free(state), state.particle_position_m, state.particle_velocity_m_s,
+            self._labelled_at = state.topology_epoch
+        pbd_damping_pieces(*ctx.lists.free(state), state.particle_position_m, state.particle_velocity_m_s,
                            state.particle_mass_kg, state.particle_inv_mass, self._labels, self._piece_count,
                            self.damping)
 
@@ -151,15 +155,17 @@ class PositionUpdate(_NoSummary):
 
     name = "integration"
     kernel = "integrate_positions"
+    reads = frozenset({POSITIONS, VELOCITIES, BODIES})
+    writes = frozenset({POSITIONS, START_POSITIONS, BODIES})
 
     def __init__(self, model: Model):
         self.model = model
         self.has_bodies = model.body_count > 0
 
-    def run(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
+    def run(self, state: State, ctx: StepContext, dt_s: float) -> None:
         # the moving particles: slaved crossings (multi-resolution model) are their nodes' interpolation
-        integrate_positions(*buffers.lists.moving(state), state.particle_position_m,
-                            state.particle_velocity_m_s, state.particle_active, buffers.prev_position_m, dt_s)
+        integrate_positions(*ctx.lists.moving(state), state.particle_position_m,
+                            state.particle_velocity_m_s, state.particle_active, ctx.prev_position_m, dt_s)
         if self.has_bodies:
             advance_bodies(self.model, state, state.time_s + dt_s, dt_s)
 
@@ -169,11 +175,13 @@ class Attachments(_NoSummary):
 
     name = "strain_limiting"
     kernel = "apply_attachments"
+    reads = frozenset({BODIES})
+    writes = frozenset({POSITIONS})
 
     def __init__(self, model: Model):
         self.model = model
 
-    def run(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
+    def run(self, state: State, ctx: StepContext, dt_s: float) -> None:
         m = self.model
         apply_attachments(m.attachment_particle, m.attachment_body, m.attachment_offset_m, state.body_position_m,
                           m.body_rotation, state.particle_position_m)
@@ -197,6 +205,8 @@ class StrainLimiting(_NoSummary):
 
     name = "strain_limiting"
     kernel = "limit_strain_groups"
+    reads = frozenset({POSITIONS, START_POSITIONS, HANGING, TOPOLOGY})
+    writes = frozenset({POSITIONS})
 
     def __init__(self, model: Model):
         self.model = model
@@ -208,15 +218,13 @@ class StrainLimiting(_NoSummary):
         self._all_lines = yarn_line_springs(model) if self.compliant else None
         """Every structural spring's colour groups and yarn lines, which `restrict` filters."""
         self.restrict(None)
-        self.iterations_last = 0
-        self.iterations_max = 0
-        self.cap_hits = 0
-        """Steps where strain limiting stopped at the iteration cap without converging."""
+        self._restricted_at = -1
+        """The epoch of the working-spring mask the lists were restricted to (StepContext.working_springs)."""
 
     def restrict(self, working: Optional[np.ndarray]) -> None:
         """Limit only the structural springs where `working` (a mask over the spring slots) is True; None:
-        all of them. The multi-resolution model (fraytool.sim.stages.multires) limits the springs of its
-        refined cells: a yarn's line then breaks into runs of consecutive working springs (runs of one
+        all of them. The multi-resolution model limits the springs of its refined cells (the mask
+        StepContext.working_springs gives, read at each run): a yarn's line then breaks into runs of consecutive working springs (runs of one
         yarn share no mass, so a group's lines stay independent)."""
         springs, starts = self._all_groups
         if working is not None:
@@ -241,31 +249,35 @@ class StrainLimiting(_NoSummary):
             self._line_worst = np.zeros(self.line_start.shape[0] - 1)
             self._line_status = np.zeros(self.line_start.shape[0] - 1, np.int64)
 
-    def run(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
+    def run(self, state: State, ctx: StepContext, dt_s: float) -> None:
         m = self.model
+        working, made_at = ctx.working_springs(state)
+        if made_at != self._restricted_at:
+            self.restrict(working)
+            self._restricted_at = made_at
         if m.strain_damping_n_s_per_m > 0.0:
             damp_overstretched(self.limited_springs, state.spring_rest_length_m, m.strain_limit,
                                m.strain_damping_n_s_per_m, dt_s, state.particle_inv_mass, state.spring_particle_a,
-                               state.spring_particle_b, state.spring_alive, buffers.prev_position_m,
+                               state.spring_particle_b, state.spring_alive, ctx.prev_position_m,
                                state.particle_position_m)
         if self._moved_at.shape[0] != state.particle_position_m.shape[0]:
             self._moved_at = np.zeros(state.particle_position_m.shape[0], np.int64)
+        limit = (m.strain_limit, m.strain_tolerance, m.strain_max_iterations)
+        springs = (state.spring_rest_length_m, state.particle_inv_mass, state.spring_particle_a,
+                   state.spring_particle_b, state.spring_alive)
         if self.compliant:
-            it, converged = limit_strain_lines(
-                self.line_springs, self.line_start, self.line_groups, state.spring_rest_length_m, m.strain_limit,
-                m.strain_tolerance, m.strain_max_iterations, 1.0 / (m.strain_stiffness_n_per_m * dt_s * dt_s),
-                state.particle_inv_mass, state.spring_particle_a, state.spring_particle_b, state.spring_alive,
-                self._tension, self._diag, self._upper, self._rhs, self._unit, self._line_worst, self._line_status,
-                self._moved_at, state.particle_position_m)
+            scratch = (self._tension, self._diag, self._upper, self._rhs, self._unit, self._line_worst,
+                       self._line_status, self._moved_at)
+            it, converged = limit_strain_lines(self.line_springs, self.line_start, self.line_groups, limit,
+                                               1.0 / (m.strain_stiffness_n_per_m * dt_s * dt_s), springs, scratch,
+                                               state.particle_position_m)
         else:
-            it, converged = limit_strain_groups(self.limited_springs, self.colour_start, state.spring_rest_length_m,
-                                                m.strain_limit, m.strain_tolerance, m.strain_max_iterations,
-                                                state.particle_inv_mass, state.spring_particle_a,
-                                                state.spring_particle_b, state.spring_alive, self._checked_at,
-                                                self._moved_at, state.particle_position_m)
-        self.iterations_last = it
-        self.iterations_max = max(self.iterations_max, it)
-        self.cap_hits += 0 if converged else 1
+            it, converged = limit_strain_groups(self.limited_springs, self.colour_start, limit, springs,
+                                                self._checked_at, self._moved_at, state.particle_position_m)
+        counters = ctx.counters
+        counters.strain_iterations_last = it
+        counters.strain_iterations_max = max(counters.strain_iterations_max, it)
+        counters.strain_cap_hits += 0 if converged else 1
 
 
 class RigidContact(_NoSummary):
@@ -273,22 +285,21 @@ class RigidContact(_NoSummary):
 
     name = "collisions"
     kernel = "collide_rigid"
+    reads = frozenset({POSITIONS, START_POSITIONS, BODIES})
+    writes = frozenset({POSITIONS, BODIES})
 
     def __init__(self, model: Model):
         self.model = model
         self.body_dynamic = model.body_motion == MOTION_DYNAMIC
         self.any_dynamic = bool(self.body_dynamic.any())
-        self.contacts_last = 0
 
-    def run(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
+    def run(self, state: State, ctx: StepContext, dt_s: float) -> None:
         m = self.model
-        self.contacts_last = collide_rigid(
-            *buffers.lists.free(state), m.body_shape, m.body_rotation, m.body_radius_m, m.body_half_extents_m,
-            m.body_normal, m.body_friction, m.body_collide, self.body_dynamic, 0.5 * m.thickness_m, dt_s,
-            state.body_position_m, state.body_velocity_m_s, state.particle_inv_mass, state.particle_mass_kg, buffers.prev_position_m,
-            state.particle_position_m, buffers.body_impulse_n_s)
+        ctx.counters.rigid_contacts_last = collide_rigid(
+            *ctx.lists.free(state), bodies_in(m, state), 0.5 * m.thickness_m, dt_s, state.particle_inv_mass,
+            state.particle_mass_kg, ctx.prev_position_m, state.particle_position_m, ctx.body_impulse_n_s)
         if self.any_dynamic:
-            apply_cloth_impulse(m, state, buffers.body_impulse_n_s)
+            apply_cloth_impulse(m, state, ctx.body_impulse_n_s)
 
 
 class RigidContactBeforeLimit(RigidContact):
@@ -312,29 +323,23 @@ class RigidContactBeforeLimit(RigidContact):
 
 class VelocityPostProcess(_NoSummary):
     """Step 8: v = (x - x_prev) / dt (PBD), with the guard's end-of-step check: the first particle
-    non-finite or faster than speed_limit_m_s goes to buffers.bad_particle.
+    non-finite or faster than speed_limit_m_s goes to ctx.bad_particle.
 
     In a multi-resolution model the crossings slaved to coarse nodes are left out of the step (their
     velocity is read by nothing in it: they are not integrated, and a crossing freed by a refinement
     is freed with its interpolated position and start-of-step position, so the step ends with its
-    velocity); `end_frame` gives them theirs, by the same formula, for the frame's record."""
+    velocity); the solver's completion call (SolverExplicitPBD.complete) gives them theirs, by the
+    same formula."""
 
     name = "integration"
     kernel = "velocities_from_positions"
+    reads = frozenset({POSITIONS, START_POSITIONS})
+    writes = frozenset({VELOCITIES})
 
     def __init__(self, model: Model, speed_limit_m_s: float):
         self.speed_limit_m_s = speed_limit_m_s
 
-    def run(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
-        buffers.bad_particle = int(velocities_from_positions(
-            *buffers.lists.moving(state), state.particle_position_m, buffers.prev_position_m,
+    def run(self, state: State, ctx: StepContext, dt_s: float) -> None:
+        ctx.bad_particle = int(velocities_from_positions(
+            *ctx.lists.moving(state), state.particle_position_m, ctx.prev_position_m,
             state.particle_active, state.particle_velocity_m_s, dt_s, self.speed_limit_m_s))
-
-    def end_frame(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
-        """The slaved crossings' velocities of the last step, v = (x - x_prev) / dt (multi-resolution)."""
-        slaved = buffers.lists.slaved(state)
-        if not slaved.shape[0]:
-            return
-        velocities_from_positions(slaved, even_units(slaved.shape[0]), state.particle_position_m,
-                                  buffers.prev_position_m, state.particle_active, state.particle_velocity_m_s, dt_s,
-                                  self.speed_limit_m_s)

@@ -50,8 +50,9 @@ from fraytool.collision.candidates import (
 )
 from fraytool.collision.narrow import ccd_pairs, ccd_pairs_all
 from fraytool.kinds import STRUCT_WARP, STRUCT_WEFT
-from fraytool.sim.kernels.self_collision import freeze_pairs, repel_close_pairs, respond_pairs
+from fraytool.sim.kernels.self_collision import freeze_pairs, mark_touching_pairs, repel_close_pairs, respond_pairs
 from fraytool.sim.model import Model
+from fraytool.sim.stages.base import POSITIONS, SLAVED, START_POSITIONS, TOPOLOGY
 
 CONTACT_FRACTION = 0.5
 """d_c = CONTACT_FRACTION x thickness."""
@@ -90,6 +91,8 @@ class SelfCollision:
 
     name = "self_collision"
     kernel = "ccd_pairs"
+    reads = frozenset({POSITIONS, START_POSITIONS, SLAVED, TOPOLOGY})
+    writes = frozenset({POSITIONS})
 
     def __init__(self, model: Model):
         self.model = model
@@ -196,9 +199,9 @@ class SelfCollision:
                 self._build(state, prev_position_m)
                 touched = None
             elif len(escaped):
-                self._cand = rebox_segments(prev_position_m, x, a, b, alive, self.yarn_segments, escaped,
-                                            LOOKAHEAD_STEPS, self.margin_m, self._box_lo, self._box_hi,
-                                            self._inflated, self._alive, self._cand)
+                self._cand = rebox_segments(prev_position_m, x, (a, b, alive), self.yarn_segments, escaped,
+                                            LOOKAHEAD_STEPS, self.margin_m,
+                                            (self._box_lo, self._box_hi, self._inflated, self._alive), self._cand)
                 touched[a[self.yarn_segments[escaped]]] = True
                 touched[b[self.yarn_segments[escaped]]] = True
                 self.broad_phase_reboxes += 1
@@ -233,8 +236,8 @@ class SelfCollision:
         total, first = 0, 0
         while True:
             moved, stop = repel_close_pairs(self.contact_distance_m, self.friction, prev_position_m, self._cand,
-                                            first, a, b, alive, w, self._reach, x, self._pair_segments(), self._box_row,
-                                            self._box, self._dirty)
+                                            first, (a, b, alive), w, self._reach, x,
+                                            (self._pair_segments(), self._box_row), (self._box, self._dirty))
             total += moved
             if stop < 0:
                 return total
@@ -309,8 +312,18 @@ class SelfCollision:
                   f"round{'' if rounds == 1 else 's'}; "
                   f"{action}; later give-ups are only counted (self_collision_failsafe_give_ups)", file=sys.stderr)
 
-    def run(self, state, buffers, dt_s: float) -> None:
-        self(state, buffers.prev_position_m, dt_s)
+    def contact_particles(self, state) -> np.ndarray:
+        """Particle slots at the ends of yarn segments lying closer than twice the contact distance to
+        another segment (among the last candidate pairs): where the cloth touches itself, shape
+        (particle_count,), bool."""
+        out = np.zeros(state.particle_position_m.shape[0], np.bool_)
+        if self._cand is not None and self._cand.shape[0]:
+            mark_touching_pairs(self._cand, state.spring_particle_a, state.spring_particle_b, state.spring_alive,
+                                state.particle_position_m, 2.0 * self.contact_distance_m, out)
+        return out
+
+    def run(self, state, ctx, dt_s: float) -> None:
+        self(state, ctx.prev_position_m, dt_s)
 
     def summary(self, state=None) -> dict:
         return {"self_collision_pairs": self.pairs_total, "self_collision_proximity_pushes": self.proximity_total,

@@ -1,11 +1,10 @@
 """The yarn-level model's two stages (docs/method.md §3.3, §3.4): contact at connected mass couples
-(step 5) and transitions plus cuts (step 7). Both share one YarnTearing (fraytool.sim.tearing)."""
+(step 5) and transitions plus cuts (step 7). Both run the one YarnTearing (fraytool.sim.tearing) that
+the step context holds (StepContext.yarn_tearing)."""
 from __future__ import annotations
 
-from fraytool.sim.model import Model
-from fraytool.sim.stages.base import StepBuffers
+from fraytool.sim.stages.base import POSITIONS, SLAVED_NEAR_HOT, START_POSITIONS, TOPOLOGY, StepContext
 from fraytool.sim.state import State
-from fraytool.sim.tearing import YarnTearing
 
 
 class YarnContactStage:
@@ -13,12 +12,11 @@ class YarnContactStage:
 
     name = "yarn_contact"
     kernel = "project_couples"
+    reads = frozenset({POSITIONS, START_POSITIONS, TOPOLOGY})
+    writes = frozenset({POSITIONS, TOPOLOGY})
 
-    def __init__(self, tearing: YarnTearing):
-        self.tearing = tearing
-
-    def run(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
-        self.tearing.contact(state, buffers.prev_position_m, dt_s)
+    def run(self, state: State, ctx: StepContext, dt_s: float) -> None:
+        ctx.yarn_tearing.contact(state, ctx.prev_position_m, dt_s)
 
     def summary(self, state: State) -> dict:
         return {}
@@ -26,17 +24,20 @@ class YarnContactStage:
 
 class TearingStage:
     """Step 7: transitions of over-strained springs to the yarn level (yarn-level model only), then
-    cuts of springs over their break strain (§3.4, §4.1)."""
+    cuts of springs over their break strain (§3.4, §4.1). With a coarse model it scans only the
+    springs at work (StepContext.working_springs) and reads the slaved crossings near hot cells (a
+    split reads its neighbours for the couple's normal, its settle the yarn segments it may carry
+    through)."""
 
     name = "tearing"
     kernel = "transition_overstrained, cut_overstrained"
+    reads = frozenset({POSITIONS, START_POSITIONS, SLAVED_NEAR_HOT, TOPOLOGY})
+    writes = frozenset({POSITIONS, START_POSITIONS, TOPOLOGY})
 
-    def __init__(self, model: Model):
-        self.tearing = YarnTearing(model)
-        self.yarn_level = self.tearing.yarn_level
-
-    def run(self, state: State, buffers: StepBuffers, dt_s: float) -> None:
-        self.tearing(state, buffers.prev_position_m, dt_s)
+    def run(self, state: State, ctx: StepContext, dt_s: float) -> None:
+        tearing = ctx.yarn_tearing
+        tearing.restrict_scans(*ctx.working_springs(state))
+        tearing(state, ctx.prev_position_m, dt_s)
 
     def summary(self, state: State) -> dict:
-        return self.tearing.summary(state)
+        return {}

@@ -19,6 +19,7 @@ from typing import Iterable, Optional
 
 import numpy as np
 
+from fraytool.sim.kernels.bodies import bodies_in
 from fraytool.sim.kernels.rigid_contact import place_outside_bodies
 from fraytool.sim.model import Model
 from fraytool.kinds import STRUCT_WARP, STRUCT_WEFT
@@ -43,9 +44,10 @@ SETTLE_PASSES = 4
 class YarnTearing:
     """The tearing passes of one model: `contact` (stage 5) and `__call__` (stage 7).
 
-    The only thing kept between steps is the compact list of connected couples (ascending crossing
-    index), derived from State.couple_connected: it is rebuilt whenever a different State or a
-    non-consecutive step is seen, and after any split, so a resumed run matches an unbroken one.
+    What is kept between steps is derived from the State's topology and keyed on State.topology_epoch,
+    which every pass here bumps when it changes the topology (a split, a cut, a disconnection): the
+    compact list of connected couples (ascending crossing index, from State.couple_connected) and
+    the scans of free yarn runs. So a resumed run or a replay from a copy matches an unbroken one.
     """
 
     def __init__(self, model: Model):
@@ -60,15 +62,18 @@ class YarnTearing:
         self._couples = np.zeros(model.crossing_count, np.int32)
         self._weft_free = np.zeros(model.crossing_count, np.bool_)
         """Scratch of the cut rule: crossings whose weft (warp) lies on a free run (contact.free_yarn_runs)."""
-        self._runs_key: tuple = ()
+        self._runs_at: Optional[int] = None
+        """State.topology_epoch of the free-run and fragment scans."""
         # crossings to the yarn end on each side of a spring (yarn_runs.yarn_fragments): at most
         # ANCHORED (1 << 30) + a yarn's length, so int32
         self._fragment_left = np.full(model.spring_count, 1 << 30, np.int32)
         self._fragment_right = np.full(model.spring_count, 1 << 30, np.int32)
         self._warp_free = np.zeros(model.crossing_count, np.bool_)
         self._couple_count = 0
-        self._owner: Optional[State] = None
-        self._step = -2
+        self._couples_at: Optional[int] = None
+        """State.topology_epoch the couple list belongs to."""
+        self._scans_at = -1
+        """Epoch of the working-spring mask the scans are restricted to (`restrict_scans`)."""
         self.splits_last = 0
         """Crossings split in the last step."""
         self.cuts_last = 0
@@ -79,10 +84,14 @@ class YarnTearing:
         self.settle_reverts = 0
         """Settles undone because they would have carried a yarn segment through another."""
 
-    def restrict_scans(self, working: Optional[np.ndarray]) -> None:
-        """Scan only the structural springs where `working` (a mask over spring slots) is True for
-        transitions and cuts (None: all). The multi-resolution model (docs/multires.md) passes the
-        springs of refined cells: the others are slaved, below the refine strain by construction."""
+    def restrict_scans(self, working: Optional[np.ndarray], made_at: int = -1) -> None:
+        """Scan only the structural springs where `working` (a mask over spring slots, made at topology
+        epoch `made_at`) is True for transitions and cuts (None: all). The multi-resolution model
+        (docs/multires.md, StepContext.working_springs) gives the springs of refined cells: the others
+        are slaved, below the refine strain by construction. A mask already applied is not re-applied."""
+        if made_at == self._scans_at and made_at != -1:
+            return
+        self._scans_at = made_at
         m = self.model_in
         if working is None:
             self.model_scan = m
@@ -96,13 +105,16 @@ class YarnTearing:
         idx = np.flatnonzero(state.couple_connected)
         self._couples[: idx.size] = idx
         self._couple_count = int(idx.size)
+        self._couples_at = state.topology_epoch
 
     def _sync(self, state: State) -> None:
-        if state is not self._owner or state.step_index not in (self._step, self._step + 1):
+        if state.topology_epoch != self._couples_at:
             self._rebuild(state)
-            self._owner = state
-            self._runs_key = ()  # another state (or a jump): scan its yarns afresh
-        self._step = state.step_index
+
+    def _changed(self, state: State) -> None:
+        """The topology of `state` changed here: a new epoch, and the couple list rebuilt for it."""
+        state.bump_topology()
+        self._rebuild(state)
 
     @property
     def connected_couples(self) -> np.ndarray:
@@ -116,8 +128,12 @@ class YarnTearing:
         if self._couple_count == 0:
             return
         particles, crossings, springs = state_groups(state)
-        self._couple_count = project_couples(self.model_in, particles, crossings, springs, self._couples,
-                                             self._couple_count, prev_position_m)
+        count = project_couples(self.model_in, particles, crossings, springs, self._couples, self._couple_count,
+                                prev_position_m)
+        if count != self._couple_count:  # couples disconnected: the list is compacted in place (order kept)
+            self._couple_count = count
+            state.bump_topology()
+            self._couples_at = state.topology_epoch
 
     # -- stage 7 -----------------------------------------------------------------------------
     def __call__(self, state: State, prev_position_m: np.ndarray, dt_s: float) -> None:
@@ -131,16 +147,16 @@ class YarnTearing:
             if splits:
                 self.settle(state, np.flatnonzero(state.crossing_yarn_level & ~self._yarn_level_before),
                             prev_position_m)
-                self._rebuild(state)
-        # the scans depend on spring_alive and crossing_yarn_level only; a cut lowers the live count and
-        # a split raises the yarn-level count (each strictly), so equal counts mean equal inputs
-        key = (int(np.count_nonzero(state.spring_alive)), int(np.count_nonzero(state.crossing_yarn_level)))
-        if key != self._runs_key:
+                self._changed(state)
+        # the scans read spring_alive and crossing_yarn_level: topology
+        if state.topology_epoch != self._runs_at:
             free_yarn_runs(self.model_in, crossings, springs, self._weft_free, self._warp_free)
             yarn_fragments(self.model_in, springs, self._fragment_left, self._fragment_right)
-            self._runs_key = key
+            self._runs_at = state.topology_epoch
         _, cuts = cut_overstrained(self.model_scan, particles, springs, self._weft_free, self._warp_free,
                                    self._fragment_left, self._fragment_right)
+        if cuts:
+            state.bump_topology()
         self.splits_last = int(splits)
         self.cuts_last = int(cuts)
 
@@ -153,7 +169,7 @@ class YarnTearing:
         count = 0
         for c in crossings:
             count += bool(split_crossing(int(c), self.model_in, particles, crossing_flags, springs, prev))
-        self._rebuild(state)
+        self._changed(state)
         return count
 
     def settle(self, state: State, crossings: np.ndarray, prev_position_m: np.ndarray) -> None:
@@ -184,9 +200,7 @@ class YarnTearing:
             project_couples(self.model_in, particles, crossing_flags, springs, crossings.copy(), crossings.size,
                             prev_position_m)
             if bodies:
-                place_outside_bodies(m.body_shape, m.body_rotation, m.body_radius_m, m.body_half_extents_m,
-                                     m.body_normal, m.body_collide, 0.5 * m.thickness_m, state.body_position_m,
-                                     slots, state.particle_inv_mass, x)
+                place_outside_bodies(bodies_in(m, state), 0.5 * m.thickness_m, slots, state.particle_inv_mass, x)
         if settle_crosses_yarns(start, x, state.spring_particle_a, state.spring_particle_b,
                                 self._yarn_segments[state.spring_alive[self._yarn_segments]]):
             x[:] = start  # rare: left to the next step's contact rather than through another yarn
@@ -199,7 +213,7 @@ class YarnTearing:
         prev = state.particle_position_m - state.particle_velocity_m_s if prev_position_m is None else prev_position_m
         particles, crossings, springs = state_groups(state)
         count = transition_spring(int(spring), self.model_in, particles, crossings, springs, prev)
-        self._rebuild(state)
+        self._changed(state)
         return int(count)
 
     def disconnect(self, state: State, crossing: int) -> None:
@@ -208,14 +222,16 @@ class YarnTearing:
             return
         _, crossings, springs = state_groups(state)
         disconnect_couple(int(crossing), self.model_in, crossings, springs)
-        self._rebuild(state)
+        self._changed(state)
 
     def cut(self, state: State, spring: int) -> int:
         """Cut one structural spring with its bend and shear springs; returns springs cut."""
         if int(self.model.spring_kind[spring]) not in (STRUCT_WEFT, STRUCT_WARP):
             raise ValueError(f"spring {spring} is not a structural spring")
         _, _, springs = state_groups(state)
-        return int(cut_structural(int(spring), self.model_in, springs))
+        count = int(cut_structural(int(spring), self.model_in, springs))
+        state.bump_topology()
+        return count
 
     # -- summary -----------------------------------------------------------------------------
     def summary(self, state: State) -> dict:

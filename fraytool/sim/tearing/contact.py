@@ -67,18 +67,20 @@ SIN_PARALLEL = 1e-2
 
 
 @nb.njit(cache=True, fastmath=False)
-def crossing_pair_correction(pa, qa, pb, qb, pa0, qa0, pb0, qb0, w_pa, w_qa, w_pb, w_qb, side, thickness_m,
-                             slide):
+def crossing_pair_correction(ends_in, starts_in, weights_in, side, thickness_m, slide):
     """The contact correction of one weft/warp spring pair (module docstring), as a pure function.
 
-    pa, qa: weft spring ends; pb, qb: warp spring ends (3-vectors); pa0 ... qb0: the same ends at the
-    start of the step (to tell a pass-through in this step from a pair that was already on the
-    wrong side); w_*: inverse masses;
+    ends_in = (pa, qa, pb, qb): weft spring ends, warp spring ends (3-vectors); starts_in = (pa0, qa0,
+    pb0, qb0): the same ends at the start of the step (to tell a pass-through in this step from a pair
+    that was already on the wrong side); weights_in = (w_pa, w_qa, w_pb, w_qb): inverse masses;
     side = +1.0 where the weft is on top, -1.0 otherwise; slide: correct along the crossing normal
     only (a couple at a free yarn end) instead of along the closest-point direction.
     Returns (d, t_a, t_b, k_pa, k_qa, k_pb, k_qb, n_x, n_y, n_z): closest distance, closest-point
     parameters, and the corrections dp_a = k_pa n, ... along the unit direction n (all k zero when
     nothing is to be corrected)."""
+    pa, qa, pb, qb = ends_in
+    pa0, qa0, pb0, qb0 = starts_in
+    w_pa, w_qa, w_pb, w_qb = weights_in
     ta, tb = segment_closest_params(pa[0], pa[1], pa[2], qa[0], qa[1], qa[2], pb[0], pb[1], pb[2], qb[0], qb[1], qb[2])
     ga, gb = 1.0 - ta, 1.0 - tb
     rx = (ga * pa[0] + ta * qa[0]) - (gb * pb[0] + tb * qb[0])
@@ -226,9 +228,10 @@ def project_couples(model_in, particles_inout, crossings_inout, springs_inout, c
                 pa, qa = spring_particle_a[sa], spring_particle_b[sa]
                 pb, qb = spring_particle_a[sb], spring_particle_b[sb]
                 d, ta, tb, kpa, kqa, kpb, kqb, nx, ny, nz = crossing_pair_correction(
-                    x[pa], x[qa], x[pb], x[qb], prev_position_m[pa], prev_position_m[qa], prev_position_m[pb],
-                    prev_position_m[qb], particle_inv_mass[pa], particle_inv_mass[qa],
-                    particle_inv_mass[pb], particle_inv_mass[qb], side, thickness_m, slide)
+                    (x[pa], x[qa], x[pb], x[qb]),
+                    (prev_position_m[pa], prev_position_m[qa], prev_position_m[pb], prev_position_m[qb]),
+                    (particle_inv_mass[pa], particle_inv_mass[qa], particle_inv_mass[pb], particle_inv_mass[qb]),
+                    side, thickness_m, slide)
                 x[pa, 0] += kpa * nx
                 x[pa, 1] += kpa * ny
                 x[pa, 2] += kpa * nz

@@ -30,11 +30,11 @@ from fraytool.kinds import STRUCT_WEFT
 
 
 @nb.njit(cache=True, fastmath=False)
-def cut_spring(s, spring_alive):
+def cut_spring(s, spring_alive_inout):
     """Cut one spring; returns 1 if it was alive."""
-    if not spring_alive[s]:
+    if not spring_alive_inout[s]:
         return 0  # already cut (or an unborn twin): nothing to do
-    spring_alive[s] = False
+    spring_alive_inout[s] = False
     return 1
 
 

@@ -1,0 +1,104 @@
+"""The kernel convention, checked on the source (ast): every numba kernel of fraytool takes at most
+MAX_FLAT_ARGUMENTS arguments (more go in named argument groups, as fraytool.sim.tearing.groups), and
+writes only the arguments whose names end in `_out` or `_inout` (a group's fields count as the
+group's: `springs_inout.spring_alive[s] = False`), never one ending in `_in`.
+
+A write is an assignment or augmented assignment to a subscript of the argument (or of a field of it),
+directly or through a local name bound to it (`x = particles_inout.particle_position_m`), or a call of
+its `fill` / `sort` / `resize` method or of `np.copyto(argument, ...)`. What a called kernel writes is
+checked in that kernel (its own argument names say it)."""
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+MAX_FLAT_ARGUMENTS = 12
+WRITABLE_SUFFIXES = ("_out", "_inout")
+MUTATING_METHODS = {"fill", "sort", "resize", "itemset", "put"}
+
+
+def _is_numba_kernel(fn: ast.FunctionDef) -> bool:
+    for d in fn.decorator_list:
+        target = d.func if isinstance(d, ast.Call) else d
+        name = target.attr if isinstance(target, ast.Attribute) else getattr(target, "id", "")
+        if name in ("njit", "jit", "vectorize", "guvectorize"):
+            return True
+    return False
+
+
+def _root_name(node: ast.AST):
+    """The name at the root of `a[..]`, `a.b[..]`, `a.b` chains (None for anything else)."""
+    while isinstance(node, (ast.Subscript, ast.Attribute)):
+        node = node.value
+    return node.id if isinstance(node, ast.Name) else None
+
+
+def kernel_signatures(trees: list) -> dict[str, list[str]]:
+    """Kernel name -> its argument names, over the parsed modules `trees` (for writes through calls)."""
+    return {fn.name: [a.arg for a in fn.args.args] for tree in trees for fn in ast.walk(tree)
+            if isinstance(fn, ast.FunctionDef) and _is_numba_kernel(fn)}
+
+
+def kernel_problems(source: str, filename: str = "<source>", callees: dict | None = None) -> list[str]:
+    """Every break of the convention in the kernels of `source`, one line each. `callees` (name ->
+    argument names, kernel_signatures) lets an argument handed on to a callee's `_out` / `_inout`
+    argument count as written (default: the kernels of `source` itself)."""
+    out = []
+    tree = ast.parse(source, filename)
+    callees = kernel_signatures([tree]) if callees is None else callees
+    for fn in ast.walk(tree):
+        if not isinstance(fn, ast.FunctionDef) or not _is_numba_kernel(fn):
+            continue
+        params = [a.arg for a in fn.args.args]
+        where = f"{filename}:{fn.lineno} {fn.name}"
+        if len(params) > MAX_FLAT_ARGUMENTS:
+            out.append(f"{where}: {len(params)} arguments (at most {MAX_FLAT_ARGUMENTS}; group the rest)")
+        alias = {p: p for p in params}  # local name -> the argument it refers to
+        for node in ast.walk(fn):
+            if isinstance(node, ast.Assign) and len(node.targets) == 1:
+                targets = node.targets[0].elts if isinstance(node.targets[0], ast.Tuple) else [node.targets[0]]
+                values = node.value.elts if isinstance(node.value, ast.Tuple) else [node.value]
+                if len(values) == 1 and len(targets) > 1:  # a group unpacked: `a, b = springs_inout`
+                    values = values * len(targets)
+                if len(targets) == len(values):
+                    for t, v in zip(targets, values):
+                        root = _root_name(v) if isinstance(v, (ast.Name, ast.Attribute)) else None
+                        if isinstance(t, ast.Name) and root in alias:
+                            alias[t.id] = alias[root]
+        written = set()
+        for node in ast.walk(fn):
+            targets = []
+            if isinstance(node, ast.Assign):
+                targets = node.targets
+            elif isinstance(node, ast.AugAssign):
+                targets = [node.target]
+            for t in targets:
+                for e in (t.elts if isinstance(t, ast.Tuple) else [t]):
+                    if isinstance(e, ast.Subscript) and _root_name(e) in alias:
+                        written.add(alias[_root_name(e)])
+            if isinstance(node, ast.Call):
+                f = node.func
+                if isinstance(f, ast.Attribute) and f.attr in MUTATING_METHODS and _root_name(f.value) in alias:
+                    written.add(alias[_root_name(f.value)])
+                if isinstance(f, ast.Attribute) and f.attr == "copyto" and node.args \
+                        and _root_name(node.args[0]) in alias:
+                    written.add(alias[_root_name(node.args[0])])
+                name = f.id if isinstance(f, ast.Name) else None
+                for arg, param in zip(node.args, callees.get(name, [])):
+                    if param.endswith(WRITABLE_SUFFIXES) and isinstance(arg, (ast.Name, ast.Attribute, ast.Subscript)) \
+                            and _root_name(arg) in alias:
+                        written.add(alias[_root_name(arg)])
+        for p in sorted(written):
+            if not p.endswith(WRITABLE_SUFFIXES):
+                out.append(f"{where}: writes argument {p!r} (name it {p}_out or {p}_inout"
+                           + (", not _in)" if p.endswith("_in") else ")"))
+    return out
+
+
+def package_problems(package: Path) -> list[str]:
+    paths = sorted(package.rglob("*.py"))
+    callees = kernel_signatures([ast.parse(p.read_text()) for p in paths])
+    out = []
+    for path in paths:
+        out += kernel_problems(path.read_text(), str(path.relative_to(package.parent)), callees)
+    return out
