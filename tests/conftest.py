@@ -26,6 +26,8 @@ GOLDEN_SCENE = TESTS / "scenes" / "golden_small.toml"
 def pytest_addoption(parser):
     parser.addoption("--update-goldens", action="store_true", default=False,
                      help="rewrite the golden images in tests/golden/ from the current renderer")
+    parser.addoption("--update-figures", action="store_true", default=False,
+                     help="rewrite the pinned figures in tests/figures/ from the current simulation")
 
 
 @pytest.fixture(scope="session")
