@@ -368,3 +368,27 @@ def test_the_join_rounds_16bit_pngs_to_8_bits_for_h264(tmp_path):
     got = _read_png16_as_8bit(tmp_path / "f.png")[0, :, 0]
     assert got.tolist() == [0, 0, 1, 1, 1, 128, 128, 129, 255]
     assert got.tolist() != (values >> 8).tolist()   # what dropping the low byte gives
+
+
+def test_a_retried_simulate_task_continues_the_frames_already_written(scene, tmp_path, monkeypatch):
+    """A task retried after its worker died (or a job re-run for more frames) resumes: frames already on
+    disk are kept as they are and only the missing ones are stepped. Catches the task starting from
+    scratch (a fresh run gives the same frames, so only the work done and the files tell)."""
+    from fraytool.farm import tasks
+    from fraytool.sim.solver import SolverExplicitPBD
+
+    (shot,) = expand(str(scene), [], [], RenderOptions(resolution=(64, 48), frames="0:6"))
+    out = tmp_path / "shot"
+    tasks.simulate_task(shot, str(out), 3)
+    kept = {p.name: (p.stat().st_ino, p.stat().st_mtime_ns) for p in (out / "frames").glob("frame_*.npz")}
+    assert sorted(kept) == [f"frame_{k:06d}.npz" for k in range(3)]
+    steps = []
+    original = SolverExplicitPBD.step
+    monkeypatch.setattr(SolverExplicitPBD, "step",
+                        lambda self, state, dt: (steps.append(state.step_index), original(self, state, dt))[1])
+    tasks.simulate_task(shot, str(out), 6)
+    spf = tasks.load_shot(shot).time.steps_per_frame
+    assert len(steps) == 3 * spf and steps[0] == 2 * spf  # frames 3-5, from frame 2's checkpoint
+    for name, stamp in kept.items():
+        p = out / "frames" / name
+        assert (p.stat().st_ino, p.stat().st_mtime_ns) == stamp, name

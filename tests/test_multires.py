@@ -439,3 +439,120 @@ def test_a_held_edge_stays_coarse_and_on_its_body():
     refined = multires.initial_refined(gripped, glay).reshape(glay.cells_y, glay.cells_x)
     reach = 1 + int(gripped.refine_band_cells)  # the cell and its band (the band the weave needs)
     assert refined[:reach, :reach].all() and not refined[reach:, :].any() and not refined[:, reach:].any()
+
+
+def test_slaved_forces_reach_the_nodes_whole():
+    """gather_slaved_forces hands each slaved crossing's force to its nodes with its weights (the
+    transpose of the interpolation): the total force is kept, and so is the torque about the origin
+    when the slaved crossings sit on their interpolation (both linear in the weights, which sum to 1).
+    Catches the forces handed on short (at 90 %)."""
+    from fraytool.sim.kernels.multires import gather_slaved_forces
+
+    model = _cloth()
+    lay = multires.coarse_layout(model)
+    n = model.crossing_count
+    free = multires.free_crossings(lay, np.zeros(lay.cell_count, bool))
+    x = model.crossing_rest_position_m.copy()
+    x += np.random.default_rng(5).normal(0.0, 1e-3, x.shape)
+    multires.interpolate_slaved(lay, free, x)
+    f = np.random.default_rng(6).normal(size=(2 * n, 3))
+    total, torque = f[:n].sum(axis=0), np.cross(x, f[:n]).sum(axis=0)
+    slaved = np.flatnonzero(~free).astype(np.int32)
+    gather_slaved_forces(slaved, lay.crossing_node, lay.crossing_weight, f)
+    assert (f[slaved] == 0.0).all()
+    np.testing.assert_allclose(f[:n].sum(axis=0), total, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(np.cross(x, f[:n]).sum(axis=0), torque, rtol=0, atol=1e-13)
+
+
+def test_a_slaved_crossing_in_a_body_ends_exactly_on_its_surface():
+    """collide_slaved moves a slaved crossing's nodes by the smallest mass-weighted move that puts its
+    interpolated point on the surface (frictionless plane): the point ends at the contact margin exactly,
+    the nodes move along the normal only. Catches the nodes moved short (90 % of the way)."""
+    from fraytool.kinds import SHAPE_PLANE
+    from fraytool.sim.kernels.bodies import BodiesIn
+    from fraytool.sim.kernels.multires import collide_slaved
+
+    model = _cloth()
+    lay = multires.coarse_layout(model)
+    state = model.state()
+    free = multires.free_crossings(lay, state.coarse_cell_refined)
+    s = int(np.flatnonzero(~free & (lay.crossing_weight > 0).all(axis=1))[0])  # inside a cell: four nodes
+    cell = int(lay.crossing_weight_cell[s])
+    cell_nodes = lay.cell_nodes(model.warp_yarns)
+    cell_start = np.zeros(lay.cell_count + 1, np.int64)
+    cell_start[cell + 1:] = 1
+    cells = (cell_start, np.array([s], np.int32), cell_nodes, np.unique(cell_nodes[cell]).astype(np.int32),
+             lay.crossing_node, lay.crossing_weight)
+    x = state.particle_position_m
+    normal = np.array([0.0, 0.0, 1.0]) if np.ptp(x[:model.crossing_count, 2]) == 0 else np.array([0.0, 1.0, 0.0])
+    margin = 0.5 * model.thickness_m
+    point = lay.crossing_weight[s] @ x[lay.crossing_node[s]]
+    plane_at = point + (margin + 2e-4) * normal  # the point 0.2 mm inside (margin included)
+    bodies = BodiesIn(np.array([SHAPE_PLANE], np.int8), normal[None, :].copy(), np.eye(3)[None], np.zeros(1),
+                      np.ones(1, bool), np.zeros(1, bool), plane_at[None, :], np.zeros((1, 3)))
+    before = x.copy()
+    hits = collide_slaved(cells, bodies, margin, 1e-4, state.particle_inv_mass, before.copy(), x, np.zeros(3),
+                          np.zeros(model.crossing_count, np.uint8))
+    assert hits == 1
+    after = lay.crossing_weight[s] @ x[lay.crossing_node[s]]
+    assert abs((after - plane_at) @ normal - margin) < 1e-15
+    moved = x - before
+    assert np.abs(moved - np.outer(moved @ normal, normal)).max() < 1e-18  # along the normal only
+
+
+def test_strain_limiting_reads_the_hanging_nodes_on_their_interpolation():
+    """Whenever strain limiting runs in a multi-resolution step, every hanging node (a slaved crossing a
+    working fine spring pulls) sits on its nodes' interpolation: it is an anchor of the fine springs the
+    limit projects. Catches the sync of the hanging nodes dropped before it (a stale anchor)."""
+    from fraytool.sim.simulation import Simulation
+    from fraytool.sim.stages import core
+
+    spec = load_scene(ROOT / "scenes" / "fig6_thrown_ball_plain.toml",
+                      [("cloth.multires.factor", 4), ("self_collision.enabled", False)])
+    sim = Simulation(spec)
+    coarse = sim.solver.context.coarse
+    lay = coarse.layout
+    seen = {"checks": 0, "hanging": 0}
+    original = core.StrainLimiting.run
+
+    def checked(stage, state, ctx, dt_s):
+        coarse.ensure(state)
+        hanging = coarse.loaded_slaved
+        if hanging.shape[0]:
+            want = np.einsum("kq,kqd->kd", lay.crossing_weight[hanging],
+                             state.particle_position_m[lay.crossing_node[hanging]])
+            assert np.array_equal(state.particle_position_m[hanging], want), state.step_index
+            seen["hanging"] += 1
+        seen["checks"] += 1
+        original(stage, state, ctx, dt_s)
+
+    core.StrainLimiting.run = checked
+    try:
+        for _ in range(8):
+            sim.advance_frame()
+    finally:
+        core.StrainLimiting.run = original
+    assert seen["hanging"] > 0 and seen["checks"] == 8 * spec.time.steps_per_frame
+
+
+def test_a_hot_cell_refines_exactly_its_band():
+    """cells_to_refine: a coarse spring strained past the refine strain makes its cells hot, and the cells
+    within band_cells of a hot cell (Chebyshev distance on the cell grid, numpy's `multires.dilate` as
+    the oracle) refine, no more and no fewer. Catches a band one cell narrower (or wider)."""
+    from fraytool.sim.stages.base import StepContext
+    from fraytool.sim.stages.multires import CoarseWork, Refinement
+
+    model = _cloth(nx=33, ny=33, factor=4, tearing=True, band=2)
+    state = model.state()
+    assert not state.coarse_cell_refined.any()
+    ctx = StepContext.for_model(model)
+    ctx.coarse = CoarseWork(model)
+    lay = ctx.coarse.layout
+    node = int(lay.cell_nodes(model.warp_yarns)[lay.cell_count // 2 + lay.cells_x // 2, 0])
+    state.particle_position_m[node, 0] += 0.3 * 4 * model.spacing_m  # its coarse springs 30 % longer
+    Refinement(model).run(state, ctx, 1e-4)
+    hot = ctx.coarse.hot
+    assert hot.any()
+    want = multires.dilate(hot, lay.cells_x, lay.cells_y, model.refine_band_cells)
+    assert model.refine_band_cells >= 2
+    assert np.array_equal(state.coarse_cell_refined, want)

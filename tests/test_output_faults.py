@@ -518,3 +518,21 @@ def test_check_outputs_on_a_batch_job_folder_points_to_its_shots(tmp_path, capsy
     assert main(["check", "--outputs", str(job)]) == 2
     err = capsys.readouterr().err
     assert "a batch job folder" in err and str(job / "shot_a") in err and "topology" not in err
+
+
+def test_a_lock_from_another_host_is_stale_only_after_two_minutes_untouched(tmp_path):
+    """Another host's run touches its lock every 20 s (LOCK_TOUCH): a lock untouched for 60 s still holds
+    (a slow shared file system), one untouched for 130 s is stale (STALE_AFTER_S = 120 s). Catches the
+    stale age cut short (a live run on another machine losing its folder)."""
+    import json as _json
+
+    from fraytool.io.lock import LOCK_NAME, held_by_live_process
+
+    lock = tmp_path / LOCK_NAME
+    lock.write_text(_json.dumps({"pid": 12345, "host": "another-host.example", "command": "simulate",
+                                 "started": "2026-12-04T00:00:00"}))
+    now = time.time()
+    os.utime(lock, (now - 60, now - 60))
+    assert held_by_live_process(tmp_path)
+    os.utime(lock, (now - 130, now - 130))
+    assert not held_by_live_process(tmp_path)

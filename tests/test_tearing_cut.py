@@ -246,3 +246,22 @@ def test_a_yarn_sliding_free_towards_a_cut_does_not_break_but_an_anchored_one_do
     tear(state, x.copy(), 2e-4)
     assert not state.spring_broken[in_run] and not state.spring_broken[to_anchor]
     assert state.spring_broken[anchored]
+
+
+def test_a_piece_of_exactly_the_ineffective_length_may_be_left():
+    """The boundary of the rule above: with ineffective length 5, the spring (4,2)-(5,2) leaves exactly 5
+    crossings (0..4) on its left: it breaks; (3,2)-(4,2), leaving 4, does not. Catches the rule off by
+    one (a piece of exactly the length refused, or one crossing short accepted)."""
+    model, state, tear = make(yarn_level="false", spread=0.0, ineffective=5, warp_yarns=12)
+    x = state.particle_position_m
+    four_left = int(model.weft_structural_spring[2, 3])
+    _stretch_weft(model, x, 2, 4, 0.5)
+    tear(state, x.copy(), 2e-4)
+    assert not state.spring_broken.any()
+    model, state, tear = make(yarn_level="false", spread=0.0, ineffective=5, warp_yarns=12)
+    x = state.particle_position_m
+    five_left = int(model.weft_structural_spring[2, 4])
+    _stretch_weft(model, x, 2, 5, 0.5)
+    tear(state, x.copy(), 2e-4)
+    assert state.spring_broken[five_left] and state.spring_broken.sum() == 1
+    assert four_left != five_left
