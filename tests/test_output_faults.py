@@ -509,15 +509,83 @@ def test_check_outputs_names_damaged_passes_exrs_and_videos(reference, tmp_path,
     assert f"{movie.name}: damaged video (truncated" in err
 
 
-def test_check_outputs_on_a_batch_job_folder_points_to_its_shots(tmp_path, capsys):
-    """A batch job folder holds job.json and one folder per shot: `check --outputs` on it says so and
-    names a shot folder to check, instead of reporting a missing frame store."""
+def test_check_outputs_on_a_batch_job_folder_checks_it_shot_by_shot(reference, tmp_path, capsys):
+    """A batch job folder holds job.json and one folder per shot: `check --outputs` on it checks every
+    shot's folder on its own and names the ones with problems (exit 1), or says the job is intact."""
+    scene, good = reference
     job = tmp_path / "job"
-    (job / "shot_a" / "frames").mkdir(parents=True)
+    job.mkdir()
     (job / "job.json").write_text("{}")
-    assert main(["check", "--outputs", str(job)]) == 2
+    _copy(good, job / "shot_a")
+    _copy(good, job / "shot_b")
+    capsys.readouterr()
+    assert main(["check", "--outputs", str(job)]) == 0
+    assert "2 shot(s) checked: intact" in capsys.readouterr().out
+    (job / "shot_b" / "frames" / "frame_000002.npz").write_bytes(b"garbage")
+    assert main(["check", "--outputs", str(job), "--json"]) == 1
+    report = json.loads(capsys.readouterr().out)
+    assert not report["intact"] and [r["intact"] for r in report["shots"]] == [True, False]
+    assert any("frame_000002.npz" in line for line in report["shots"][1]["problems"])
+    empty = tmp_path / "empty_job"
+    (empty / "shot_a").mkdir(parents=True)
+    (empty / "job.json").write_text("{}")
+    assert main(["check", "--outputs", str(empty)]) == 2
+    assert "no shot has frames yet" in capsys.readouterr().err
+
+
+def test_check_outputs_names_the_frames_a_killed_run_did_not_write(reference, tmp_path, capsys, monkeypatch):
+    """A run killed part way (here: at frame 3 of FRAMES) leaves a folder whose every file verifies; it is
+    still incomplete: exit 1, naming the missing frames. With the scene, a run of fewer frames than the
+    scene asks for (--frames) is incomplete too; without it, that run is what was asked for."""
+    from fraytool.io.frame_store import FrameStore
+    from fraytool.scene import load_scene
+    from fraytool.sim.run import simulate_to_disk
+
+    scene, _ = reference
+    out = tmp_path / "killed"
+    original = FrameStore.write_frame
+
+    def dying(self, record, state, write_record=True):
+        if record.frame == 3:
+            raise KeyboardInterrupt
+        original(self, record, state, write_record)
+
+    monkeypatch.setattr(FrameStore, "write_frame", dying)
+    with pytest.raises(KeyboardInterrupt):
+        simulate_to_disk(load_scene(scene), out, progress=False)
+    monkeypatch.setattr(FrameStore, "write_frame", original)
+    capsys.readouterr()
+    assert main(["check", "--outputs", str(out), "--json"]) == 1
+    report = json.loads(capsys.readouterr().out)
+    assert report["frames_verified"] == 3 and report["frames_planned"] == FRAMES
+    assert any(f"frames 3-{FRAMES - 1} of {FRAMES} are missing" in line for line in report["problems"])
+    short = tmp_path / "short"
+    assert main(["simulate", str(scene), "-o", str(short), "--frames", "3"]) == 0
+    assert main(["check", "--outputs", str(short)]) == 0
+    assert main(["check", "--outputs", str(short), str(scene)]) == 1
+    assert f"frames 3-{FRAMES - 1} of {FRAMES} are missing" in capsys.readouterr().err
+
+
+def test_check_outputs_names_png_sets_of_two_renders_mixed(reference, tmp_path, capsys):
+    """A png/ folder holding 8-bit RGB frames of one render beside 16-bit RGBA frames of another (or
+    another size): every file is a good PNG, but the set is not one render's. Exit 1, naming both kinds."""
+    import numpy as np
+    from PIL import Image
+
+    from fraytool.render.png16 import write_png16
+
+    _, good = reference
+    out = _copy(good, tmp_path / "out")
+    (out / "png").mkdir()
+    for k in range(3):
+        Image.fromarray(np.zeros((12, 16, 3), np.uint8)).save(out / "png" / f"frame_{k:06d}.png")
+    capsys.readouterr()
+    assert main(["check", "--outputs", str(out)]) == 0
+    for k in range(3, 5):
+        write_png16(out / "png" / f"frame_{k:06d}.png", np.zeros((12, 16, 4), np.uint16))
+    assert main(["check", "--outputs", str(out)]) == 1
     err = capsys.readouterr().err
-    assert "a batch job folder" in err and str(job / "shot_a") in err and "topology" not in err
+    assert "mixed" in err and "3 of 16x12 8-bit RGB" in err and "2 of 16x12 16-bit RGBA" in err
 
 
 def test_a_lock_from_another_host_is_stale_only_after_two_minutes_untouched(tmp_path):

@@ -1,9 +1,11 @@
 """`fraytool check --outputs DIR [SCENE]`: is an output folder intact?
 
 Checks the frame store (manifest checksum, topology, every counted frame's checksum and frame
-number, the checkpoint; with a scene, that they belong to it) and every PNG (chunk CRCs), and names
-stale temp files. Prints one line per problem; exit 0 when everything verifies, 1 otherwise.
-`fraytool simulate --resume` or `fraytool render` repairs what it names by re-simulating.
+number, the checkpoint; with a scene, that they belong to it), that it holds every frame the run was
+planned for (or, with a scene, every frame the scene asks for), every PNG (chunk CRCs) and that each
+PNG folder holds one set (one size, bit depth and channel count), and names stale temp files. A batch
+job folder (job.json) is checked shot by shot. Prints one line per problem; exit 0 when everything
+verifies, 1 otherwise. `fraytool simulate --resume` or `fraytool render` repairs what it names.
 """
 from __future__ import annotations
 
@@ -24,18 +26,64 @@ def check_outputs(out_dir: Path, spec: Optional[SceneSpec] = None, as_json: bool
     if not out_dir.is_dir():
         raise InputError(f"--outputs {out_dir}: not a folder")
     if (out_dir / "job.json").is_file() and not (out_dir / "frames").exists():
-        shots = sorted(d.name for d in out_dir.iterdir() if (d / "frames").is_dir())
-        raise InputError(f"--outputs {out_dir}: a batch job folder (job.json); check each shot's folder, "
-                         + (f"e.g. --outputs {out_dir / shots[0]} (shots: {', '.join(shots)})" if shots
-                            else "none has frames yet"))
+        return _check_job(out_dir, as_json)
+    report = folder_report(out_dir, spec)
+    if as_json:
+        print(json.dumps(report))
+    else:
+        _print_report(report)
+    return 0 if report["intact"] else 1
+
+
+def _check_job(job_dir: Path, as_json: bool) -> int:
+    """A batch job folder: every shot folder (a folder with frames/) checked on its own."""
+    shots = sorted(d for d in job_dir.iterdir() if d.is_dir() and (d / "frames").exists())
+    if not shots:
+        raise InputError(f"--outputs {job_dir}: a batch job folder (job.json) where no shot has frames yet")
+    reports = [folder_report(d, None) for d in shots]
+    intact = all(r["intact"] for r in reports)
+    if as_json:
+        print(json.dumps({"job": str(job_dir), "shots": reports, "intact": intact}))
+    else:
+        for r in reports:
+            _print_report(r)
+        bad = [Path(r["folder"]).name for r in reports if not r["intact"]]
+        print(f"{job_dir}: {len(reports)} shot(s) checked: "
+              + ("intact" if intact else f"problems in {', '.join(bad)}"))
+    return 0 if intact else 1
+
+
+def _print_report(report: dict) -> None:
+    for line in report["problems"]:
+        print(f"fraytool: damaged: {line}", file=sys.stderr)
+    problems = report["problems"]
+    state = "intact" if not problems else f"{len(problems)} problem(s); `fraytool simulate --resume` " \
+                                          "or `fraytool render` re-simulates what is damaged or missing"
+    print(f"{report['folder']}: {report['frames_verified']} frames verify; {report['pngs']} PNGs, "
+          f"{report['exrs']} EXRs, {report['videos']} videos checked: {state}")
+
+
+def folder_report(out_dir: Path, spec: Optional[SceneSpec]) -> dict:
+    """The check of one output folder, as the --json report."""
     store = FrameStore(out_dir)
     survey = store.survey(scene_hash(spec) if spec is not None else None)
     problems = list(survey.problems)
+    planned = None
+    if survey.manifest is not None:
+        planned = int(survey.manifest.get("frames_planned", 0) or 0)
+        if spec is not None:
+            planned = max(planned, spec.time.frames)
+        complete = int(survey.manifest["frames_complete"])
+        if complete < planned:
+            problems.append(f"{store.dir}: incomplete: frames {complete}-{planned - 1} of {planned} are missing "
+                            f"(a run stopped at frame {complete}; `fraytool simulate --resume` finishes it)")
     png_dirs = sorted(d for d in out_dir.glob("png*") if d.is_dir())      # png/, png_wireframe/, png_beside/
     exr_dirs = sorted(d for d in out_dir.glob("exr*") if d.is_dir())
     pngs = [p for d in png_dirs for p in sorted(d.glob("*.png"))]
     exrs = [p for d in exr_dirs for p in sorted(d.glob("*.exr"))]
     problems += [f"{p}: damaged PNG (unreadable or a chunk CRC fails)" for p in pngs if png_settings(p) is None]
+    for d in png_dirs:
+        problems += _mixed_png_sets(d)
     if exrs:
         from fraytool.render.exr import exr_settings
 
@@ -49,21 +97,45 @@ def check_outputs(out_dir: Path, spec: Optional[SceneSpec] = None, as_json: bool
         if folder.is_dir():
             problems += [f"{p}: temp file of a killed write (removed by the next run)"
                          for p in sorted(folder.iterdir()) if is_temp_name(p.name) and dead_writer(p)]
-    report = {"folder": str(out_dir), "frames_verified": survey.good_frames,
-              "frames_counted": int(survey.manifest["frames_complete"]) if survey.manifest else None,
-              "checkpoint_frame": survey.checkpoint_frame, "pngs": len(pngs), "exrs": len(exrs),
-              "videos": len(videos), "problems": problems,
-              "intact": not problems}
-    if as_json:
-        print(json.dumps(report))
-    else:
-        for line in problems:
-            print(f"fraytool: damaged: {line}", file=sys.stderr)
-        state = "intact" if not problems else f"{len(problems)} problem(s); `fraytool simulate --resume` " \
-                                              "or `fraytool render` re-simulates what is damaged"
-        print(f"{out_dir}: {survey.good_frames} frames verify; {len(pngs)} PNGs, {len(exrs)} EXRs, "
-              f"{len(videos)} videos checked: {state}")
-    return 0 if not problems else 1
+    return {"folder": str(out_dir), "frames_verified": survey.good_frames,
+            "frames_counted": int(survey.manifest["frames_complete"]) if survey.manifest else None,
+            "frames_planned": planned, "checkpoint_frame": survey.checkpoint_frame, "pngs": len(pngs),
+            "exrs": len(exrs), "videos": len(videos), "problems": problems, "intact": not problems}
+
+
+PNG_COLOUR_CHANNELS = {0: 1, 2: 3, 3: 1, 4: 2, 6: 4}
+"""PNG colour type -> channels (grey, RGB, palette, grey + alpha, RGBA)."""
+
+
+def png_header(path: Path) -> Optional[tuple[int, int, int, int]]:
+    """(width, height, bit depth, channels) from a PNG's IHDR chunk, or None if it has none."""
+    import struct
+
+    try:
+        with open(path, "rb") as f:
+            head = f.read(29)
+    except OSError:
+        return None
+    if len(head) < 29 or head[:8] != b"\x89PNG\r\n\x1a\n" or head[12:16] != b"IHDR":
+        return None
+    width, height, depth, colour = struct.unpack(">IIBB", head[16:26])
+    return width, height, depth, PNG_COLOUR_CHANNELS.get(colour, 0)
+
+
+def _mixed_png_sets(folder: Path) -> list[str]:
+    """One line when the PNGs of `folder` are of more than one size, bit depth or channel count (frames of
+    two renders side by side), naming how many of each."""
+    kinds: dict = {}
+    for p in sorted(folder.glob("*.png")):
+        h = png_header(p)
+        if h is not None:
+            kinds.setdefault(h, []).append(p.name)
+    if len(kinds) < 2:
+        return []
+    names = {1: "grey", 2: "grey+alpha", 3: "RGB", 4: "RGBA"}
+    parts = [f"{len(v)} of {w}x{h} {d}-bit {names.get(c, f'{c}-channel')} (e.g. {v[0]})"
+             for (w, h, d, c), v in sorted(kinds.items(), key=lambda kv: -len(kv[1]))]
+    return [f"{folder}: PNGs of {len(kinds)} different renders mixed: " + "; ".join(parts)]
 
 
 def _video_problem(path: Path) -> Optional[str]:
