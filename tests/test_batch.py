@@ -392,3 +392,10 @@ def test_a_retried_simulate_task_continues_the_frames_already_written(scene, tmp
     for name, stamp in kept.items():
         p = out / "frames" / name
         assert (p.stat().st_ino, p.stat().st_mtime_ns) == stamp, name
+
+
+def test_a_dashed_wedge_range_points_at_the_dotted_one():
+    """`--wedge scene.seed=1-3` is a range written the wrong way: the error shows `1..3`."""
+    with pytest.raises(InputError, match=r"scene\.seed=1\.\.3"):
+        parse_wedge("scene.seed=1-3")
+    assert parse_wedge("scene.name=1-3") == ("scene.name", ["1-3"])

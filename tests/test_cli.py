@@ -204,3 +204,19 @@ def test_simulate_resume_says_where_it_resumed(tmp_path, capsys):
     assert json.loads(capsys.readouterr().out)["resumed_at_frame"] is None      # a fresh run
     assert main(["simulate", str(scene), "-o", str(out), "--resume"]) == 0
     assert "(resumed at frame 3: frames 0-2 verified and kept)" in capsys.readouterr().err
+
+
+def test_a_frame_range_past_the_scene_says_how_to_make_it_longer(capsys):
+    """`render --frames 0:500` on a 36-frame scene: the message says --set time.frames=500."""
+    from fraytool.commands.main import main as _main
+
+    assert _main(["render", "drape", "--frames", "0:500", "--png", "--no-mp4", "-o", "/nonexistent/x"]) == 2
+    assert "--set time.frames=500" in capsys.readouterr().err
+
+
+def test_model_builder_error_is_importable_where_the_readme_says():
+    from fraytool.sim import ModelBuilder, ModelBuilderError
+
+    with pytest.raises(ModelBuilderError):
+        ModelBuilder().add_cloth(warp_yarns=1, weft_yarns=3, spacing_m=0.01, thickness_m=0.001,
+                                 mass_per_crossing_kg=1e-5, structural_n_per_m=1.0)

@@ -107,6 +107,10 @@ def parse_wedge(text: str, flag: str = "--wedge") -> tuple[str, list[Any]]:
         values = [round(v, 12) if isinstance(v, float) else v for v in values]
     elif isinstance(value, list):
         values = value
+    elif (dashed := re.fullmatch(r"\s*(-?\d+)\s*-\s*(-?\d+)\s*", raw)) and not key.endswith("name"):
+        # 1-3 for a number: a range meant (a name may be "1-3")
+        raise InputError(f"{flag} {text}: a range is written A..B (e.g. {key}={dashed[1]}..{dashed[2]}); "
+                         f"a list is V1,V2,...")
     else:
         values = [parse_value(v.strip()) for v in _split_top(raw)]
     if not values:

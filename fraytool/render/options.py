@@ -46,7 +46,9 @@ def parse_frame_range(text: str, scene_frames: int) -> FrameRange:
     except ValueError:
         raise InputError(f"--frames {text!r}: {allowed}") from None
     if not (0 <= start < end <= scene_frames) or step < 1:
-        raise InputError(f"--frames {text!r}: {allowed}")
+        longer = (f"; the scene has {scene_frames} frames: for more, add --set time.frames={end}"
+                  if end > scene_frames and 0 <= start < end and step >= 1 else "")
+        raise InputError(f"--frames {text!r}: {allowed}{longer}")
     return FrameRange(start, end, step)
 
 
