@@ -116,3 +116,24 @@ def test_near_a_grip_on_a_grid_narrower_than_the_reach():
     marked[0] = True
     assert dilate(marked, 2, 3, 4).all()
     assert dilate(marked, 2, 3, 1).tolist() == [True, True, True, True, False, False]
+
+
+def test_strain_next_to_a_colliding_body_is_the_body_s_doing():
+    """woven_strain_away leaves out springs within 4 spacings of a colliding body's surface (the signed
+    distance of rigid contact's `surface_contact`): a spring stretched 30 % on the ball's top does not
+    count, the same stretch at a far corner does."""
+    from helpers import BALL, small_scene
+    from fraytool.sim.pieces import woven_strain_away
+
+    sim = Simulation(small_scene(BALL))
+    m, s = sim.model, sim.state
+    none = np.zeros(m.crossing_count, bool)
+    W = m.warp_yarns
+    for j, i, counted in ((W // 2, W // 2, False), (0, 0, True)):
+        state = s.copy()
+        spring = int(m.weft_structural_spring[j, i])
+        a, b = state.spring_particle_a[spring], state.spring_particle_b[spring]
+        x = state.particle_position_m
+        x[b] = x[a] + 1.3 * (x[b] - x[a])
+        strain, where = woven_strain_away(m, state, none)
+        assert bool(where == spring and np.isclose(strain, 0.3)) is counted, (strain, where)

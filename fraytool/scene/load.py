@@ -47,9 +47,11 @@ class _Problems:
         self.source = source
         self.lines: list[str] = []
 
-    def add(self, where: str, key: str | None, value: Any, allowed: str) -> None:
-        if isinstance(value, UnknownValue):
-            self.lines.append(f"{self.source}: [{where}] {key} = {show(value.value, UNKNOWN_SHOW_CHARS)}: {allowed}")
+    def add(self, where: str, key: str | None, value: Any, allowed: str, show_chars: Optional[int] = None) -> None:
+        """One problem line; `show_chars` echoes the value at most that long (default: as long as it
+        fits, see MESSAGE_CHARS)."""
+        if show_chars is not None:
+            self.lines.append(f"{self.source}: [{where}] {key} = {show(value, show_chars)}: {allowed}")
             return
         if key is None:
             self.lines.append(f"{self.source}: [{where}]: {allowed}")
@@ -64,14 +66,8 @@ class _Problems:
             self.add(where, key, value, allowed)
 
 
-class UnknownValue:
-    """The value of an unknown key, for _Problems.add (echoed at UNKNOWN_SHOW_CHARS)."""
-
-    def __init__(self, value: Any):
-        self.value = value
-
-
 UNKNOWN_SHOW_CHARS = 12
+"""An unknown key's value matters least: echoed at most this long."""
 MESSAGE_CHARS = 180
 """A problem line longer than this (with "fraytool: error: " in front) echoes a long value (cut at
 keys.SHOW_MAX_CHARS = 80 characters otherwise) at SHORT_SHOW_CHARS, so that the explanation fits."""
@@ -101,8 +97,7 @@ def _read_table(doc: dict, where: str, keys: dict[str, Key], problems: _Problems
             if tables:  # a table given where a key goes: the sub-tables first
                 sub = "sub-tables: " + ", ".join(tables)
                 parts = [sub] + parts if isinstance(value, dict) else parts + [sub]
-            # (the value of an unknown key matters least: echoed short)
-            problems.add(where, name, UnknownValue(value), "unknown key; " + "; ".join(parts))
+            problems.add(where, name, value, "unknown key; " + "; ".join(parts), UNKNOWN_SHOW_CHARS)
             continue
         key = keys[name]
         ok, converted = key.convert(value)

@@ -72,22 +72,6 @@ def crossings_near_grips(model: Model, spacings: int = NEAR_SPACINGS) -> np.ndar
     return dilate_on_grid(model, held, spacings)
 
 
-def body_surface_distance_m(model: Model, state: State, body: int, x: np.ndarray) -> np.ndarray:
-    """Signed distance [m] of points `x` (N, 3) from body `body`'s surface (negative inside)."""
-    from fraytool.kinds import SHAPE_BOX, SHAPE_SPHERE
-
-    rel = x - state.body_position_m[body]
-    rot = model.body_rotation[body]
-    shape = int(model.body_shape[body])
-    params = model.body_params[body]
-    if shape == SHAPE_SPHERE:
-        return np.linalg.norm(rel, axis=1) - params[0]
-    if shape == SHAPE_BOX:
-        q = np.abs(rel @ rot) - params
-        return np.linalg.norm(np.maximum(q, 0.0), axis=1) + np.minimum(q.max(axis=1), 0.0)
-    return rel @ (rot @ params)  # a plane: its normal
-
-
 def woven_strain_away(model: Model, state: State, near_grips: np.ndarray, self_contact: Optional[np.ndarray] = None,
                       spacings: int = NEAR_SPACINGS) -> tuple[float, int]:
     """woven_strain over the springs whose two end crossings are farther than `spacings` yarn spacings
@@ -101,9 +85,14 @@ def woven_strain_away(model: Model, state: State, near_grips: np.ndarray, self_c
         touching = np.zeros(n, bool)
         touching[np.flatnonzero(self_contact) % n] = True
         near |= dilate_on_grid(model, touching, spacings)
-    x = state.particle_position_m[:n]
-    for k in np.flatnonzero(model.body_collide):
-        near |= body_surface_distance_m(model, state, int(k), x) < spacings * model.spacing_m
+    if model.body_collide.any():
+        from fraytool.sim.kernels.bodies import bodies_in
+        from fraytool.sim.kernels.rigid_contact import surface_distances
+
+        bodies, distance = bodies_in(model, state), np.empty(n)
+        for k in np.flatnonzero(model.body_collide):
+            surface_distances(int(k), bodies, state.particle_position_m[:n], distance)
+            near |= distance < spacings * model.spacing_m
     alive = state.spring_alive & ~(near[model.spring_crossing_a] | near[model.spring_crossing_b])
     strain, spring = max_woven_strain(model.spring_kind, model.spring_crossing_a, model.spring_crossing_b,
                                       state.crossing_yarn_level, state.couple_connected, alive,

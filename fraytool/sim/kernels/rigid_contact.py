@@ -93,6 +93,16 @@ def bounding_radius(shape, params, margin):
 
 
 @nb.njit(cache=True, fastmath=False)
+def surface_distances(k, bodies_in, x, distance_out):
+    """distance_out[i] = signed distance [m] of point x[i] from body k's surface (negative inside; no
+    margin), by `surface_contact`."""
+    for i in range(x.shape[0]):
+        d, _, _, _ = surface_contact(bodies_in.shape[k], bodies_in.position_m[k], bodies_in.rotation[k],
+                                     bodies_in.params[k], x[i], 0.0)
+        distance_out[i] = d
+
+
+@nb.njit(cache=True, fastmath=False)
 def project_out_of_body(k, bodies_in, margin_m, x_inout):
     """Move point x (in place) out of body k along the surface normal when it is inside (margin
     included). Returns (signed distance before, normal): d >= 0 means x was outside and is unchanged."""
