@@ -8,4 +8,4 @@ __init__.py to be found by.
 from setuptools import find_packages, setup
 
 setup(packages=find_packages(include=["fraytool", "fraytool.*"])
-      + ["fraytool.shaders", "fraytool.scenes", "fraytool.scenes.stress"])
+      + ["fraytool.shaders", "fraytool.scenes", "fraytool.scenes.stress", "fraytool.scenes.assets"])

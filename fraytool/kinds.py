@@ -16,7 +16,7 @@ SHEAR_TWIN = 5
 SPRING_KIND_NAMES = ("structural_weft", "structural_warp", "bend_weft", "bend_warp", "shear", "shear_twin")
 
 # Rigid body shapes and motions (body_shape, body_motion values).
-SHAPE_SPHERE, SHAPE_BOX, SHAPE_PLANE = 0, 1, 2
-SHAPE_NAMES = ("sphere", "box", "plane")
+SHAPE_SPHERE, SHAPE_BOX, SHAPE_PLANE, SHAPE_MESH = 0, 1, 2, 3
+SHAPE_NAMES = ("sphere", "box", "plane", "mesh")
 MOTION_STATIC, MOTION_KINEMATIC, MOTION_DYNAMIC = 0, 1, 2
 MOTION_NAMES = ("static", "kinematic", "dynamic")

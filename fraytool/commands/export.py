@@ -27,12 +27,11 @@ def export_command(args, stream: Optional[TextIO] = None) -> int:
     from fraytool.scene.overrides import parse_assignment
 
     spec = load_scene(args.scene, [parse_assignment(a) for a in getattr(args, "sets", None) or ()])
-    if not getattr(args, "force", False):
-        from fraytool.sim.memory import memory_problem
+    from fraytool.sim.memory import admission_problems
 
-        problem = memory_problem(spec)
-        if problem:
-            raise SceneError([problem])
+    problems = admission_problems(spec, force=bool(getattr(args, "force", False)))
+    if problems:
+        raise SceneError(problems)
     if getattr(args, "frames", None):
         frames = parse_frame_range(args.frames, spec.time.frames)
     else:

@@ -225,12 +225,11 @@ def _load(path: str, force: Optional[bool] = None, sets: Sequence[str] = ()):
     from fraytool.scene.overrides import parse_assignment
 
     spec = load_scene(path, [parse_assignment(a) for a in sets])
-    if force is False:
-        from fraytool.sim.memory import memory_problem
+    from fraytool.sim.memory import admission_problems
 
-        problem = memory_problem(spec)
-        if problem:
-            raise SceneError([problem])
+    problems = admission_problems(spec, force=force is not False)
+    if problems:
+        raise SceneError(problems)
     return spec
 
 

@@ -72,12 +72,11 @@ def _render(args, stream: Optional[TextIO]) -> int:
     from fraytool.scene.overrides import parse_assignment
 
     spec = load_scene(args.scene, [parse_assignment(a) for a in getattr(args, "sets", None) or ()])
-    if not getattr(args, "force", False):
-        from fraytool.sim.memory import memory_problem
+    from fraytool.sim.memory import admission_problems
 
-        problem = memory_problem(spec)
-        if problem:
-            raise SceneError([problem])
+    problems = admission_problems(spec, force=bool(getattr(args, "force", False)))
+    if problems:
+        raise SceneError(problems)
     from fraytool.sim.run import default_out_dir
 
     job = build_job(spec, args, Path(args.out) if getattr(args, "out", None) else default_out_dir(spec))

@@ -4,6 +4,7 @@ Shapes come from the saved topology (`body_shape`, `body_radius_m`, `body_half_e
 `body_normal`); placement from each frame record (`body_position_m`, `body_rotation`). Spheres are
 UV spheres, boxes (and bars, which are long boxes) are cubes with flat faces, planes are large
 quads. A plane body lying in the optional ground plane is not drawn twice (that would z-fight).
+Mesh bodies are their own triangles (`mesh_draw_vertices`), in the body's frame, drawn as "mesh<m>".
 """
 from __future__ import annotations
 
@@ -12,7 +13,8 @@ from typing import Mapping
 
 import numpy as np
 
-from fraytool.kinds import SHAPE_BOX, SHAPE_PLANE, SHAPE_SPHERE
+from fraytool.kinds import SHAPE_BOX, SHAPE_MESH, SHAPE_PLANE, SHAPE_SPHERE
+from fraytool.meshes import MeshTable, vertex_normals
 
 
 @dataclass(frozen=True)
@@ -77,7 +79,7 @@ def rotation_from_y(normal: np.ndarray) -> np.ndarray:
 @dataclass(frozen=True)
 class BodyDraw:
     mesh: str
-    """"sphere", "cube" or "quad"."""
+    """"sphere", "cube", "quad" or "mesh<m>" (mesh body m, fraytool.meshes)."""
     model: np.ndarray
     """Model matrix, (4, 4) float64."""
     normal_matrix: np.ndarray
@@ -95,6 +97,8 @@ class BodySet:
         self.normal = np.asarray(topology.get("body_normal", np.tile([0.0, 1.0, 0.0], (len(self.shape), 1))))
         self.plane_half_size_m = plane_half_size_m
         self.ground = ground
+        self.meshes = MeshTable(topology)
+        self.mesh_of_body = {int(b): m for m, b in enumerate(self.meshes.body)}
 
     def _in_ground(self, normal_world: np.ndarray, position: np.ndarray) -> bool:
         if self.ground is None:
@@ -121,6 +125,8 @@ class BodySet:
                     continue
                 mesh = "quad"
                 M3 = rotation_from_y(n_world) @ np.diag([self.plane_half_size_m, 1.0, self.plane_half_size_m])
+            elif shape == SHAPE_MESH and b in self.mesh_of_body:
+                mesh, M3 = f"mesh{self.mesh_of_body[b]}", R
             else:
                 continue
             model = np.eye(4)
@@ -132,3 +138,31 @@ class BodySet:
                 continue
             out.append(BodyDraw(mesh, model, nm))
         return out
+
+
+AUTO_SMOOTH_DEG = 40.0
+"""A mesh corner takes its vertex's (smooth) normal where that turns from the face's by less than this,
+else the face's own (a crease stays sharp)."""
+
+
+def mesh_draw_vertices(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """A mesh body's triangles as (3 T, 6) float32 position + normal rows, one row per corner, drawn with
+    indices 0, 1, 2, ... (smooth where the surface is, creased where it turns by AUTO_SMOOTH_DEG)."""
+    v = np.asarray(vertices, np.float64)
+    smooth = vertex_normals(v, triangles)
+    face = np.cross(v[triangles[:, 1]] - v[triangles[:, 0]], v[triangles[:, 2]] - v[triangles[:, 0]])
+    face /= np.maximum(np.linalg.norm(face, axis=1), 1e-300)[:, None]
+    corner_n = smooth[triangles]  # (T, 3, 3)
+    keep = np.einsum("tcj,tj->tc", corner_n, face) > np.cos(np.radians(AUTO_SMOOTH_DEG))
+    normals = np.where(keep[..., None], corner_n, face[:, None, :])
+    return np.concatenate([v[triangles].reshape(-1, 3), normals.reshape(-1, 3)], axis=1).astype(np.float32)
+
+
+def body_bounding_radii(topology) -> np.ndarray:
+    """Radius of each body's bounding sphere about its centre [m]; -1 for a plane (unbounded)."""
+    shape = np.asarray(topology.get("body_shape", np.zeros(0, np.int8)))
+    radius = np.asarray(topology.get("body_radius_m", np.zeros(len(shape))), float)
+    half = np.asarray(topology.get("body_half_extents_m", np.zeros((len(shape), 3))), float).reshape(-1, 3)
+    params = np.asarray(topology.get("body_params", np.zeros((len(shape), 3))), float).reshape(-1, 3)
+    return np.where(shape == SHAPE_SPHERE, radius, np.where(shape == SHAPE_BOX, np.linalg.norm(half, axis=-1),
+                                                              np.where(shape == SHAPE_MESH, params[:, 0], -1.0)))

@@ -26,12 +26,11 @@ from fraytool.scene.spec import CameraSpec
 
 
 def shot_points(topology: Mapping[str, np.ndarray], records: Iterable) -> np.ndarray:
-    """Every particle of every record, and for every sphere and box the 6 points of its bounding
+    """Every particle of every record, and for every sphere, box and mesh the 6 points of its bounding
     sphere along the world axes, as (N, 3) float64."""
-    shape = np.asarray(topology.get("body_shape", np.zeros(0, np.int8)))
-    radius = np.asarray(topology.get("body_radius_m", np.zeros(len(shape))))
-    half = np.asarray(topology.get("body_half_extents_m", np.zeros((len(shape), 3))))
-    r = np.where(shape == SHAPE_SPHERE, radius, np.where(shape == SHAPE_BOX, np.linalg.norm(half, axis=-1), -1.0))
+    from fraytool.render.bodies import body_bounding_radii
+
+    r = body_bounding_radii(topology)
     offsets = np.concatenate([np.eye(3), -np.eye(3)])
     out = []
     for record in records:

@@ -121,6 +121,8 @@ class FrameGeometry:
     """Spring lines for the wireframe view (None when it is off)."""
     body_position_m: np.ndarray
     body_rotation: np.ndarray
+    time_s: float = 0.0
+    """The frame's simulated time [s] (animated mesh bodies are drawn as they are then)."""
 
 
 class GeometryBuilder:
@@ -215,6 +217,7 @@ class GeometryBuilder:
             lines=spring_lines(topo, record) if lines else None,
             body_position_m=np.asarray(record.body_position_m, dtype=np.float32),
             body_rotation=np.asarray(record.body_rotation, dtype=np.float32),
+            time_s=float(record.time_s),
         )
 
 

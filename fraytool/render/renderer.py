@@ -46,7 +46,8 @@ from typing import Mapping, Optional
 import moderngl
 import numpy as np
 
-from fraytool.render.bodies import BodySet, rotation_from_y, unit_cube, unit_quad, unit_sphere
+from fraytool.meshes import MeshTable
+from fraytool.render.bodies import BodySet, mesh_draw_vertices, rotation_from_y, unit_cube, unit_quad, unit_sphere
 from fraytool.render.camera import Camera, gl_matrix_bytes
 from fraytool.render.color import (
     WIREFRAME_BASE_SRGB,
@@ -227,6 +228,23 @@ class Renderer:
             if name == "quad" and self._ground_lit_prog is not None:
                 self._ground_lit_vao = ctx.vertex_array(self._ground_lit_prog, [(vbo, "3f 3f", "in_position", "in_normal")],
                                                         ibo, 4)
+
+        self._meshes = MeshTable(topology)
+        self._animated_meshes: list[tuple[int, moderngl.Buffer]] = []
+        self._mesh_time_s: Optional[float] = None
+        for m in range(self._meshes.count):
+            vbo = ctx.buffer(mesh_draw_vertices(self._meshes.key_vertices(m, 0), self._meshes.local_triangles(m)).tobytes())
+            ibo = ctx.buffer(np.arange(3 * self._meshes.local_triangles(m).shape[0], dtype=np.uint32).tobytes())
+            self._static += [vbo, ibo]
+            name = f"mesh{m}"
+            self._body_vaos[name] = (
+                ctx.vertex_array(self._body_prog, [(vbo, "3f 3f", "in_position", "in_normal")], ibo, 4),
+                ctx.vertex_array(self._ground_prog, [(vbo, "3f 3f", "in_position", "in_normal")], ibo, 4),
+            )
+            if self.shadow is not None:
+                self.shadow.add_body_mesh(name, vbo, ibo)
+            if self._meshes.animated(m):
+                self._animated_meshes.append((m, vbo))
 
         self._yarn_vbo = _Stream(ctx)
         self._shadow_vbo = _Stream(ctx)
@@ -470,10 +488,19 @@ class Renderer:
         self.ctx.finish()
         self.part_s[name] = self.part_s.get(name, 0.0) + time.perf_counter() - t0
 
+    def _pose_meshes(self, time_s: float) -> None:
+        """Animated mesh bodies' vertices at the frame's time."""
+        if not self._animated_meshes or self._mesh_time_s == time_s:
+            return
+        for m, vbo in self._animated_meshes:
+            vbo.write(mesh_draw_vertices(self._meshes.vertices_at(m, time_s), self._meshes.local_triangles(m)).tobytes())
+        self._mesh_time_s = time_s
+
     def draw(self, geom: FrameGeometry) -> None:
         """Draw one frame into the multisampled framebuffer and resolve it (no read-back)."""
         W, H = self.size
         self._fbo_ms.use()
+        self._pose_meshes(geom.time_s)
         if geom.yarns is not None:
             self._upload_yarns(geom)
         if self.shadow is not None:

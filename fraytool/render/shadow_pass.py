@@ -11,7 +11,8 @@ from typing import Mapping, Optional
 import moderngl
 import numpy as np
 
-from fraytool.render.bodies import BodySet
+from fraytool.kinds import SHAPE_MESH, SHAPE_SPHERE
+from fraytool.render.bodies import BodySet, body_bounding_radii
 from fraytool.render.camera import gl_matrix_bytes
 from fraytool.render.shadow import NORMAL_OFFSET_TEXELS, LightFrame, caster_points, fit_light
 
@@ -35,8 +36,11 @@ class ShadowPass:
         self.texture.repeat_x = False
         self.texture.repeat_y = False
         self.fbo = ctx.framebuffer(depth_attachment=self.texture)
-        self.body_shape = np.asarray(topology.get("body_shape", np.zeros(0, np.int8)))
-        self.body_radius = np.asarray(topology.get("body_radius_m", np.zeros(len(self.body_shape))))
+        shape = np.asarray(topology.get("body_shape", np.zeros(0, np.int8)))
+        mesh = shape == SHAPE_MESH  # a mesh casts within its bounding sphere
+        self.body_shape = np.where(mesh, SHAPE_SPHERE, shape).astype(np.int8)
+        self.body_radius = np.where(mesh, body_bounding_radii(topology),
+                                    np.asarray(topology.get("body_radius_m", np.zeros(len(shape)))))
         self.body_half = np.asarray(topology.get("body_half_extents_m", np.zeros((len(self.body_shape), 3))))
         self._body_vaos: dict[str, moderngl.VertexArray] = {}
         self._yarn_vao: Optional[tuple[tuple, moderngl.VertexArray]] = None

@@ -224,6 +224,10 @@ def _assemble(values: dict, bodies_raw: list, att_raw: list, cut_raw: list, sour
     for b, i in bodies_raw:
         body = BodySpec(**b)
         problems.extend(f"bodies.{i}", rules.body_name_problems(body.name, names) + rules.body_problems(body))
+        if body.shape == "mesh" and body.file:
+            from fraytool.scene.mesh_files import file_problems
+
+            problems.extend(f"bodies.{i}", file_problems(body.file, body.prim, source))
         names.add(body.name)
         bodies.append(body)
 
@@ -296,6 +300,26 @@ def scene_hash(spec: SceneSpec) -> str:
     d["time"].pop("frames")  # frame k does not depend on how many follow it
     d["time"].pop("fps")
     d["time"].pop("stability")
+    for body, raw in zip(spec.bodies, d["bodies"]):
+        if body.shape != "mesh":  # bodies of other kinds keep the digest they had before meshes existed
+            for k in ("file", "prim", "scale", "frame_time_s"):
+                raw.pop(k)
+        else:
+            raw["file"] = _mesh_digest(body.file, spec.source)  # the mesh, not where it lies
     d["sim_revision"] = SIM_REVISION
     blob = json.dumps(d, sort_keys=True, default=list).encode()
     return hashlib.sha256(blob).hexdigest()[:16]
+
+
+def _mesh_digest(file: str, source: str) -> str:
+    """Digest of a mesh body's files' bytes (a sequence: all of them, in order)."""
+    from fraytool.scene.mesh_files import MeshFileError, is_sequence, resolve, sequence_files
+
+    path = resolve(file, source)
+    h = hashlib.sha256()
+    try:
+        for f in (sequence_files(path) if is_sequence(path) else [path]):
+            h.update(f.read_bytes())
+    except (MeshFileError, OSError):
+        return file  # not readable: loading the scene has said so
+    return h.hexdigest()

@@ -87,6 +87,18 @@ def body_problems(b: BodySpec) -> list[Problem]:
             out.append(("motion", b.motion, 'a plane is "static" or "kinematic"'))
         if max(abs(v) for v in b.normal) == 0.0:
             out.append(("normal", b.normal, "must be a non-zero vector"))
+    if b.shape == "mesh":
+        if not b.file:
+            out.append((None, None, 'a mesh needs `file` (OBJ, PLY, STL, glTF/GLB or USD, relative to the scene file)'))
+        if b.motion == "dynamic":
+            out.append(("motion", b.motion, 'a mesh is "static" or "kinematic" (it moves the cloth, the cloth '
+                        'does not move it)'))
+    else:
+        for name, default in (("file", ""), ("prim", ""), ("scale", (1.0, 1.0, 1.0)), ("frame_time_s", 0.0)):
+            if getattr(b, name) != default:
+                value = getattr(b, name)
+                out.append((name, list(value) if isinstance(value, tuple) else value,
+                            f"is for meshes; a {b.shape} does not use it"))
     if b.path and b.motion != "kinematic":
         out.append(("path", "[...]", 'a path needs motion = "kinematic"'))
     # a size key of another shape would be silently ignored: say so instead

@@ -152,7 +152,7 @@ class ClothSpec:
 
 @dataclass(frozen=True, kw_only=True)
 class BodySpec:
-    """One [[bodies]] entry: a rigid sphere, box or plane."""
+    """One [[bodies]] entry: a rigid sphere, box, plane or triangle mesh (docs/meshes.md)."""
 
     name: str = key("str", doc="unique; attachments refer to the body by it")
     shape: str = key("str", choices=SHAPE_NAMES, doc="body shape")
@@ -163,6 +163,13 @@ class BodySpec:
     half_extents_m: Vec3 = key("vec3", (0.0, 0.0, 0.0), lo=-WORLD_M, hi=WORLD_M, doc="box half sizes [m]; required for boxes, an error on other shapes")
     normal: Vec3 = key("vec3", (0.0, 1.0, 0.0), doc="plane normal, pointing to the free side")
     rotation_deg: Vec3 = key("vec3", (0.0, 0.0, 0.0), doc="fixed orientation as x, y, z Euler angles [degrees]")
+    file: str = key("str", "", doc="mesh: OBJ, PLY, STL, glTF/GLB or USD file, relative to the scene file; "
+                    "walk.####.obj is a numbered sequence (one file per frame)")
+    prim: str = key("str", "", doc="mesh from a USD file: the path of its Mesh prim, e.g. /Root/Body")
+    scale: Vec3 = key("vec3", (1.0, 1.0, 1.0), lo=1e-9, hi=1e9, doc="mesh: scale of the file's coordinates "
+                      "to metres, per axis (a USD stage's metersPerUnit is applied first)")
+    frame_time_s: float = key("float", 0.0, lo=0, hi=1e4, doc="mesh sequence: seconds between two files; "
+                              "0 = the scene's frame time (step_s x steps_per_frame)")
     velocity_m_s: Vec3 = key("vec3", (0.0, 0.0, 0.0), lo=-1e4, hi=1e4,
                              doc="kinematic: constant velocity; dynamic: initial velocity [m/s]")
     path: tuple[tuple[float, float, float, float], ...] = key(

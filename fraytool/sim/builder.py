@@ -178,6 +178,7 @@ class ModelBuilder:
         self.bodies: list[BodySpec] = []
         self.attachments: list[AttachmentSpec] = []
         self.cuts: list[CutSpec] = []
+        self._mesh_assets: dict[str, Any] = {}  # mesh body name -> fraytool.scene.mesh_files.MeshAsset
 
     # --- checking arguments ---------------------------------------------------------------------------
 
@@ -329,6 +330,51 @@ class ModelBuilder:
         returns its body index."""
         return self._add_body("add_plane", "plane", _given(locals()))
 
+    @_keys_doc("bodies")
+    def add_mesh(self, name: str, *, file: Optional[str] = None, prim: str = _BODY["prim"].default,
+                 vertices_m: Optional[np.ndarray] = None, triangles: Optional[np.ndarray] = None,
+                 key_times_s: Optional[Sequence[float]] = None,
+                 scale: Sequence[float] = _BODY["scale"].default,
+                 frame_time_s: float = _BODY["frame_time_s"].default,
+                 position_m: Sequence[float] = _BODY["position_m"].default,
+                 rotation_deg: Sequence[float] = _BODY["rotation_deg"].default,
+                 motion: str = _BODY["motion"].default,
+                 velocity_m_s: Sequence[float] = _BODY["velocity_m_s"].default,
+                 path: Sequence[Sequence[float]] = _BODY["path"].default,
+                 friction: float = _BODY["friction"].default,
+                 collide: bool = _BODY["collide"].default,
+                 start_s: float = _BODY["start_s"].default) -> int:
+        """A triangle mesh (static or kinematic; docs/meshes.md) from `file` (OBJ, PLY, STL, glTF/GLB, a
+        numbered sequence walk.####.obj with frame_time_s seconds between files, or USD with `prim`) or
+        from arrays: `vertices_m` (V, 3), or (K, V, 3) keys at `key_times_s`, and `triangles` (T, 3).
+        Its vertices, times `scale`, are in the body's frame: position_m and rotation_deg place it.
+        Returns its body index."""
+        args = _given(locals())
+        from fraytool.scene import mesh_files
+
+        for k in ("vertices_m", "triangles", "key_times_s"):
+            args.pop(k, None)
+        if (file is None) == (vertices_m is None):
+            self._raise("add_mesh", [(None, None, "give either file or vertices_m and triangles")])
+        try:
+            if file is not None:
+                path = mesh_files.resolve(str(file), "")
+                problems = mesh_files.file_problems(str(path), prim, "")
+                if problems:
+                    self._raise("add_mesh", problems)
+                if mesh_files.is_sequence(path) and frame_time_s <= 0.0:
+                    self._raise("add_mesh", [("frame_time_s", frame_time_s, "a sequence needs the seconds "
+                                              "between its files (> 0)")])
+                asset = mesh_files.read_asset(path, prim, frame_time_s or 1.0)
+            else:
+                asset = mesh_files.asset_from_arrays(vertices_m, triangles, key_times_s)
+        except mesh_files.MeshFileError as exc:
+            raise ModelBuilderError([f"ModelBuilder.add_mesh: {exc}"]) from None
+        args["file"] = str(file) if file is not None else "<arrays>"
+        index = self._add_body("add_mesh", "mesh", args)
+        self._mesh_assets[self.bodies[index].name] = asset
+        return index
+
     @_keys_doc("attachments")
     def add_attachment(self, body: str | int, *, edge: Optional[str] = None, corner: Optional[str] = None,
                        corner_size: int = _ATTACH["corner_size"].default,
@@ -460,6 +506,9 @@ class ModelBuilder:
             if bd.motion == "kinematic" and bd.path:
                 body_pos0[k] = bd.path[0][1:]
 
+        mesh_arrays = _mesh_arrays(bodies, self._mesh_assets)
+        mesh_radius = dict(zip(mesh_arrays["mesh_body"].tolist(), _mesh_radii(mesh_arrays)))
+
         att_p, att_b, att_off = [], [], []
         for att in self.attachments:
             body = names.index(att.body)
@@ -514,7 +563,8 @@ class ModelBuilder:
             body_names=names,
             body_shape=np.array([SHAPE_NAMES.index(bd.shape) for bd in bodies], np.int8),
             body_motion=np.array([MOTION_NAMES.index(bd.motion) for bd in bodies], np.int8),
-            body_params=np.array([_body_params(bd, normals[k]) for k, bd in enumerate(bodies)], float).reshape(-1, 3),
+            body_params=np.array([_body_params(bd, normals[k], mesh_radius.get(k, 0.0), mesh_arrays, k)
+                                  for k, bd in enumerate(bodies)], float).reshape(-1, 3),
             body_rotation=rot,
             body_mass_kg=np.array([bd.mass_kg for bd in bodies], float),
             body_gravity=np.array([bd.gravity for bd in bodies], bool),
@@ -524,6 +574,7 @@ class ModelBuilder:
             body_initial_position_m=body_pos0,
             body_initial_velocity_m_s=np.array([bd.velocity_m_s for bd in bodies], float).reshape(-1, 3),
             body_path=tuple(np.asarray(bd.path, float).reshape(-1, 4) for bd in bodies),
+            **mesh_arrays,
             strain_limit=strain.limit,
             strain_max_iterations=strain.max_iterations,
             strain_tolerance=strain.tolerance,
@@ -548,13 +599,66 @@ class ModelBuilder:
         )
 
 
-def _body_params(body: BodySpec, unit_normal: np.ndarray) -> tuple:
+def _body_params(body: BodySpec, unit_normal: np.ndarray, mesh_radius_m: float, mesh_arrays: dict,
+                 k: int) -> tuple:
     """A body's parameter vector by its kind (fraytool.sim.kernels.bodies)."""
     if body.shape == "sphere":
         return (body.radius_m, 0.0, 0.0)
     if body.shape == "box":
         return tuple(body.half_extents_m)
+    if body.shape == "mesh":
+        m = int(np.flatnonzero(mesh_arrays["mesh_body"] == k)[0])
+        return (mesh_radius_m, float(mesh_arrays["mesh_closed"][m]), float(m))
     return tuple(unit_normal)  # a plane
+
+
+def _mesh_arrays(bodies: Sequence[BodySpec], assets: dict) -> dict[str, np.ndarray]:
+    """The Model's mesh arrays (fraytool.meshes) from the mesh bodies' assets, scaled, key times from
+    the body's start_s."""
+    from fraytool.meshes import empty_fields
+
+    out = empty_fields()
+    meshes = [(k, bd, assets[bd.name]) for k, bd in enumerate(bodies) if bd.shape == "mesh"]
+    if not meshes:
+        return out
+    v_off = t_off = k_off = e_off = 0
+    starts = {"mesh_vertex_start": [0], "mesh_triangle_start": [0], "mesh_key_start": [0], "mesh_edge_start": [0]}
+    tris, times, keys, edges = [], [], [], []
+    for k, bd, a in meshes:
+        scale = np.asarray(bd.scale, float)
+        tris.append(a.triangles + v_off)
+        edges.append(a.sharp_edges + v_off)
+        times.append(a.key_time_s + bd.start_s)
+        keys.append((a.key_vertices * scale).reshape(-1, 3))
+        v_off += a.key_vertices.shape[1]
+        t_off += a.triangles.shape[0]
+        k_off += a.key_vertices.shape[0]
+        e_off += a.sharp_edges.shape[0]
+        for name, value in (("mesh_vertex_start", v_off), ("mesh_triangle_start", t_off),
+                            ("mesh_key_start", k_off), ("mesh_edge_start", e_off)):
+            starts[name].append(value)
+    out.update({name: np.asarray(v, np.int64) for name, v in starts.items()})
+    out["mesh_body"] = np.array([k for k, _, _ in meshes], np.int32)
+    out["mesh_closed"] = np.array([a.closed for _, _, a in meshes], bool)
+    out["mesh_triangles"] = np.concatenate(tris).astype(np.int32)
+    out["mesh_sharp_edges"] = np.concatenate(edges).astype(np.int32).reshape(-1, 2)
+    out["mesh_key_time_s"] = np.concatenate(times).astype(float)
+    out["mesh_key_vertex_m"] = np.ascontiguousarray(np.concatenate(keys), dtype=float)
+    return out
+
+
+def _mesh_radii(mesh_arrays: dict) -> list[float]:
+    """Each mesh's bounding radius about its body's centre over all its keys [m]."""
+    from fraytool.meshes import MeshTable
+
+    table = MeshTable(mesh_arrays)
+    radii = []
+    for m in range(table.count):
+        r = 0.0
+        for k in range(table.key_count(m)):
+            r = max(r, float(np.linalg.norm(table.key_vertices(m, k), axis=1).max()))
+        radii.append(r)
+    return radii
 
 
 def longest_float(weft_on_top: np.ndarray) -> int:
@@ -576,7 +680,7 @@ def split_walk_band(weft_on_top: np.ndarray, factor: int) -> int:
     return -(-(longest_float(weft_on_top) + 1) // factor) + 1
 
 
-_SHAPE_METHOD = {"sphere": "add_sphere", "box": "add_box", "plane": "add_plane"}
+_SHAPE_METHOD = {"sphere": "add_sphere", "box": "add_box", "plane": "add_plane", "mesh": "add_mesh"}
 
 
 def build_model(spec: SceneSpec) -> Model:
@@ -597,7 +701,13 @@ def build_model(spec: SceneSpec) -> Model:
         # mass); the others keep their defaults in the Model, where nothing reads them.
         add = getattr(builder, _SHAPE_METHOD[body.shape])
         takes = _parameters(add)
-        add(**{k: v for k, v in dataclasses.asdict(body).items() if k in takes})
+        given = {k: v for k, v in dataclasses.asdict(body).items() if k in takes}
+        if body.shape == "mesh":
+            from fraytool.scene.mesh_files import frame_time_default, resolve
+
+            given["file"] = str(resolve(body.file, spec.source))  # relative to the scene file
+            given["frame_time_s"] = body.frame_time_s or frame_time_default(spec)
+        add(**given)
     for att in spec.attachments:
         builder.add_attachment(**dataclasses.asdict(att))
     for cut in spec.cuts:

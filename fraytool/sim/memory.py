@@ -30,7 +30,14 @@ def estimate_bytes(spec: SceneSpec) -> int:
     per = BYTES_PER_CROSSING
     if spec.cloth.tearing.enabled or spec.self_collision.enabled:
         per += TEARING_BYTES_PER_CROSSING
-    return BASE_BYTES + crossings * per
+    return BASE_BYTES + crossings * per + mesh_bytes(spec)
+
+
+def mesh_bytes(spec: SceneSpec) -> int:
+    """Memory the mesh bodies will need [bytes], from their files' sizes (mesh_files.BYTES_PER_FILE_BYTE)."""
+    from fraytool.scene.mesh_files import BYTES_PER_FILE_BYTE, file_bytes
+
+    return sum(file_bytes(b.file, spec.source) * BYTES_PER_FILE_BYTE for b in spec.bodies if b.shape == "mesh")
 
 
 def available_bytes() -> Optional[int]:
@@ -69,6 +76,23 @@ def memory_problem(spec: SceneSpec) -> Optional[str]:
     if have is None or need <= have:
         return None
     c = spec.cloth
+    meshes = mesh_bytes(spec)
+    if meshes > need // 2:
+        return (f"{spec.source}: [bodies] mesh files: the meshes need about {gib(meshes)} and the whole simulation "
+                f"about {gib(need)}; this machine has {gib(have)} available; use a coarser mesh, "
+                "or pass --force to try anyway")
     return (f"{spec.source}: [cloth] warp_yarns x weft_yarns = {c.warp_yarns} x {c.weft_yarns}: the simulation needs "
             f"about {gib(need)} and this machine has {gib(have)} available; use a smaller grid, "
             "or pass --force to try anyway")
+
+
+def admission_problems(spec: SceneSpec, force: bool) -> list[str]:
+    """Why a loaded scene cannot run here, one line each: the memory estimate (unless `force`), then the
+    mesh bodies' contents (read once the estimate allows it; the reading is cached for the build)."""
+    if not force:
+        problem = memory_problem(spec)
+        if problem:
+            return [problem]
+    from fraytool.scene.mesh_files import asset_problems
+
+    return asset_problems(spec)

@@ -12,11 +12,17 @@ What a step changes (positions, alive flags, spring end points after a split) li
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 import numpy as np
 
 from fraytool.kinds import SHEAR_TWIN
 from fraytool.sim.state import State
+
+
+def _empty_mesh(name: str) -> np.ndarray:
+    from fraytool.meshes import empty_fields
+
+    return empty_fields()[name]
 
 
 
@@ -135,6 +141,17 @@ class Model:
     refine_band_cells: int = 2
     """Coarse cells refined around a cell past refine_strain (and around a moving body)."""
     refine_near_bodies: bool = True
+    mesh_body: np.ndarray = field(default_factory=lambda: _empty_mesh("mesh_body"))
+    """Triangle-mesh bodies (fraytool.meshes, docs/meshes.md): body index of each mesh, shape (M,)."""
+    mesh_closed: np.ndarray = field(default_factory=lambda: _empty_mesh("mesh_closed"))
+    mesh_vertex_start: np.ndarray = field(default_factory=lambda: _empty_mesh("mesh_vertex_start"))
+    mesh_triangle_start: np.ndarray = field(default_factory=lambda: _empty_mesh("mesh_triangle_start"))
+    mesh_triangles: np.ndarray = field(default_factory=lambda: _empty_mesh("mesh_triangles"))
+    mesh_key_start: np.ndarray = field(default_factory=lambda: _empty_mesh("mesh_key_start"))
+    mesh_key_time_s: np.ndarray = field(default_factory=lambda: _empty_mesh("mesh_key_time_s"))
+    mesh_key_vertex_m: np.ndarray = field(default_factory=lambda: _empty_mesh("mesh_key_vertex_m"))
+    mesh_edge_start: np.ndarray = field(default_factory=lambda: _empty_mesh("mesh_edge_start"))
+    mesh_sharp_edges: np.ndarray = field(default_factory=lambda: _empty_mesh("mesh_sharp_edges"))
 
     @property
     def particle_count(self) -> int:

@@ -1,4 +1,5 @@
-"""Cloth masses against rigid spheres, boxes and planes, with friction (docs/method.md §4.3).
+"""Cloth masses against rigid spheres, boxes and planes, with friction (docs/method.md §4.3); mesh
+bodies have their own kernels (fraytool.sim.kernels.mesh_contact) and are never in contact here.
 
 Bodies come as one argument group, `bodies_in` (fraytool.sim.kernels.bodies.BodiesIn): a kind and a
 parameter vector per body; `surface_contact` and `bounding_radius` hold the one branch per kind.
@@ -17,7 +18,7 @@ import math
 
 import numba as nb
 
-from fraytool.kinds import SHAPE_PLANE, SHAPE_SPHERE
+from fraytool.kinds import SHAPE_MESH, SHAPE_PLANE, SHAPE_SPHERE
 
 
 @nb.njit(cache=True, fastmath=False, inline="always")
@@ -33,6 +34,8 @@ def surface_contact(shape, center, rotation, params, x, margin):
         if r < 1e-15:
             return -(radius + margin), 0.0, 1.0, 0.0
         return r - radius - margin, dx / r, dy / r, dz / r
+    if shape == SHAPE_MESH:
+        return math.inf, 0.0, 1.0, 0.0  # meshes have their own pass (fraytool.sim.kernels.mesh_contact)
     if shape == SHAPE_PLANE:
         normal = params
         nx = rotation[0, 0] * normal[0] + rotation[0, 1] * normal[1] + rotation[0, 2] * normal[2]
@@ -88,6 +91,8 @@ def bounding_radius(shape, params, margin):
         return (params[0] + margin) * (1.0 + 1e-9)
     if shape == SHAPE_PLANE:
         return math.inf
+    if shape == SHAPE_MESH:
+        return (params[0] + margin) * (1.0 + 1e-9)  # params[0]: the farthest vertex over all keys
     he = math.sqrt(params[0] ** 2 + params[1] ** 2 + params[2] ** 2)
     return (he + margin) * (1.0 + 1e-9)
 

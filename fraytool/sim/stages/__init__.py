@@ -22,6 +22,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Optional
 
+import numpy as np
+
 from fraytool.sim.model import Model
 from fraytool.sim.stages.base import (COARSE_VIEWS, HANGING, SLAVED, SLAVED_NEAR_HOT, STAGE_NAMES, STALES_VIEWS,
                                       HookStage, Stage, StepContext, StepCounters)
@@ -38,6 +40,15 @@ class StepPlan:
     """The model's stages in step order, without the coarse syncs (plan_syncs adds them)."""
     self_collision: Optional[Stage] = None
     """The self-collision stage (its counters and settings, for tools and tests), else None."""
+
+
+def contact_kinds(model: Model) -> tuple[bool, bool]:
+    """(a colliding analytic body, a colliding mesh body): which contact passes the scene pays for."""
+    from fraytool.kinds import SHAPE_MESH
+
+    collide = model.body_collide if model.body_count else np.zeros(0, bool)
+    mesh = model.body_shape == SHAPE_MESH
+    return bool((collide & ~mesh).any()), bool((collide & mesh).any())
 
 
 def build_stages(model: Model, speed_limit_m_s: float, ctx: StepContext) -> StepPlan:
@@ -59,9 +70,19 @@ def build_stages(model: Model, speed_limit_m_s: float, ctx: StepContext) -> Step
     stages.append(core.PositionUpdate(model))
     if model.attachment_count > 0:
         stages.append(core.Attachments(model))
-    contact = model.body_count > 0 and bool(model.body_collide.any())
+    analytic, meshes = contact_kinds(model)
+    contact = analytic or meshes
+    geometry = None
+    if meshes:
+        from fraytool.sim.mesh_geometry import MeshGeometry
+        from fraytool.sim.stages import mesh_contact  # only scenes with mesh bodies
+
+        geometry = ctx.meshes = MeshGeometry(model)
     if contact and model.tearing:
-        stages.append(core.RigidContactBeforeLimit(model))  # the limit sees a body's push before breaks
+        if analytic:
+            stages.append(core.RigidContactBeforeLimit(model))  # the limit sees a body's push before breaks
+        if meshes:
+            stages.append(mesh_contact.MeshContactBeforeLimit(model, geometry, after_analytic=analytic))
     stages.append(core.StrainLimiting(model))
     tearing_stage = None
     if model.tearing:
@@ -73,8 +94,11 @@ def build_stages(model: Model, speed_limit_m_s: float, ctx: StepContext) -> Step
             stages.append(YarnContactStage())
         tearing_stage = TearingStage()
     if contact:
-        stages.append(core.RigidContact(model))
-        if coarse:
+        if analytic:
+            stages.append(core.RigidContact(model))
+        if meshes:
+            stages.append(mesh_contact.MeshContact(model, geometry, after_analytic=analytic))
+        if coarse and analytic:
             stages.append(multires.SlavedContact(model))
     self_collision = None
     if model.self_collision:

@@ -84,6 +84,9 @@ class StepContext:
     coarse: Optional[Any] = None
     """The coarse base model's work lists (fraytool.sim.stages.multires.CoarseWork) of a multi-resolution
     model, else None."""
+    meshes: Optional[Any] = None
+    """The mesh bodies' geometry and trees (fraytool.sim.mesh_geometry.MeshGeometry), in scenes with a
+    colliding mesh body."""
     yarn_tearing: Optional[Any] = None
     """The yarn-level model's passes (fraytool.sim.tearing.YarnTearing) of a tearing scene, else None."""
     bad_particle: int = -1

@@ -9,7 +9,7 @@ from typing import Optional
 
 import numpy as np
 
-from fraytool.kinds import MOTION_DYNAMIC
+from fraytool.kinds import MOTION_DYNAMIC, SHAPE_MESH
 from fraytool.sim.kernels.attachments import apply_attachments
 from fraytool.sim.kernels.bodies import bodies_in
 from fraytool.sim.kernels.damping import pbd_damping, pbd_damping_pieces
@@ -292,11 +292,12 @@ class RigidContact(_NoSummary):
         self.model = model
         self.body_dynamic = model.body_motion == MOTION_DYNAMIC
         self.any_dynamic = bool(self.body_dynamic.any())
+        self.collide = model.body_collide & (model.body_shape != SHAPE_MESH)  # meshes: stages.mesh_contact
 
     def run(self, state: State, ctx: StepContext, dt_s: float) -> None:
         m = self.model
         ctx.counters.rigid_contacts_last = collide_rigid(
-            *ctx.lists.free(state), bodies_in(m, state), 0.5 * m.thickness_m, dt_s, state.particle_inv_mass,
+            *ctx.lists.free(state), bodies_in(m, state, self.collide), 0.5 * m.thickness_m, dt_s, state.particle_inv_mass,
             state.particle_mass_kg, ctx.prev_position_m, state.particle_position_m, ctx.body_impulse_n_s)
         if self.any_dynamic:
             apply_cloth_impulse(m, state, ctx.body_impulse_n_s)

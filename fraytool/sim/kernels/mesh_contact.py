@@ -1,0 +1,549 @@
+"""Cloth against triangle-mesh bodies: masses against triangles, yarn segments against sharp edges
+(docs/meshes.md, "Contact"; one-way: a mesh is kinematic).
+
+Everything is done in the body's frame, l = R^T (x - c), where a static or rigidly moving mesh stands
+still; an animated mesh's vertices move linearly over the step from `vertex_start_m` to `vertex_end_m`.
+
+Masses (`collide_meshes`): a mass moves over the step from l0 (start-of-step position, body frame at
+the step's start) to l1. Continuous test: the path crosses triangle j when its signed distances to j's
+plane at the two ends, s0 and s1, differ in sign and the crossing point lies in the triangle (for a
+moving triangle, the plane distance is taken as linear in t between the two ends: exact for a
+translating triangle, the animated key's linear interpolation otherwise). The earliest crossing puts
+the mass back on the side it came from, `margin` (half the yarn thickness) off the plane. Without a
+crossing, a mass within `margin` of the mesh is moved out along the direction from its closest point:
+for a closed mesh outward (inside/outside by the closest triangle's face normal, the most face-on of
+equally close triangles: Baerentzen & Aanaes 2005, "Signed distance computation using the angle
+weighted pseudonormal", whose sign this choice reproduces); for an open mesh (two-sided) away from the
+surface on the mass's side. Up to PASSES passes per mass (a concave corner). Coulomb friction as for the
+analytic bodies (fraytool.sim.kernels.rigid_contact): on the mass's displacement relative to the
+surface point it touches, whose move over the step includes the animation's.
+
+Yarn segments (`collide_mesh_edges`): a segment between two masses against the mesh's sharp edges
+(borders and creases, fraytool.meshes.SHARP_DEG), which can pass between two masses. The edge crosses
+the segment when the coplanarity volume (a - e0) . ((b - a) x (e1 - e0)) changes sign over the step
+and the two are within `margin` at the linear root (Bridson, Fedkiw & Anderson 2002's edge-edge test,
+with the cubic taken linear over the step as above); the segment is then put back on its start side,
+`margin` from the edge; without a crossing, a segment within `margin` is pushed off. The correction goes
+to the two masses by their inverse masses and the closest point's parameter (as a PBD distance
+constraint with one side kinematic). Run on one thread: segments share masses.
+"""
+from __future__ import annotations
+
+import math
+from collections import namedtuple
+
+import numba as nb
+import numpy as np
+
+PASSES = 3
+"""Resolution passes per mass (the second and third only where the first moved it)."""
+STACK = 64
+"""BVH traversal stack (trees are balanced: depth about log2(primitives / LEAF_SIZE) + 1)."""
+
+MeshesIn = namedtuple("MeshesIn", [
+    "body",            # (M,) int64: body index of mesh m
+    "closed",          # (M,) bool
+    "triangles",       # (T, 3) int32: global vertex indices
+    "edges",           # (E, 2) int32: sharp edges, global vertex indices
+    "vertex_start_m",  # (V, 3) body frame at the step's start
+    "vertex_end_m",    # (V, 3) body frame at the step's end
+    "tri_node_start", "tri_child", "tri_range", "tri_box", "tri_order",        # triangle trees
+    "edge_node_start", "edge_child", "edge_range", "edge_box", "edge_order",   # sharp-edge trees
+])
+MeshesIn.__doc__ = "Mesh bodies' geometry and trees for the contact kernels (fraytool.sim.kernels.mesh_bvh)."
+
+
+@nb.njit(cache=True, inline="always")
+def _overlaps(box, node, lo0, lo1, lo2, hi0, hi1, hi2):
+    return not (box[node, 0] > hi0 or box[node, 3] < lo0 or box[node, 1] > hi1 or box[node, 4] < lo1
+                or box[node, 2] > hi2 or box[node, 5] < lo2)
+
+
+@nb.njit(cache=True, inline="always")
+def closest_on_triangle(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz):
+    """Closest point of triangle abc to p and its barycentric weights (wa, wb, wc): the Voronoi-region
+    walk of Ericson, "Real-Time Collision Detection" §5.1.5."""
+    abx, aby, abz = bx - ax, by - ay, bz - az
+    acx, acy, acz = cx - ax, cy - ay, cz - az
+    apx, apy, apz = px - ax, py - ay, pz - az
+    d1 = abx * apx + aby * apy + abz * apz
+    d2 = acx * apx + acy * apy + acz * apz
+    if d1 <= 0.0 and d2 <= 0.0:
+        return ax, ay, az, 1.0, 0.0, 0.0
+    bpx, bpy, bpz = px - bx, py - by, pz - bz
+    d3 = abx * bpx + aby * bpy + abz * bpz
+    d4 = acx * bpx + acy * bpy + acz * bpz
+    if d3 >= 0.0 and d4 <= d3:
+        return bx, by, bz, 0.0, 1.0, 0.0
+    vc = d1 * d4 - d3 * d2
+    if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
+        v = d1 / (d1 - d3)
+        return ax + v * abx, ay + v * aby, az + v * abz, 1.0 - v, v, 0.0
+    cpx, cpy, cpz = px - cx, py - cy, pz - cz
+    d5 = abx * cpx + aby * cpy + abz * cpz
+    d6 = acx * cpx + acy * cpy + acz * cpz
+    if d6 >= 0.0 and d5 <= d6:
+        return cx, cy, cz, 0.0, 0.0, 1.0
+    vb = d5 * d2 - d1 * d6
+    if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
+        w = d2 / (d2 - d6)
+        return ax + w * acx, ay + w * acy, az + w * acz, 1.0 - w, 0.0, w
+    va = d3 * d6 - d5 * d4
+    if va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
+        w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        return bx + w * (cx - bx), by + w * (cy - by), bz + w * (cz - bz), 0.0, 1.0 - w, w
+    denom = 1.0 / (va + vb + vc)
+    v = vb * denom
+    w = vc * denom
+    return ax + abx * v + acx * w, ay + aby * v + acy * w, az + abz * v + acz * w, 1.0 - v - w, v, w
+
+
+@nb.njit(cache=True, inline="always")
+def _vertex(vertices, i):
+    return vertices[i, 0], vertices[i, 1], vertices[i, 2]
+
+
+@nb.njit(cache=True)
+def _resolve_point(m, meshes_in, l0, l1, margin_m, stack_out):
+    """One pass for a mass going from l0 to l1 (body frame) against mesh m. Returns (moved, new point
+    (3), unit normal (3), depth, triangle, barycentric weights (3)); depth is how far it was moved
+    along the normal."""
+    va, vb = meshes_in.vertex_start_m, meshes_in.vertex_end_m
+    tris = meshes_in.triangles
+    box = meshes_in.tri_box
+    closed = meshes_in.closed[m]
+    pad = margin_m * (1.0 + 1e-9)
+    lo0 = min(l0[0], l1[0]) - pad
+    lo1 = min(l0[1], l1[1]) - pad
+    lo2 = min(l0[2], l1[2]) - pad
+    hi0 = max(l0[0], l1[0]) + pad
+    hi1 = max(l0[1], l1[1]) + pad
+    hi2 = max(l0[2], l1[2]) + pad
+    best_t = 2.0
+    cross_tri = -1
+    cross_side = 0.0
+    best_d2 = pad * pad  # only triangles within the query box's reach: beyond it, the nearest may be unseen
+    best_align = -1.0
+    best_tri = -1
+    bq0 = bq1 = bq2 = 0.0
+    bw0 = bw1 = bw2 = 0.0
+    stack_out[0] = meshes_in.tri_node_start[m]
+    top = 1
+    while top > 0:
+        top -= 1
+        node = stack_out[top]
+        if not _overlaps(box, node, lo0, lo1, lo2, hi0, hi1, hi2):
+            continue
+        if meshes_in.tri_child[node, 0] >= 0:
+            stack_out[top] = meshes_in.tri_child[node, 0]
+            stack_out[top + 1] = meshes_in.tri_child[node, 1]
+            top += 2
+            continue
+        for q in range(meshes_in.tri_range[node, 0], meshes_in.tri_range[node, 1]):
+            j = meshes_in.tri_order[q]
+            ia, ib, ic = tris[j, 0], tris[j, 1], tris[j, 2]
+            a1x, a1y, a1z = _vertex(vb, ia)
+            b1x, b1y, b1z = _vertex(vb, ib)
+            c1x, c1y, c1z = _vertex(vb, ic)
+            a0x, a0y, a0z = _vertex(va, ia)
+            b0x, b0y, b0z = _vertex(va, ib)
+            c0x, c0y, c0z = _vertex(va, ic)
+            # plane distances at both ends (unnormalised normals)
+            n0x = (b0y - a0y) * (c0z - a0z) - (b0z - a0z) * (c0y - a0y)
+            n0y = (b0z - a0z) * (c0x - a0x) - (b0x - a0x) * (c0z - a0z)
+            n0z = (b0x - a0x) * (c0y - a0y) - (b0y - a0y) * (c0x - a0x)
+            n1x = (b1y - a1y) * (c1z - a1z) - (b1z - a1z) * (c1y - a1y)
+            n1y = (b1z - a1z) * (c1x - a1x) - (b1x - a1x) * (c1z - a1z)
+            n1z = (b1x - a1x) * (c1y - a1y) - (b1y - a1y) * (c1x - a1x)
+            s0 = (l0[0] - a0x) * n0x + (l0[1] - a0y) * n0y + (l0[2] - a0z) * n0z
+            s1 = (l1[0] - a1x) * n1x + (l1[1] - a1y) * n1y + (l1[2] - a1z) * n1z
+            if (s0 > 0.0 and s1 < 0.0) or (s0 < 0.0 and s1 > 0.0 and not closed):
+                t = s0 / (s0 - s1)
+                if t < best_t:
+                    px = l0[0] + t * (l1[0] - l0[0])
+                    py = l0[1] + t * (l1[1] - l0[1])
+                    pz = l0[2] + t * (l1[2] - l0[2])
+                    atx, aty, atz = a0x + t * (a1x - a0x), a0y + t * (a1y - a0y), a0z + t * (a1z - a0z)
+                    btx, bty, btz = b0x + t * (b1x - b0x), b0y + t * (b1y - b0y), b0z + t * (b1z - b0z)
+                    ctx_, cty, ctz = c0x + t * (c1x - c0x), c0y + t * (c1y - c0y), c0z + t * (c1z - c0z)
+                    qx, qy, qz, _, _, _ = closest_on_triangle(px, py, pz, atx, aty, atz, btx, bty, btz,
+                                                              ctx_, cty, ctz)
+                    # in the triangle: the crossing point's closest point is itself (up to rounding)
+                    scale = abs(btx - atx) + abs(bty - aty) + abs(btz - atz) + abs(ctx_ - atx) + abs(cty - aty) \
+                        + abs(ctz - atz)
+                    if (qx - px) ** 2 + (qy - py) ** 2 + (qz - pz) ** 2 <= (1e-9 * scale) ** 2:
+                        best_t = t
+                        cross_tri = j
+                        cross_side = 1.0 if s0 > 0.0 else -1.0
+            qx, qy, qz, w0, w1, w2 = closest_on_triangle(l1[0], l1[1], l1[2], a1x, a1y, a1z, b1x, b1y, b1z,
+                                                         c1x, c1y, c1z)
+            d2 = (l1[0] - qx) ** 2 + (l1[1] - qy) ** 2 + (l1[2] - qz) ** 2
+            n1l = math.sqrt(n1x * n1x + n1y * n1y + n1z * n1z)
+            align = abs((l1[0] - qx) * n1x + (l1[1] - qy) * n1y + (l1[2] - qz) * n1z) / (n1l * math.sqrt(d2)) \
+                if d2 > 0.0 and n1l > 0.0 else 1.0
+            tie = best_tri >= 0 and abs(d2 - best_d2) <= 1e-10 * best_d2
+            if (d2 < best_d2 and not tie) or (tie and align > best_align):
+                best_d2 = d2
+                best_align = align
+                best_tri = j
+                bq0, bq1, bq2 = qx, qy, qz
+                bw0, bw1, bw2 = w0, w1, w2
+    if cross_tri >= 0:
+        j = cross_tri
+        a1x, a1y, a1z = _vertex(vb, tris[j, 0])
+        b1x, b1y, b1z = _vertex(vb, tris[j, 1])
+        c1x, c1y, c1z = _vertex(vb, tris[j, 2])
+        nx = (b1y - a1y) * (c1z - a1z) - (b1z - a1z) * (c1y - a1y)
+        ny = (b1z - a1z) * (c1x - a1x) - (b1x - a1x) * (c1z - a1z)
+        nz = (b1x - a1x) * (c1y - a1y) - (b1y - a1y) * (c1x - a1x)
+        nl = math.sqrt(nx * nx + ny * ny + nz * nz)
+        nx, ny, nz = cross_side * nx / nl, cross_side * ny / nl, cross_side * nz / nl
+        sd = (l1[0] - a1x) * nx + (l1[1] - a1y) * ny + (l1[2] - a1z) * nz
+        depth = margin_m - sd
+        x0, x1, x2 = l1[0] + depth * nx, l1[1] + depth * ny, l1[2] + depth * nz
+        _, _, _, w0, w1, w2 = closest_on_triangle(x0, x1, x2, a1x, a1y, a1z, b1x, b1y, b1z, c1x, c1y, c1z)
+        return True, x0, x1, x2, nx, ny, nz, depth, j, w0, w1, w2
+    if best_tri < 0:
+        return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1, 0.0, 0.0, 0.0
+    d = math.sqrt(best_d2)
+    j = best_tri
+    a1x, a1y, a1z = _vertex(vb, tris[j, 0])
+    b1x, b1y, b1z = _vertex(vb, tris[j, 1])
+    c1x, c1y, c1z = _vertex(vb, tris[j, 2])
+    fx = (b1y - a1y) * (c1z - a1z) - (b1z - a1z) * (c1y - a1y)
+    fy = (b1z - a1z) * (c1x - a1x) - (b1x - a1x) * (c1z - a1z)
+    fz = (b1x - a1x) * (c1y - a1y) - (b1y - a1y) * (c1x - a1x)
+    fl = math.sqrt(fx * fx + fy * fy + fz * fz)
+    fx, fy, fz = fx / fl, fy / fl, fz / fl
+    ex, ey, ez = l1[0] - bq0, l1[1] - bq1, l1[2] - bq2
+    tiny = 1e-12 * (abs(bq0) + abs(bq1) + abs(bq2) + margin_m)
+    if closed:
+        inside = ex * fx + ey * fy + ez * fz < 0.0
+        sd = -d if inside else d
+        if sd >= margin_m:
+            return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1, 0.0, 0.0, 0.0
+        if d > tiny:
+            sign = -1.0 if inside else 1.0
+            nx, ny, nz = sign * ex / d, sign * ey / d, sign * ez / d
+        else:
+            nx, ny, nz = fx, fy, fz
+    else:
+        if d >= margin_m:
+            return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1, 0.0, 0.0, 0.0
+        sd = d
+        if d > tiny:
+            nx, ny, nz = ex / d, ey / d, ez / d
+        else:  # on the sheet: back to the side the mass came from
+            a0x, a0y, a0z = _vertex(va, tris[j, 0])
+            side = (l0[0] - a0x) * fx + (l0[1] - a0y) * fy + (l0[2] - a0z) * fz
+            sign = -1.0 if side < 0.0 else 1.0
+            nx, ny, nz = sign * fx, sign * fy, sign * fz
+    return True, bq0 + margin_m * nx, bq1 + margin_m * ny, bq2 + margin_m * nz, nx, ny, nz, margin_m - sd, j, \
+        bw0, bw1, bw2
+
+
+@nb.njit(cache=True)
+def _mesh_range(particles, lo, hi, m, frame, meshes_in, margin_m, particles_in, particle_position_m_inout, stack_out):
+    """Particles particles[lo:hi] against mesh m; `frame` = (rotation (3, 3), centre at the step's end (3),
+    centre at its start (3), friction). Returns the number of masses in contact."""
+    rot, c1, c0, friction = frame
+    particle_inv_mass, prev_position_m = particles_in
+    box = meshes_in.tri_box
+    root = meshes_in.tri_node_start[m]
+    pad = margin_m * (1.0 + 1e-9)
+    va, vb = meshes_in.vertex_start_m, meshes_in.vertex_end_m
+    tris = meshes_in.triangles
+    l0 = np.empty(3)
+    l1 = np.empty(3)
+    hits = 0
+    for i in range(lo, hi):
+        p = particles[i]
+        if particle_inv_mass[p] == 0.0:
+            continue
+        for a in range(3):
+            l1[a] = rot[0, a] * (particle_position_m_inout[p, 0] - c1[0]) + rot[1, a] * (
+                particle_position_m_inout[p, 1] - c1[1]) + rot[2, a] * (particle_position_m_inout[p, 2] - c1[2])
+            l0[a] = rot[0, a] * (prev_position_m[p, 0] - c0[0]) + rot[1, a] * (prev_position_m[p, 1] - c0[1]) \
+                + rot[2, a] * (prev_position_m[p, 2] - c0[2])
+        if not _overlaps(box, root, min(l0[0], l1[0]) - pad, min(l0[1], l1[1]) - pad, min(l0[2], l1[2]) - pad,
+                         max(l0[0], l1[0]) + pad, max(l0[1], l1[1]) + pad, max(l0[2], l1[2]) + pad):
+            continue
+        touched = False
+        nx = ny = nz = depth = 0.0
+        tri = -1
+        w0 = w1 = w2 = 0.0
+        for _ in range(PASSES):
+            moved, x0, x1, x2, mx, my, mz, dd, tj, u0, u1, u2 = _resolve_point(m, meshes_in, l0, l1, margin_m, stack_out)
+            if not moved:
+                break
+            touched = True
+            l1[0], l1[1], l1[2] = x0, x1, x2
+            nx, ny, nz, depth, tri, w0, w1, w2 = mx, my, mz, dd, tj, u0, u1, u2
+        if not touched:
+            continue
+        hits += 1
+        # the touched surface point's move over the step, in the body frame (animation), then the world
+        ia, ib, ic = tris[tri, 0], tris[tri, 1], tris[tri, 2]
+        sx = w0 * (vb[ia, 0] - va[ia, 0]) + w1 * (vb[ib, 0] - va[ib, 0]) + w2 * (vb[ic, 0] - va[ic, 0])
+        sy = w0 * (vb[ia, 1] - va[ia, 1]) + w1 * (vb[ib, 1] - va[ib, 1]) + w2 * (vb[ic, 1] - va[ic, 1])
+        sz = w0 * (vb[ia, 2] - va[ia, 2]) + w1 * (vb[ib, 2] - va[ib, 2]) + w2 * (vb[ic, 2] - va[ic, 2])
+        px = c1[0] + rot[0, 0] * l1[0] + rot[0, 1] * l1[1] + rot[0, 2] * l1[2]
+        py = c1[1] + rot[1, 0] * l1[0] + rot[1, 1] * l1[1] + rot[1, 2] * l1[2]
+        pz = c1[2] + rot[2, 0] * l1[0] + rot[2, 1] * l1[1] + rot[2, 2] * l1[2]
+        gx = rot[0, 0] * nx + rot[0, 1] * ny + rot[0, 2] * nz
+        gy = rot[1, 0] * nx + rot[1, 1] * ny + rot[1, 2] * nz
+        gz = rot[2, 0] * nx + rot[2, 1] * ny + rot[2, 2] * nz
+        mvx = c1[0] - c0[0] + rot[0, 0] * sx + rot[0, 1] * sy + rot[0, 2] * sz
+        mvy = c1[1] - c0[1] + rot[1, 0] * sx + rot[1, 1] * sy + rot[1, 2] * sz
+        mvz = c1[2] - c0[2] + rot[2, 0] * sx + rot[2, 1] * sy + rot[2, 2] * sz
+        # Coulomb friction on the displacement relative to the surface (as rigid_contact)
+        rx = px - prev_position_m[p, 0] - mvx
+        ry = py - prev_position_m[p, 1] - mvy
+        rz = pz - prev_position_m[p, 2] - mvz
+        rn = rx * gx + ry * gy + rz * gz
+        tx, ty, tz = rx - rn * gx, ry - rn * gy, rz - rn * gz
+        tl = math.sqrt(tx * tx + ty * ty + tz * tz)
+        limit = friction * max(depth, 0.0)
+        if tl > 0.0:
+            scale = 1.0 if tl <= limit else limit / tl
+            px -= scale * tx
+            py -= scale * ty
+            pz -= scale * tz
+        particle_position_m_inout[p, 0] = px
+        particle_position_m_inout[p, 1] = py
+        particle_position_m_inout[p, 2] = pz
+    return hits
+
+
+@nb.njit(cache=True, fastmath=False, parallel=True)
+def collide_meshes(
+    # the free particles (ascending) and their units (fraytool.sim.kernels.work_split)
+    particles, unit_bounds,
+    # model and state: the meshes (MeshesIn) and the bodies (fraytool.sim.kernels.bodies.BodiesIn)
+    meshes_in, bodies_in, margin_m, dt_s,
+    # state in
+    particle_inv_mass, prev_position_m,
+    # state in/out
+    particle_position_m_inout,
+):
+    """Masses against every colliding mesh body, with friction; returns the number of contacts. Each
+    mass is independent of the others (a mesh is kinematic): parallel over the units."""
+    contacts = 0
+    particles_in = (particle_inv_mass, prev_position_m)
+    for m in range(meshes_in.body.shape[0]):
+        k = meshes_in.body[m]
+        if not bodies_in.collide[k]:
+            continue
+        c1 = bodies_in.position_m[k].copy()
+        c0 = c1 - dt_s * bodies_in.velocity_m_s[k]
+        frame = (bodies_in.rotation[k], c1, c0, bodies_in.friction[k])
+        hits = 0
+        for u in nb.prange(unit_bounds.shape[0] - 1):
+            stack = np.empty(STACK, np.int64)
+            hits += _mesh_range(particles, unit_bounds[u], unit_bounds[u + 1], m, frame, meshes_in, margin_m,
+                                particles_in, particle_position_m_inout, stack)
+        contacts += hits
+    return contacts
+
+
+@nb.njit(cache=True, inline="always")
+def _segment_closest(p0, p1, q0, q1):
+    """Parameters (s, u) of the closest points of segments p0 p1 and q0 q1 (Ericson §5.1.9)."""
+    d1 = p1 - p0
+    d2 = q1 - q0
+    r = p0 - q0
+    a = d1 @ d1
+    e = d2 @ d2
+    f = d2 @ r
+    if a <= 1e-300 and e <= 1e-300:
+        return 0.0, 0.0
+    if a <= 1e-300:
+        return 0.0, min(max(f / e, 0.0), 1.0)
+    c = d1 @ r
+    if e <= 1e-300:
+        return min(max(-c / a, 0.0), 1.0), 0.0
+    b = d1 @ d2
+    denom = a * e - b * b
+    s = min(max((b * f - c * e) / denom, 0.0), 1.0) if denom > 1e-14 * a * e else 0.0
+    u = (b * s + f) / e
+    if u < 0.0:
+        u = 0.0
+        s = min(max(-c / a, 0.0), 1.0)
+    elif u > 1.0:
+        u = 1.0
+        s = min(max((b - c) / a, 0.0), 1.0)
+    return s, u
+
+
+@nb.njit(cache=True)
+def _volume(a, b, e0, e1):
+    ab = b - a
+    ee = e1 - e0
+    ae = a - e0
+    return ae[0] * (ab[1] * ee[2] - ab[2] * ee[1]) + ae[1] * (ab[2] * ee[0] - ab[0] * ee[2]) \
+        + ae[2] * (ab[0] * ee[1] - ab[1] * ee[0])
+
+
+@nb.njit(cache=True, fastmath=False)
+def collide_mesh_edges(
+    # yarn segments: (S, 2) particle slots
+    segments,
+    # model and state: the meshes (MeshesIn) and the bodies (BodiesIn)
+    meshes_in, bodies_in, margin_m, dt_s,
+    # state in
+    particle_inv_mass, prev_position_m,
+    # state in/out
+    particle_position_m_inout,
+):
+    """Yarn segments against the meshes' sharp edges (module docstring); returns the number of contacts."""
+    contacts = 0
+    stack = np.empty(STACK, np.int64)
+    la0 = np.empty(3)
+    lb0 = np.empty(3)
+    la1 = np.empty(3)
+    lb1 = np.empty(3)
+    e0s = np.empty(3)
+    e1s = np.empty(3)
+    e0e = np.empty(3)
+    e1e = np.empty(3)
+    pad = margin_m * (1.0 + 1e-9)
+    va, vb = meshes_in.vertex_start_m, meshes_in.vertex_end_m
+    for m in range(meshes_in.body.shape[0]):
+        k = meshes_in.body[m]
+        if not bodies_in.collide[k]:
+            continue
+        root = meshes_in.edge_node_start[m]
+        if meshes_in.edge_node_start[m + 1] == root or meshes_in.edge_range[root, 1] == meshes_in.edge_range[root, 0]:
+            continue  # no sharp edge
+        rot = bodies_in.rotation[k]
+        c1 = bodies_in.position_m[k].copy()
+        c0 = c1 - dt_s * bodies_in.velocity_m_s[k]
+        box = meshes_in.edge_box
+        for s in range(segments.shape[0]):
+            pa = segments[s, 0]
+            pb = segments[s, 1]
+            wa = particle_inv_mass[pa]
+            wb = particle_inv_mass[pb]
+            if wa == 0.0 and wb == 0.0:
+                continue
+            for a in range(3):
+                la1[a] = rot[0, a] * (particle_position_m_inout[pa, 0] - c1[0]) + rot[1, a] * (
+                    particle_position_m_inout[pa, 1] - c1[1]) + rot[2, a] * (particle_position_m_inout[pa, 2] - c1[2])
+                lb1[a] = rot[0, a] * (particle_position_m_inout[pb, 0] - c1[0]) + rot[1, a] * (
+                    particle_position_m_inout[pb, 1] - c1[1]) + rot[2, a] * (particle_position_m_inout[pb, 2] - c1[2])
+                la0[a] = rot[0, a] * (prev_position_m[pa, 0] - c0[0]) + rot[1, a] * (prev_position_m[pa, 1] - c0[1]) \
+                    + rot[2, a] * (prev_position_m[pa, 2] - c0[2])
+                lb0[a] = rot[0, a] * (prev_position_m[pb, 0] - c0[0]) + rot[1, a] * (prev_position_m[pb, 1] - c0[1]) \
+                    + rot[2, a] * (prev_position_m[pb, 2] - c0[2])
+            lo0 = min(la0[0], lb0[0], la1[0], lb1[0]) - pad
+            lo1 = min(la0[1], lb0[1], la1[1], lb1[1]) - pad
+            lo2 = min(la0[2], lb0[2], la1[2], lb1[2]) - pad
+            hi0 = max(la0[0], lb0[0], la1[0], lb1[0]) + pad
+            hi1 = max(la0[1], lb0[1], la1[1], lb1[1]) + pad
+            hi2 = max(la0[2], lb0[2], la1[2], lb1[2]) + pad
+            if not _overlaps(box, root, lo0, lo1, lo2, hi0, hi1, hi2):
+                continue
+            moved = False
+            stack[0] = root
+            top = 1
+            while top > 0:
+                top -= 1
+                node = stack[top]
+                if not _overlaps(box, node, lo0, lo1, lo2, hi0, hi1, hi2):
+                    continue
+                if meshes_in.edge_child[node, 0] >= 0:
+                    stack[top] = meshes_in.edge_child[node, 0]
+                    stack[top + 1] = meshes_in.edge_child[node, 1]
+                    top += 2
+                    continue
+                for q in range(meshes_in.edge_range[node, 0], meshes_in.edge_range[node, 1]):
+                    e = meshes_in.edge_order[q]
+                    i0 = meshes_in.edges[e, 0]
+                    i1 = meshes_in.edges[e, 1]
+                    for a in range(3):
+                        e0s[a] = va[i0, a]
+                        e1s[a] = va[i1, a]
+                        e0e[a] = vb[i0, a]
+                        e1e[a] = vb[i1, a]
+                    s1, u1 = _segment_closest(la1, lb1, e0e, e1e)
+                    wx = la1 + s1 * (lb1 - la1) - (e0e + u1 * (e1e - e0e))
+                    dist = math.sqrt(wx @ wx)
+                    f0 = _volume(la0, lb0, e0s, e1s)
+                    f1 = _volume(la1, lb1, e0e, e1e)
+                    crossed = False
+                    if (f0 > 0.0 and f1 < 0.0) or (f0 < 0.0 and f1 > 0.0):
+                        t = f0 / (f0 - f1)
+                        at = la0 + t * (la1 - la0)
+                        bt = lb0 + t * (lb1 - lb0)
+                        et0 = e0s + t * (e0e - e0s)
+                        et1 = e1s + t * (e1e - e1s)
+                        st, ut = _segment_closest(at, bt, et0, et1)
+                        wt = at + st * (bt - at) - (et0 + ut * (et1 - et0))
+                        crossed = (wt @ wt) <= margin_m * margin_m
+                    if crossed:
+                        s0, u0 = _segment_closest(la0, lb0, e0s, e1s)
+                        w0 = la0 + s0 * (lb0 - la0) - (e0s + u0 * (e1s - e0s))
+                        n0 = math.sqrt(w0 @ w0)
+                        if n0 <= 0.0:
+                            continue
+                        n = w0 / n0
+                        sep = wx @ n
+                    elif dist < margin_m and dist > 0.0:
+                        n = wx / dist
+                        sep = dist
+                    else:
+                        continue
+                    delta = margin_m - sep
+                    ca = (1.0 - s1) * wa
+                    cb = s1 * wb
+                    denom = (1.0 - s1) * ca + s1 * cb
+                    if denom <= 0.0:
+                        continue
+                    lam = delta / denom
+                    la1 += ca * lam * n
+                    lb1 += cb * lam * n
+                    moved = True
+                    contacts += 1
+            if moved:
+                for a in range(3):
+                    particle_position_m_inout[pa, a] = c1[a] + rot[a, 0] * la1[0] + rot[a, 1] * la1[1] + rot[a, 2] * la1[2]
+                    particle_position_m_inout[pb, a] = c1[a] + rot[a, 0] * lb1[0] + rot[a, 1] * lb1[1] + rot[a, 2] * lb1[2]
+    return contacts
+
+
+@nb.njit(cache=True)
+def mesh_distances(m, meshes_in, bodies_in, reach_m, x, distance_out):
+    """distance_out[i] = unsigned distance [m] of point x[i] from mesh m (at the step's end), or inf
+    beyond reach_m."""
+    k = meshes_in.body[m]
+    rot = bodies_in.rotation[k]
+    c = bodies_in.position_m[k]
+    stack = np.empty(STACK, np.int64)
+    l1 = np.empty(3)
+    for i in range(x.shape[0]):
+        for a in range(3):
+            l1[a] = rot[0, a] * (x[i, 0] - c[0]) + rot[1, a] * (x[i, 1] - c[1]) + rot[2, a] * (x[i, 2] - c[2])
+        best = np.inf
+        stack[0] = meshes_in.tri_node_start[m]
+        top = 1
+        while top > 0:
+            top -= 1
+            node = stack[top]
+            if not _overlaps(meshes_in.tri_box, node, l1[0] - reach_m, l1[1] - reach_m, l1[2] - reach_m,
+                             l1[0] + reach_m, l1[1] + reach_m, l1[2] + reach_m):
+                continue
+            if meshes_in.tri_child[node, 0] >= 0:
+                stack[top] = meshes_in.tri_child[node, 0]
+                stack[top + 1] = meshes_in.tri_child[node, 1]
+                top += 2
+                continue
+            for q in range(meshes_in.tri_range[node, 0], meshes_in.tri_range[node, 1]):
+                j = meshes_in.tri_order[q]
+                vb = meshes_in.vertex_end_m
+                t = meshes_in.triangles
+                qx, qy, qz, _, _, _ = closest_on_triangle(l1[0], l1[1], l1[2], vb[t[j, 0], 0], vb[t[j, 0], 1],
+                                                          vb[t[j, 0], 2], vb[t[j, 1], 0], vb[t[j, 1], 1],
+                                                          vb[t[j, 1], 2], vb[t[j, 2], 0], vb[t[j, 2], 1],
+                                                          vb[t[j, 2], 2])
+                best = min(best, math.sqrt((l1[0] - qx) ** 2 + (l1[1] - qy) ** 2 + (l1[2] - qz) ** 2))
+        distance_out[i] = best if best <= reach_m else np.inf

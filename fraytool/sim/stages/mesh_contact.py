@@ -1,0 +1,65 @@
+"""Step 6 for triangle-mesh bodies (docs/meshes.md): masses against the triangles, yarn segments against
+the sharp edges, with friction. Only scenes with a colliding mesh body run it (it is imported only then)."""
+from __future__ import annotations
+
+import numpy as np
+
+from fraytool.kinds import STRUCT_WARP, STRUCT_WEFT
+from fraytool.sim.kernels.bodies import bodies_in
+from fraytool.sim.kernels.mesh_contact import collide_mesh_edges, collide_meshes
+from fraytool.sim.mesh_geometry import MeshGeometry
+from fraytool.sim.model import Model
+from fraytool.sim.stages.base import BODIES, POSITIONS, START_POSITIONS, TOPOLOGY, StepContext
+from fraytool.sim.state import State
+
+
+class MeshContact:
+    """Masses and yarn segments against the colliding mesh bodies (fraytool.sim.kernels.mesh_contact).
+    Adds its contacts to ctx.counters.rigid_contacts_last (set by the analytic bodies' pass before it,
+    or by this one when the scene has no other body)."""
+
+    name = "collisions"
+    kernel = "collide_meshes, collide_mesh_edges"
+    reads = frozenset({POSITIONS, START_POSITIONS, BODIES, TOPOLOGY})
+    writes = frozenset({POSITIONS})
+
+    def __init__(self, model: Model, geometry: MeshGeometry, after_analytic: bool):
+        self.model = model
+        self.geometry = geometry
+        self.after_analytic = after_analytic
+        self._segments_key = None
+        self._segments = np.zeros((0, 2), np.int64)
+        self._structural = (model.spring_kind == STRUCT_WEFT) | (model.spring_kind == STRUCT_WARP)
+
+    def segments(self, state: State) -> np.ndarray:
+        """Alive yarn segments (structural springs) as (S, 2) particle slots, kept per topology epoch."""
+        key = (state.topology_epoch, int(state.spring_alive.sum()))
+        if key != self._segments_key:
+            s = np.flatnonzero(self._structural & state.spring_alive)
+            self._segments = np.ascontiguousarray(np.stack([state.spring_particle_a[s], state.spring_particle_b[s]],
+                                                           axis=1).astype(np.int64))
+            self._segments_key = key
+        return self._segments
+
+    def run(self, state: State, ctx: StepContext, dt_s: float) -> None:
+        m = self.model
+        self.geometry.at_step(state.time_s, state.time_s + dt_s)
+        meshes, bodies = self.geometry.meshes_in(m), bodies_in(m, state)
+        margin = 0.5 * m.thickness_m
+        hits = collide_meshes(*ctx.lists.free(state), meshes, bodies, margin, dt_s, state.particle_inv_mass,
+                              ctx.prev_position_m, state.particle_position_m)
+        hits += collide_mesh_edges(self.segments(state), meshes, bodies, margin, dt_s, state.particle_inv_mass,
+                                   ctx.prev_position_m, state.particle_position_m)
+        if self.after_analytic:
+            ctx.counters.rigid_contacts_last += hits
+        else:
+            ctx.counters.rigid_contacts_last = hits
+
+    def summary(self, state: State) -> dict:
+        return {}
+
+
+class MeshContactBeforeLimit(MeshContact):
+    """The mesh pass of step 5 in scenes that tear (as core.RigidContactBeforeLimit)."""
+
+    name = "contact_before_limit"
