@@ -1,6 +1,6 @@
 """Writes scenes/assets/mannequin.obj, the mesh of scenes/mannequin_snag.toml: a dress-form torso (a
 squashed UV ellipsoid, smooth) with a sharp four-sided spike on its top (the snag), as one OBJ of two
-closed parts. Run from the repository root: python scenes/assets/make_mannequin.py"""
+closed parts: python tools/make_mannequin.py"""
 from pathlib import Path
 
 import numpy as np
@@ -40,9 +40,9 @@ def main():
     sv, sf = spike(0.10, 0.16, 0.012)
     v = np.concatenate([tv, sv])
     f = np.concatenate([tf, sf + len(tv)])
-    out = Path(__file__).with_name("mannequin.obj")
+    out = Path(__file__).resolve().parent.parent / "scenes" / "assets" / "mannequin.obj"
     with open(out, "w") as h:
-        h.write("# mannequin torso with a spike on top (scenes/assets/make_mannequin.py); metres, y up\n")
+        h.write("# mannequin torso with a spike on top (tools/make_mannequin.py); metres, y up\n")
         for p in v:
             h.write(f"v {p[0]:.6f} {p[1]:.6f} {p[2]:.6f}\n")
         for t in f:
