@@ -30,6 +30,7 @@ ROWS = [
     ("fig7_square_grab", ["scenes/fig7_square_grab.toml"], 48, 4),
     ("fig7_square_grab, render 1280x720", ["scenes/fig7_square_grab.toml", "--render"], 6, 2),
     ("fold_pile", ["scenes/fold_pile.toml"], 48, 4),
+    ("mannequin_snag (a 3750-triangle mesh body)", ["scenes/mannequin_snag.toml"], 96, 4),
     ("tablecloth_tear (first frames)", ["scenes/tablecloth_tear.toml"], 12, 2),
     ("tablecloth_tear (whole shot)", ["scenes/tablecloth_tear.toml"], 108, 2),
     ("drape 256 x 256, 1 thread", ["scenes/drape.toml", "--set", "cloth.warp_yarns=256", "--set",
@@ -77,7 +78,8 @@ def main() -> int:
         print(lines[-1], flush=True)
     lines += ["", "The commands:", "", *commands, "",
               "ms per frame is the median over the frames; the stages are means. Other figures with their own "
-              "scripts: `benchmarks/ccd_bench.py` (edge-edge CCD), `benchmarks/memory_profile.py` (memory by "
+              "scripts: `benchmarks/ccd_bench.py` (edge-edge CCD), `benchmarks/mesh_contact.py` (a 20k and a 200k "
+              "triangle mesh under fig7's cloth), `benchmarks/memory_profile.py` (memory by "
               "phase), `benchmarks/batch_scaling.py` (the farm), `benchmarks/frames_identical.py` (a refactor "
               "leaves the frames bit-identical).", ""]
     args.out.write_text("\n".join(lines))

@@ -127,6 +127,45 @@ def test_mesh_slab_carries_the_cloth_as_the_analytic_box_does():
     assert np.abs(mesh - box).max() < THICKNESS
 
 
+def _blade(collide=True):
+    """A thin mesh blade (0.6 mm, under the 4 mm yarn spacing and under two margins) cuts down edge first
+    at 2.75 m/s (0.55 mm a step, more than the 0.4 mm contact margin) into a cloth held at its four edges,
+    1.5 cm deep (a 5 % stretch, within the strain limit)."""
+    b = ModelBuilder(seed=1)
+    _cloth(b, n=24)
+    blade = trimesh.creation.box(extents=(0.06, 0.04, 0.0006))
+    b.add_mesh("blade", vertices_m=blade.vertices, triangles=blade.faces, motion="kinematic",
+               path=[(0.0, 0.0, 0.04, 0.001), (0.02, 0.0, -0.015, 0.001)], collide=collide)
+    b.add_sphere("holder", radius_m=0.001, position_m=(0.0, 0.0, 0.0), collide=False)
+    for edge in ("left", "right", "top", "bottom"):
+        b.add_attachment("holder", edge=edge)
+    model = b.finalize()
+    return model, _run(model, 150)
+
+
+def _through_blade(model, state):
+    """Yarn segments crossing the blade's middle plane z = 0.001 inside the blade (above its bottom edge,
+    y = -0.035 at the end, by more than the contact margin; within its length): the blade lies between
+    their masses. A segment draped under the edge crosses the plane below it."""
+    x = state.particle_position_m
+    a, b = model.spring_crossing_a, model.spring_crossing_b
+    s = np.flatnonzero(model.spring_kind <= 1)
+    za, zb = x[a[s], 2] - 0.001, x[b[s], 2] - 0.001
+    across = za * zb < 0
+    w = za[across] / (za[across] - zb[across])
+    y = x[a[s][across], 1] + w * (x[b[s][across], 1] - x[a[s][across], 1])
+    xc = x[a[s][across], 0] + w * (x[b[s][across], 0] - x[a[s][across], 0])
+    return int(((y > -0.035 + 0.5 * THICKNESS) & (y < 0.005) & (np.abs(xc) < 0.03)).sum())
+
+
+def test_a_thin_fast_mesh_blade_does_not_pass_through_the_cloth():
+    model, state = _blade()
+    assert state.particle_position_m[:model.crossing_count, 1].min() < -0.035  # the cloth went down with it
+    assert _through_blade(model, state) == 0
+    model, state = _blade(collide=False)
+    assert _through_blade(model, state) > 10  # without contact it cuts straight through the yarns
+
+
 def test_open_sheet_is_two_sided():
     """A single-sided open sheet (one triangle pair) stops the cloth from above like a floor."""
     b = ModelBuilder(seed=1)
@@ -289,3 +328,104 @@ def test_builder_refuses_dynamic_mesh_and_missing_geometry():
     box = trimesh.creation.box(extents=(0.1, 0.1, 0.1))
     with pytest.raises(ModelBuilderError, match="static.*kinematic"):
         b.add_mesh("m", vertices_m=box.vertices, triangles=box.faces, motion="dynamic")
+
+
+def _sequence_scene(tmp_path):
+    """golden_small's cloth over a box that moves in x, given as a 3-file OBJ sequence (one per frame)."""
+    for k in range(3):
+        box = trimesh.creation.box(extents=(0.06, 0.03, 0.06))
+        box.apply_translation((0.01 * k, 0.0, 0.0))
+        box.export(tmp_path / f"slab.{k:03d}.obj")
+    text = (Path(__file__).resolve().parent / "scenes" / "golden_small.toml").read_text()
+    text = text.replace('shape = "sphere"\nradius_m = 0.035', 'shape = "mesh"\nfile = "slab.###.obj"')
+    assert 'file = "slab.###.obj"' in text
+    scene = tmp_path / "slab.toml"
+    scene.write_text(text)
+    return scene
+
+
+def test_animated_mesh_is_drawn_where_it_is_and_exported_time_sampled(tmp_path, capsys):
+    """The renderer draws an animated mesh body at the frame's time (the box's bright pixels move right),
+    and the USD export carries its points per frame, as the keys say."""
+    from PIL import Image
+
+    from fraytool.commands.main import main
+
+    scene = _sequence_scene(tmp_path)
+    out = tmp_path / "out"
+    assert main(["render", str(scene), "-o", str(out), "--png", "--no-mp4", "--frames", "0:3"]) == 0
+    frames = [np.asarray(Image.open(out / "png" / f"frame_{k:06d}.png").convert("L"), float) for k in (0, 2)]
+    assert np.abs(frames[1] - frames[0]).mean() > 1.0  # the box moved (the cloth barely, in 2 frames)
+    pxr = pytest.importorskip("pxr")
+    from pxr import Usd, UsdGeom
+
+    usd = tmp_path / "shot.usda"
+    assert main(["export", str(scene), "--usd", str(usd), "-o", str(out)]) == 0
+    stage = Usd.Stage.Open(str(usd))
+    mesh = UsdGeom.Mesh(stage.GetPrimAtPath(stage.GetDefaultPrim().GetPath().AppendPath("Bodies/ball")))
+    assert mesh and len(mesh.GetFaceVertexCountsAttr().Get()) == 12
+    samples = mesh.GetPointsAttr().GetTimeSamples()
+    assert samples == [0.0, 1.0, 2.0, 3.0]
+    shift = np.array(mesh.GetPointsAttr().Get(2)).mean(axis=0) - np.array(mesh.GetPointsAttr().Get(0)).mean(axis=0)
+    np.testing.assert_allclose(shift, (0.02, 0.0, 0.0), atol=1e-6)  # file 2 is 2 cm to the right of file 0
+
+
+def test_mesh_distances_and_placement_against_the_sphere_they_tessellate():
+    """mesh_distances (the woven-strain figure's 'near a body') and place_outside_meshes (a split's masses
+    placed out of a mesh) against the analytic distance to the sphere the icosphere approximates."""
+    from fraytool.sim.kernels.bodies import bodies_in
+    from fraytool.sim.kernels.mesh_contact import mesh_distances, place_outside_meshes
+    from fraytool.sim.mesh_geometry import MeshGeometry
+
+    b = ModelBuilder(seed=1)
+    _cloth(b, n=4)
+    ball = trimesh.creation.icosphere(subdivisions=5, radius=0.04)
+    b.add_mesh("ball", vertices_m=ball.vertices, triangles=ball.faces, position_m=(0.1, 0.0, 0.0))
+    model = b.finalize()
+    state = model.state()
+    geometry = MeshGeometry(model)
+    rng = np.random.default_rng(0)
+    direction = rng.normal(size=(200, 3))
+    direction /= np.linalg.norm(direction, axis=1)[:, None]
+    radius = rng.uniform(0.0405, 0.05, 200)
+    x = (0.1, 0.0, 0.0) + direction * radius[:, None]
+    d = np.empty(200)
+    mesh_distances(0, geometry.meshes_in(model), bodies_in(model, state), 0.02, x, d)
+    assert np.abs(d - (radius - 0.04)).max() < 3e-5  # facets lie within 0.02 mm inside the sphere
+    mesh_distances(0, geometry.meshes_in(model), bodies_in(model, state), 0.005, x, d)
+    assert np.isinf(d[radius - 0.04 > 0.0051]).all()  # beyond the reach: inf
+    inside = (0.1, 0.0, 0.0) + direction * 0.0398  # 0.2 mm inside the surface
+    place_outside_meshes(geometry.meshes_in(model), bodies_in(model, state), 0.0004, np.arange(200),
+                         np.ones(200), inside)
+    r = np.linalg.norm(inside - (0.1, 0.0, 0.0), axis=1)
+    assert np.abs(r - 0.0404).max() < 3e-5
+
+
+def test_shipped_mesh_scene_finds_its_asset_from_any_folder(tmp_path):
+    """A shipped scene named by its name (not a path), with an override, resolves its mesh file beside the
+    scene file."""
+    r = subprocess.run([sys.executable, "-m", "fraytool", "check", "mannequin_snag", "--set", "scene.seed=4"],
+                       capture_output=True, text=True,
+                       cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert "mannequin_snag" in r.stdout
+
+
+def test_fit_and_shadow_casters_hold_a_mesh_by_its_bounding_sphere():
+    """--fit frames a mesh body (its bounding sphere's 6 points) and the key light's box holds it
+    (ShadowPass treats a mesh as a sphere of its bounding radius), from the saved topology."""
+    from types import SimpleNamespace
+
+    from fraytool.render.bodies import body_bounding_radii
+    from fraytool.render.fit import shot_points
+
+    b = ModelBuilder(seed=1)
+    _cloth(b, n=4)
+    box = trimesh.creation.box(extents=(0.2, 0.1, 0.4))  # farthest corner: sqrt(0.01 + 0.0025 + 0.04)
+    b.add_mesh("crate", vertices_m=box.vertices, triangles=box.faces, position_m=(1.0, 0.0, 0.0))
+    topology = b.finalize().arrays()
+    radius = np.sqrt(0.1 ** 2 + 0.05 ** 2 + 0.2 ** 2)
+    assert body_bounding_radii(topology) == pytest.approx([radius])
+    record = SimpleNamespace(particle_position_m=np.zeros((1, 3)), body_position_m=np.array([[1.0, 0.0, 0.0]]))
+    points = shot_points(topology, [record])
+    assert points[:, 0].max() == pytest.approx(1.0 + radius)

@@ -38,7 +38,8 @@ import numpy as np
 from fraytool import __version__
 from fraytool.errors import InputError, RunError
 from fraytool.io.frame_record import FrameRecord
-from fraytool.kinds import SHAPE_BOX, SHAPE_PLANE, SHAPE_SPHERE
+from fraytool.kinds import SHAPE_BOX, SHAPE_MESH, SHAPE_PLANE, SHAPE_SPHERE
+from fraytool.meshes import MeshTable
 from fraytool.render.bodies import rotation_from_y
 from fraytool.render.color import srgb_to_linear
 from fraytool.render.encode import partial_path, remove_stale_partials
@@ -154,8 +155,9 @@ def _pieces_of(curves, kind: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, n
 
 
 def _define_bodies(stage, root: str, spec: SceneSpec, topology: Mapping[str, np.ndarray]) -> list:
-    """One prim per body with its xformOps; returns (translate op, orient op, extra rotation) per body
-    (None for a body that cannot be drawn)."""
+    """One prim per body with its xformOps; returns (translate op, orient op, extra rotation, points of an
+    animated mesh: (its points attribute, its mesh index) or None) per body (None for a body that cannot
+    be drawn). A mesh body is a UsdGeom.Mesh of its triangles in the body's frame."""
     from pxr import Gf, Tf, UsdGeom
 
     shapes = np.asarray(topology.get("body_shape", np.zeros(0, np.int8)))
@@ -169,6 +171,8 @@ def _define_bodies(stage, root: str, spec: SceneSpec, topology: Mapping[str, np.
     UsdGeom.Xform.Define(stage, f"{root}/Bodies")
     used: set[str] = set()
     ops = []
+    meshes = MeshTable(topology)
+    mesh_of_body = {int(body): m for m, body in enumerate(meshes.body)}
     for b, shape in enumerate(shapes):
         name = Tf.MakeValidIdentifier(names[b])
         while name in used:
@@ -189,6 +193,15 @@ def _define_bodies(stage, root: str, spec: SceneSpec, topology: Mapping[str, np.
             prim.CreateLengthAttr(PLANE_SCALE * max(cloth_size, 1e-3))
             prim.CreateDoubleSidedAttr(True)
             extra = rotation_from_y(normal[b])  # the plane's +y axis onto its normal (in the body's frame)
+        elif shape == SHAPE_MESH and b in mesh_of_body:
+            m = mesh_of_body[b]
+            prim = UsdGeom.Mesh.Define(stage, path)
+            tri = meshes.local_triangles(m)
+            prim.CreateFaceVertexCountsAttr(np.full(tri.shape[0], 3, np.int32).tolist())
+            prim.CreateFaceVertexIndicesAttr(tri.ravel().tolist())
+            prim.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
+            points = prim.CreatePointsAttr(_vec3f_array(meshes.key_vertices(m, 0)))
+            animated = (points, m) if meshes.animated(m) else None
         else:
             ops.append(None)
             continue
@@ -197,8 +210,14 @@ def _define_bodies(stage, root: str, spec: SceneSpec, topology: Mapping[str, np.
         orient = prim.AddOrientOp(UsdGeom.XformOp.PrecisionFloat)
         if shape == SHAPE_BOX:
             prim.AddScaleOp(UsdGeom.XformOp.PrecisionFloat).Set(Gf.Vec3f(*map(float, half[b])))
-        ops.append((translate, orient, extra))
+        ops.append((translate, orient, extra, animated if shape == SHAPE_MESH else None))
     return ops
+
+
+def _vec3f_array(points: np.ndarray):
+    from pxr import Vt
+
+    return Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(points, dtype=np.float32).reshape(-1, 3))
 
 
 def write_usd(path: Path, spec: SceneSpec, topology: Mapping[str, np.ndarray], records: Iterable[FrameRecord],
@@ -225,6 +244,7 @@ def write_usd(path: Path, spec: SceneSpec, topology: Mapping[str, np.ndarray], r
     prims = {WEFT: _YarnPrim(stage, f"{root}/Yarns/Weft", spec.render.weft_color, width),
              WARP: _YarnPrim(stage, f"{root}/Yarns/Warp", spec.render.warp_color, width)}
     bodies = _define_bodies(stage, root, spec, topology)
+    meshes = MeshTable(topology)
 
     first = last = None
     for n, record in enumerate(records, start=1):
@@ -237,8 +257,11 @@ def write_usd(path: Path, spec: SceneSpec, topology: Mapping[str, np.ndarray], r
         for b, body in enumerate(bodies):
             if body is None:
                 continue
-            translate, orient, extra = body
+            translate, orient, extra, animated = body
             translate.Set(Gf.Vec3d(*map(float, record.body_position_m[b])), t)
+            if animated is not None:  # an animated mesh's points, time-sampled at each frame
+                points, m = animated
+                points.Set(_vec3f_array(meshes.vertices_at(m, float(record.time_s))), t)
             w, x, y, z = quaternion_wxyz(np.asarray(record.body_rotation[b], np.float64) @ extra)
             orient.Set(Gf.Quatf(float(w), float(x), float(y), float(z)), t)
         if on_frame is not None:

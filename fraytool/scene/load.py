@@ -135,7 +135,8 @@ def text_problem(text: str) -> Optional[str]:
     return None
 
 
-def parse_scene(text: str, source: str = "<string>", overrides: Sequence[tuple[str, Any]] = ()) -> SceneSpec:
+def parse_scene(text: str, source: str = "<string>", overrides: Sequence[tuple[str, Any]] = (),
+                source_file: str = "") -> SceneSpec:
     """Parse and validate scene TOML text, with `overrides` ((dotted key, value), as from --set,
     fraytool.scene.overrides) applied first; raises SceneError listing every problem."""
     too_big = text_problem(text)
@@ -151,6 +152,7 @@ def parse_scene(text: str, source: str = "<string>", overrides: Sequence[tuple[s
         raise SceneError([f"{source}: not a scene: arrays or tables nested too deeply for the TOML "
                           "parser (a scene nests at most 3 levels)"]) from None
     stem = Path(source).stem  # the default scene name
+    scene_file = source_file or ("" if source.startswith("<") else source)  # (before the overrides' note)
     if overrides:
         apply_overrides(doc, overrides)
         source += describe(overrides)
@@ -194,14 +196,14 @@ def parse_scene(text: str, source: str = "<string>", overrides: Sequence[tuple[s
     if problems.lines:
         raise SceneError(problems.lines)
 
-    spec = _assemble(values, bodies_raw, att_raw, cut_raw, source, problems, stem)
+    spec = _assemble(values, bodies_raw, att_raw, cut_raw, source, problems, stem, scene_file)
     if problems.lines:
         raise SceneError(problems.lines)
     return spec
 
 
 def _assemble(values: dict, bodies_raw: list, att_raw: list, cut_raw: list, source: str,
-              problems: _Problems, stem: str) -> SceneSpec:
+              problems: _Problems, stem: str, scene_file: str = "") -> SceneSpec:
     """Build the SceneSpec from checked tables, applying the rules that tie keys together."""
     s, t, c = values["scene"], values["time"], values["cloth"]
     name = s["name"] or stem
@@ -227,7 +229,7 @@ def _assemble(values: dict, bodies_raw: list, att_raw: list, cut_raw: list, sour
         if body.shape == "mesh" and body.file:
             from fraytool.scene.mesh_files import file_problems
 
-            problems.extend(f"bodies.{i}", file_problems(body.file, body.prim, source))
+            problems.extend(f"bodies.{i}", file_problems(body.file, body.prim, scene_file))
         names.add(body.name)
         bodies.append(body)
 
@@ -250,6 +252,7 @@ def _assemble(values: dict, bodies_raw: list, att_raw: list, cut_raw: list, sour
 
     return SceneSpec(
         source=source,
+        source_file=scene_file,
         scene=SceneInfo(name=name, description=s["description"], seed=s["seed"]),
         time=TimeSpec(**t),
         cloth=cloth,
@@ -279,7 +282,7 @@ def load_scene(path: str | Path, overrides: Sequence[tuple[str, Any]] = ()) -> S
         line = p.read_bytes()[: exc.start].count(b"\n") + 1
         raise SceneError([f"{path}: not UTF-8 text (byte 0x{exc.object[exc.start]:02x} at line {line}); "
                           "TOML scene files are UTF-8"]) from None
-    return parse_scene(text, str(path), overrides)
+    return parse_scene(text, str(path), overrides, source_file=str(p))
 
 
 SIM_REVISION = 2
@@ -292,7 +295,7 @@ def scene_hash(spec: SceneSpec) -> str:
     """Stable digest of everything that affects the simulation (not camera/render/output), and of the
     solver revision (SIM_REVISION)."""
     d = asdict(spec)
-    for k in ("source", "camera", "render", "output", "checks"):
+    for k in ("source", "source_file", "camera", "render", "output", "checks"):
         d.pop(k)
     d["scene"].pop("description")
     if not d["cuts"]:
@@ -305,17 +308,17 @@ def scene_hash(spec: SceneSpec) -> str:
             for k in ("file", "prim", "scale", "frame_time_s"):
                 raw.pop(k)
         else:
-            raw["file"] = _mesh_digest(body.file, spec.source)  # the mesh, not where it lies
+            raw["file"] = _mesh_digest(body.file, spec.source_file)  # the mesh, not where it lies
     d["sim_revision"] = SIM_REVISION
     blob = json.dumps(d, sort_keys=True, default=list).encode()
     return hashlib.sha256(blob).hexdigest()[:16]
 
 
-def _mesh_digest(file: str, source: str) -> str:
+def _mesh_digest(file: str, scene_file: str) -> str:
     """Digest of a mesh body's files' bytes (a sequence: all of them, in order)."""
     from fraytool.scene.mesh_files import MeshFileError, is_sequence, resolve, sequence_files
 
-    path = resolve(file, source)
+    path = resolve(file, scene_file)
     h = hashlib.sha256()
     try:
         for f in (sequence_files(path) if is_sequence(path) else [path]):

@@ -50,13 +50,13 @@ class MeshAsset:
     """(E, 2) int32: border edges of an open mesh and edges whose faces turn by more than SHARP_DEG."""
 
 
-def resolve(file: str, scene_source: str) -> Path:
-    """The mesh file named in a scene: relative to the scene file's folder (or as given if absolute)."""
+def resolve(file: str, scene_file: str) -> Path:
+    """The mesh file named in a scene: relative to the folder of `scene_file` (SceneSpec.source_file; the
+    working folder when "") or as given if absolute."""
     p = Path(file).expanduser()
     if p.is_absolute():
         return p
-    base = Path(scene_source).parent if scene_source and not scene_source.startswith("<") else Path.cwd()
-    return base / p
+    return (Path(scene_file).parent if scene_file else Path.cwd()) / p
 
 
 def is_sequence(path: Path) -> bool:
@@ -102,9 +102,9 @@ def _suffix_problem(path: Path, prim: str) -> Optional[str]:
     return None
 
 
-def file_problems(file: str, prim: str, scene_source: str) -> list[tuple[str, str, str]]:
+def file_problems(file: str, prim: str, scene_file: str) -> list[tuple[str, str, str]]:
     """(key, value, message) problems of a mesh body's file found without reading the mesh."""
-    path = resolve(file, scene_source)
+    path = resolve(file, scene_file)
     problem = _suffix_problem(path, prim)
     if problem:
         return [("file", file, problem)]
@@ -123,9 +123,9 @@ def file_problems(file: str, prim: str, scene_source: str) -> list[tuple[str, st
     return []
 
 
-def file_bytes(file: str, scene_source: str) -> int:
+def file_bytes(file: str, scene_file: str) -> int:
     """Bytes on disk of a mesh body's files (0 where they cannot be found: file_problems says so)."""
-    path = resolve(file, scene_source)
+    path = resolve(file, scene_file)
     try:
         files = sequence_files(path) if is_sequence(path) else [path]
         return sum(f.stat().st_size for f in files)
@@ -310,7 +310,7 @@ def asset_problems(spec) -> list[str]:
         if b.shape != "mesh":
             continue
         try:
-            read_asset(resolve(b.file, spec.source), b.prim, b.frame_time_s or frame_time_default(spec))
+            read_asset(resolve(b.file, spec.source_file), b.prim, b.frame_time_s or frame_time_default(spec))
         except MeshFileError as exc:
             lines.append(f"{spec.source}: [bodies.{i}] file = {b.file!r}: {exc}")
     return lines

@@ -298,7 +298,10 @@ class SceneSpec:
     """A whole scene. Its own key, gravity, is the [world] table."""
 
     source: str
-    """Path of the TOML file the scene came from (for messages)."""
+    """Path of the TOML file the scene came from, as named (for messages)."""
+    source_file: str = ""
+    """The TOML file read (a shipped scene named by its name: its path in the package); the files the scene
+    names (a mesh body's `file`) are relative to its folder. Not part of scene_hash."""
     scene: SceneInfo
     time: TimeSpec
     cloth: ClothSpec

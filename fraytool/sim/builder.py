@@ -685,6 +685,12 @@ _SHAPE_METHOD = {"sphere": "add_sphere", "box": "add_box", "plane": "add_plane",
 
 def build_model(spec: SceneSpec) -> Model:
     """Build the immutable Model of a scene: the ModelBuilder calls that the scene's tables stand for."""
+    return scene_builder(spec).finalize()
+
+
+def scene_builder(spec: SceneSpec) -> ModelBuilder:
+    """A ModelBuilder with a scene's tables added, not finalized: add more in code (a mesh, a body), then
+    call finalize()."""
     c = spec.cloth
     builder = ModelBuilder(seed=spec.scene.seed, gravity_m_s2=spec.gravity_m_s2)
     builder.add_cloth(warp_yarns=c.warp_yarns, weft_yarns=c.weft_yarns, spacing_m=c.spacing_m,
@@ -705,11 +711,11 @@ def build_model(spec: SceneSpec) -> Model:
         if body.shape == "mesh":
             from fraytool.scene.mesh_files import frame_time_default, resolve
 
-            given["file"] = str(resolve(body.file, spec.source))  # relative to the scene file
+            given["file"] = str(resolve(body.file, spec.source_file))  # relative to the scene file
             given["frame_time_s"] = body.frame_time_s or frame_time_default(spec)
         add(**given)
     for att in spec.attachments:
         builder.add_attachment(**dataclasses.asdict(att))
     for cut in spec.cuts:
         builder.add_cut(**dataclasses.asdict(cut))
-    return builder.finalize()
+    return builder

@@ -37,7 +37,7 @@ def mesh_bytes(spec: SceneSpec) -> int:
     """Memory the mesh bodies will need [bytes], from their files' sizes (mesh_files.BYTES_PER_FILE_BYTE)."""
     from fraytool.scene.mesh_files import BYTES_PER_FILE_BYTE, file_bytes
 
-    return sum(file_bytes(b.file, spec.source) * BYTES_PER_FILE_BYTE for b in spec.bodies if b.shape == "mesh")
+    return sum(file_bytes(b.file, spec.source_file) * BYTES_PER_FILE_BYTE for b in spec.bodies if b.shape == "mesh")
 
 
 def available_bytes() -> Optional[int]:

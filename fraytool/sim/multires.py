@@ -281,15 +281,18 @@ def initial_refined(model, layout: CoarseLayout) -> np.ndarray:
 
 
 def moving_body_reach(model, layout: CoarseLayout) -> tuple[np.ndarray, np.ndarray]:
-    """(moving colliding bodies, their reach [m]) for refine_near_bodies: a body's bounding radius (with
-    the contact margin) plus refine_band_cells + 1 of the widest cell's diagonals at rest; none without
-    refine_near_bodies."""
-    from fraytool.kinds import MOTION_STATIC
+    """(moving colliding bodies and every colliding mesh, their reach [m]) for refine_near_bodies: a body's
+    bounding radius (with the contact margin) plus refine_band_cells + 1 of the widest cell's diagonals at
+    rest; none without refine_near_bodies. Meshes are in even when static: only their nodes' and free
+    crossings' contact keeps the cloth out of them (docs/meshes.md)."""
+    from fraytool.kinds import MOTION_STATIC, SHAPE_MESH
     from fraytool.sim.kernels.rigid_contact import bounding_radius
 
     if not model.refine_near_bodies:
         return np.zeros(0, np.int64), np.zeros(0)
-    bodies = np.flatnonzero((model.body_motion != MOTION_STATIC) & model.body_collide)
+    # mesh bodies, static ones too: slaved crossings are kept out of analytic bodies only (SlavedContact)
+    bodies = np.flatnonzero(((model.body_motion != MOTION_STATIC) | (model.body_shape == SHAPE_MESH))
+                            & model.body_collide)
     nodes = layout.cell_nodes(model.warp_yarns)
     rest = model.crossing_rest_position_m
     diagonal = float(np.max(np.linalg.norm(rest[nodes[:, 3]] - rest[nodes[:, 0]], axis=1)))

@@ -73,11 +73,11 @@ def crossings_near_grips(model: Model, spacings: int = NEAR_SPACINGS) -> np.ndar
 
 
 def woven_strain_away(model: Model, state: State, near_grips: np.ndarray, self_contact: Optional[np.ndarray] = None,
-                      spacings: int = NEAR_SPACINGS) -> tuple[float, int]:
+                      spacings: int = NEAR_SPACINGS, meshes=None) -> tuple[float, int]:
     """woven_strain over the springs whose two end crossings are farther than `spacings` yarn spacings
     from a grip (`near_grips`, crossings_near_grips), from every colliding body, and (on the grid) from
     the crossings in contact with the cloth itself (`self_contact`, a mask over particle slots, from the
-    self-collision stage): where strain past the limit is the step's or the limit's doing, not that of
+    self-collision stage; `meshes`: the solver's mesh geometry, for the mesh bodies): where strain past the limit is the step's or the limit's doing, not that of
     a grip or a body pulling or pushing (the case a user can act on)."""
     n = model.crossing_count
     near = near_grips.copy()
@@ -90,9 +90,18 @@ def woven_strain_away(model: Model, state: State, near_grips: np.ndarray, self_c
         from fraytool.sim.kernels.rigid_contact import surface_distances
 
         bodies, distance = bodies_in(model, state), np.empty(n)
-        for k in np.flatnonzero(model.body_collide):
+        for k in np.flatnonzero(model.body_collide):  # (a mesh body is at inf here: next)
             surface_distances(int(k), bodies, state.particle_position_m[:n], distance)
             near |= distance < spacings * model.spacing_m
+        if meshes is not None:  # the mesh bodies (fraytool.sim.mesh_geometry.MeshGeometry of the solver)
+            from fraytool.sim.kernels.mesh_contact import mesh_distances
+
+            meshes_in = meshes.meshes_in(model)
+            for m in range(meshes.table.count):
+                if model.body_collide[meshes.table.body[m]]:
+                    mesh_distances(m, meshes_in, bodies, spacings * model.spacing_m, state.particle_position_m[:n],
+                                   distance)
+                    near |= distance < spacings * model.spacing_m
     alive = state.spring_alive & ~(near[model.spring_crossing_a] | near[model.spring_crossing_b])
     strain, spring = max_woven_strain(model.spring_kind, model.spring_crossing_a, model.spring_crossing_b,
                                       state.crossing_yarn_level, state.couple_connected, alive,

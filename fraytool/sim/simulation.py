@@ -98,7 +98,8 @@ class Simulation:
                 self._near_grips = crossings_near_grips(m)
             contact = self.solver.self_collision
             away, spring = woven_strain_away(m, self.state, self._near_grips,
-                                             contact.contact_particles(self.state) if contact is not None else None)
+                                             contact.contact_particles(self.state) if contact is not None else None,
+                                             meshes=self.solver.context.meshes)
             if away > self.shot.max_woven_strain_away:
                 self.shot.max_woven_strain_away = away
                 self.shot.max_woven_strain_away_frame = self.frame

@@ -18,14 +18,16 @@ surface on the mass's side. Up to PASSES passes per mass (a concave corner). Cou
 analytic bodies (fraytool.sim.kernels.rigid_contact): on the mass's displacement relative to the
 surface point it touches, whose move over the step includes the animation's.
 
-Yarn segments (`collide_mesh_edges`): a segment between two masses against the mesh's sharp edges
-(borders and creases, fraytool.meshes.SHARP_DEG), which can pass between two masses. The edge crosses
-the segment when the coplanarity volume (a - e0) . ((b - a) x (e1 - e0)) changes sign over the step
-and the two are within `margin` at the linear root (Bridson, Fedkiw & Anderson 2002's edge-edge test,
-with the cubic taken linear over the step as above); the segment is then put back on its start side,
-`margin` from the edge; without a crossing, a segment within `margin` is pushed off. The correction goes
-to the two masses by their inverse masses and the closest point's parameter (as a PBD distance
-constraint with one side kinematic). Run on one thread: segments share masses.
+Yarn segments (`collide_mesh_segments`): a segment between two masses against the mesh's sharp edges
+(borders and creases, fraytool.meshes.SHARP_DEG), which can pass between two masses. Whether the edge
+passes through the segment during the step is the interval edge-edge CCD of fraytool.collision.ccd
+(Wang et al. 2021, with the Bridson, Fedkiw & Anderson 2002 coplanarity cubic: no false negatives). A
+crossing puts the segment back on its start side along the two lines' common normal, `margin` from
+the edge; without one, a segment within `margin` is pushed off. The move goes to the two masses by
+their inverse masses and the closest point's parameter (a PBD distance constraint with one side
+kinematic), in EDGE_ROUNDS rounds as the closest points slide. Against a closed mesh, a segment whose
+middle cuts a corner (both ends outside) has its deepest point moved out (`_segment_through`). On one
+thread (segments share masses), in up to SWEEPS sweeps over the segments while one moved.
 """
 from __future__ import annotations
 
@@ -35,8 +37,15 @@ from collections import namedtuple
 import numba as nb
 import numpy as np
 
+from fraytool.collision.ccd import edge_edge_ccd_kernel
+from fraytool.sim.kernels.rigid_contact import coulomb_friction
+
 PASSES = 3
 """Resolution passes per mass (the second and third only where the first moved it)."""
+SWEEPS = 8
+"""Sweeps over all yarn segments per step (two segments share a mass: one's move can undo another's)."""
+EDGE_ROUNDS = 4
+"""Rounds of a segment's move off one edge (the closest points slide as it moves)."""
 STACK = 64
 """BVH traversal stack (trees are balanced: depth about log2(primitives / LEAF_SIZE) + 1)."""
 
@@ -57,6 +66,24 @@ MeshesIn.__doc__ = "Mesh bodies' geometry and trees for the contact kernels (fra
 def _overlaps(box, node, lo0, lo1, lo2, hi0, hi1, hi2):
     return not (box[node, 0] > hi0 or box[node, 3] < lo0 or box[node, 1] > hi1 or box[node, 4] < lo1
                 or box[node, 2] > hi2 or box[node, 5] < lo2)
+
+
+@nb.njit(cache=True, inline="always")
+def next_leaf(stack_inout, top, child, box, lo0, lo1, lo2, hi0, hi1, hi2):
+    """The next leaf of a BVH traversal whose box meets the query box [lo, hi]: pops nodes off
+    stack_inout (top entries; the caller pushes the root), pushes the children of inner nodes that
+    meet it. Returns (leaf node, new top), or (-1, 0) when the traversal is done."""
+    while top > 0:
+        top -= 1
+        node = stack_inout[top]
+        if not _overlaps(box, node, lo0, lo1, lo2, hi0, hi1, hi2):
+            continue
+        if child[node, 0] < 0:
+            return node, top
+        stack_inout[top] = child[node, 0]
+        stack_inout[top + 1] = child[node, 1]
+        top += 2
+    return -1, 0
 
 
 @nb.njit(cache=True, inline="always")
@@ -104,15 +131,15 @@ def _vertex(vertices, i):
 
 
 @nb.njit(cache=True)
-def _resolve_point(m, meshes_in, l0, l1, margin_m, stack_out):
-    """One pass for a mass going from l0 to l1 (body frame) against mesh m. Returns (moved, new point
-    (3), unit normal (3), depth, triangle, barycentric weights (3)); depth is how far it was moved
-    along the normal."""
+def _resolve_point(m, meshes_in, l0, l1, margin_m, reach_m, stack_out):
+    """One pass for a mass going from l0 to l1 (body frame) against mesh m, looking for the nearest
+    surface within reach_m (>= margin_m) of l1. Returns (moved, new point (3), unit normal (3), depth,
+    triangle, barycentric weights (3)); depth is how far it was moved along the normal."""
     va, vb = meshes_in.vertex_start_m, meshes_in.vertex_end_m
     tris = meshes_in.triangles
     box = meshes_in.tri_box
     closed = meshes_in.closed[m]
-    pad = margin_m * (1.0 + 1e-9)
+    pad = reach_m * (1.0 + 1e-9)
     lo0 = min(l0[0], l1[0]) - pad
     lo1 = min(l0[1], l1[1]) - pad
     lo2 = min(l0[2], l1[2]) - pad
@@ -129,16 +156,10 @@ def _resolve_point(m, meshes_in, l0, l1, margin_m, stack_out):
     bw0 = bw1 = bw2 = 0.0
     stack_out[0] = meshes_in.tri_node_start[m]
     top = 1
-    while top > 0:
-        top -= 1
-        node = stack_out[top]
-        if not _overlaps(box, node, lo0, lo1, lo2, hi0, hi1, hi2):
-            continue
-        if meshes_in.tri_child[node, 0] >= 0:
-            stack_out[top] = meshes_in.tri_child[node, 0]
-            stack_out[top + 1] = meshes_in.tri_child[node, 1]
-            top += 2
-            continue
+    while True:
+        node, top = next_leaf(stack_out, top, meshes_in.tri_child, box, lo0, lo1, lo2, hi0, hi1, hi2)
+        if node < 0:
+            break
         for q in range(meshes_in.tri_range[node, 0], meshes_in.tri_range[node, 1]):
             j = meshes_in.tri_order[q]
             ia, ib, ic = tris[j, 0], tris[j, 1], tris[j, 2]
@@ -273,7 +294,8 @@ def _mesh_range(particles, lo, hi, m, frame, meshes_in, margin_m, particles_in, 
         tri = -1
         w0 = w1 = w2 = 0.0
         for _ in range(PASSES):
-            moved, x0, x1, x2, mx, my, mz, dd, tj, u0, u1, u2 = _resolve_point(m, meshes_in, l0, l1, margin_m, stack_out)
+            moved, x0, x1, x2, mx, my, mz, dd, tj, u0, u1, u2 = _resolve_point(m, meshes_in, l0, l1, margin_m,
+                                                                               margin_m, stack_out)
             if not moved:
                 break
             touched = True
@@ -296,19 +318,11 @@ def _mesh_range(particles, lo, hi, m, frame, meshes_in, margin_m, particles_in, 
         mvx = c1[0] - c0[0] + rot[0, 0] * sx + rot[0, 1] * sy + rot[0, 2] * sz
         mvy = c1[1] - c0[1] + rot[1, 0] * sx + rot[1, 1] * sy + rot[1, 2] * sz
         mvz = c1[2] - c0[2] + rot[2, 0] * sx + rot[2, 1] * sy + rot[2, 2] * sz
-        # Coulomb friction on the displacement relative to the surface (as rigid_contact)
+        # Coulomb friction on the displacement relative to the touched surface point
         rx = px - prev_position_m[p, 0] - mvx
         ry = py - prev_position_m[p, 1] - mvy
         rz = pz - prev_position_m[p, 2] - mvz
-        rn = rx * gx + ry * gy + rz * gz
-        tx, ty, tz = rx - rn * gx, ry - rn * gy, rz - rn * gz
-        tl = math.sqrt(tx * tx + ty * ty + tz * tz)
-        limit = friction * max(depth, 0.0)
-        if tl > 0.0:
-            scale = 1.0 if tl <= limit else limit / tl
-            px -= scale * tx
-            py -= scale * ty
-            pz -= scale * tz
+        px, py, pz = coulomb_friction(px, py, pz, rx, ry, rz, gx, gy, gz, friction * max(depth, 0.0))
         particle_position_m_inout[p, 0] = px
         particle_position_m_inout[p, 1] = py
         particle_position_m_inout[p, 2] = pz
@@ -376,16 +390,139 @@ def _segment_closest(p0, p1, q0, q1):
 
 
 @nb.njit(cache=True)
-def _volume(a, b, e0, e1):
-    ab = b - a
-    ee = e1 - e0
-    ae = a - e0
-    return ae[0] * (ab[1] * ee[2] - ab[2] * ee[1]) + ae[1] * (ab[2] * ee[0] - ab[0] * ee[2]) \
-        + ae[2] * (ab[0] * ee[1] - ab[1] * ee[0])
+def _segment_pass(m, meshes_in, seg_start, seg_end_inout, inverse_masses, margin_m, stack_out):
+    """One pass of a yarn segment against mesh m's sharp edges, body frame: `seg_start` (2, 3) its ends at
+    the step's start, `seg_end_inout` (2, 3) at its end (moved in place), `inverse_masses` (w_a, w_b).
+    Returns the number of edges it was moved off."""
+    va, vb = meshes_in.vertex_start_m, meshes_in.vertex_end_m
+    box = meshes_in.edge_box
+    la0, lb0 = seg_start[0], seg_start[1]
+    la1, lb1 = seg_end_inout[0], seg_end_inout[1]
+    wa, wb = inverse_masses
+    pad = margin_m * (1.0 + 1e-9)
+    lo0 = min(la0[0], lb0[0], la1[0], lb1[0]) - pad
+    lo1 = min(la0[1], lb0[1], la1[1], lb1[1]) - pad
+    lo2 = min(la0[2], lb0[2], la1[2], lb1[2]) - pad
+    hi0 = max(la0[0], lb0[0], la1[0], lb1[0]) + pad
+    hi1 = max(la0[1], lb0[1], la1[1], lb1[1]) + pad
+    hi2 = max(la0[2], lb0[2], la1[2], lb1[2]) + pad
+    contacts = 0
+    stack_out[0] = meshes_in.edge_node_start[m]
+    top = 1
+    while True:
+        node, top = next_leaf(stack_out, top, meshes_in.edge_child, box, lo0, lo1, lo2, hi0, hi1, hi2)
+        if node < 0:
+            break
+        for q in range(meshes_in.edge_range[node, 0], meshes_in.edge_range[node, 1]):
+            e = meshes_in.edge_order[q]
+            e0s, e1s = va[meshes_in.edges[e, 0]], va[meshes_in.edges[e, 1]]
+            e0e, e1e = vb[meshes_in.edges[e, 0]], vb[meshes_in.edges[e, 1]]
+            s1, u1 = _segment_closest(la1, lb1, e0e, e1e)
+            wx = la1 + s1 * (lb1 - la1) - (e0e + u1 * (e1e - e0e))
+            dist = math.sqrt(wx @ wx)
+            # did the edge pass through the segment during the step? (interval CCD, no false negative)
+            crossed, _ = edge_edge_ccd_kernel(la0, lb0, e0s, e1s, la1, lb1, e0e, e1e, 0.0)
+            if crossed:  # back to the side of the start: along the common normal, oriented by then
+                s0, u0 = _segment_closest(la0, lb0, e0s, e1s)
+                w0 = la0 + s0 * (lb0 - la0) - (e0s + u0 * (e1s - e0s))
+                n = np.cross(lb1 - la1, e1e - e0e)
+                nl = math.sqrt(n @ n)
+                if nl <= 1e-12 * math.sqrt((lb1 - la1) @ (lb1 - la1)) * math.sqrt((e1e - e0e) @ (e1e - e0e)):
+                    n = w0  # parallel: the start's closest-point direction
+                    nl = math.sqrt(n @ n)
+                if nl <= 0.0:
+                    continue
+                n = n / nl
+                if n @ w0 < 0.0:
+                    n = -n
+                sep = wx @ n
+            elif 0.0 < dist < margin_m * (1.0 - 1e-6):  # (one pushed to the margin stays put)
+                n = wx / dist
+                sep = dist
+            else:
+                continue
+            # move the segment along n until its gap to the edge along n is the margin: the closest points
+            # slide as it moves (a rotating segment), so a few Newton-like rounds, each from the new ones
+            for _ in range(EDGE_ROUNDS):
+                ca = (1.0 - s1) * wa
+                cb = s1 * wb
+                denom = (1.0 - s1) * ca + s1 * cb
+                if denom <= 0.0:
+                    break
+                lam = (margin_m - sep) / denom
+                for c in range(3):
+                    seg_end_inout[0, c] += ca * lam * n[c]
+                    seg_end_inout[1, c] += cb * lam * n[c]
+                s1, u1 = _segment_closest(la1, lb1, e0e, e1e)
+                wx = la1 + s1 * (lb1 - la1) - (e0e + u1 * (e1e - e0e))
+                sep = wx @ n
+                if sep >= margin_m * (1.0 - 1e-6):
+                    break
+            contacts += 1
+    return contacts
+
+
+@nb.njit(cache=True)
+def _segment_through(m, meshes_in, seg_end_inout, inverse_masses, margin_m, stack_out):
+    """A yarn segment whose two ends are outside closed mesh m but whose middle runs through it (it cuts
+    a corner): the deepest point, half way between where it enters and leaves the surface, is moved out
+    to `margin_m` from the nearest surface, the move shared by the two ends as in `_segment_pass`.
+    Returns 1 if it moved the segment, else 0."""
+    vb = meshes_in.vertex_end_m
+    tris = meshes_in.triangles
+    la1, lb1 = seg_end_inout[0], seg_end_inout[1]
+    pad = margin_m * (1.0 + 1e-9)
+    lo0, lo1, lo2 = min(la1[0], lb1[0]) - pad, min(la1[1], lb1[1]) - pad, min(la1[2], lb1[2]) - pad
+    hi0, hi1, hi2 = max(la1[0], lb1[0]) + pad, max(la1[1], lb1[1]) + pad, max(la1[2], lb1[2]) + pad
+    first = 2.0
+    last = -1.0
+    stack_out[0] = meshes_in.tri_node_start[m]
+    top = 1
+    while True:
+        node, top = next_leaf(stack_out, top, meshes_in.tri_child, meshes_in.tri_box, lo0, lo1, lo2, hi0, hi1, hi2)
+        if node < 0:
+            break
+        for q in range(meshes_in.tri_range[node, 0], meshes_in.tri_range[node, 1]):
+            j = meshes_in.tri_order[q]
+            a, b, c = vb[tris[j, 0]], vb[tris[j, 1]], vb[tris[j, 2]]
+            n = np.cross(b - a, c - a)
+            da = (la1 - a) @ n
+            db = (lb1 - a) @ n
+            if not ((da > 0.0 and db < 0.0) or (da < 0.0 and db > 0.0)):
+                continue
+            t = da / (da - db)
+            p = la1 + t * (lb1 - la1)
+            qx, qy, qz, _, _, _ = closest_on_triangle(p[0], p[1], p[2], a[0], a[1], a[2], b[0], b[1], b[2],
+                                                      c[0], c[1], c[2])
+            scale = np.abs(b - a).sum() + np.abs(c - a).sum()
+            if (qx - p[0]) ** 2 + (qy - p[1]) ** 2 + (qz - p[2]) ** 2 <= (1e-9 * scale) ** 2:
+                first = min(first, t)
+                last = max(last, t)
+    if last <= first:
+        return 0  # no surface crossed, or one: an end is inside, which the masses' pass handles
+    sm = 0.5 * (first + last)
+    deep = la1 + sm * (lb1 - la1)
+    reach = 0.5 * (last - first) * math.sqrt((lb1 - la1) @ (lb1 - la1)) + margin_m
+    moved, x0, x1, x2, _, _, _, _, _, _, _, _ = _resolve_point(m, meshes_in, deep, deep, margin_m, reach, stack_out)
+    if not moved:
+        return 0
+    wa, wb = inverse_masses
+    ca = (1.0 - sm) * wa
+    cb = sm * wb
+    denom = (1.0 - sm) * ca + sm * cb
+    if denom <= 0.0:
+        return 0
+    seg_end_inout[0, 0] += ca / denom * (x0 - deep[0])
+    seg_end_inout[0, 1] += ca / denom * (x1 - deep[1])
+    seg_end_inout[0, 2] += ca / denom * (x2 - deep[2])
+    seg_end_inout[1, 0] += cb / denom * (x0 - deep[0])
+    seg_end_inout[1, 1] += cb / denom * (x1 - deep[1])
+    seg_end_inout[1, 2] += cb / denom * (x2 - deep[2])
+    return 1
 
 
 @nb.njit(cache=True, fastmath=False)
-def collide_mesh_edges(
+def collide_mesh_segments(
     # yarn segments: (S, 2) particle slots
     segments,
     # model and state: the meshes (MeshesIn) and the bodies (BodiesIn)
@@ -395,119 +532,62 @@ def collide_mesh_edges(
     # state in/out
     particle_position_m_inout,
 ):
-    """Yarn segments against the meshes' sharp edges (module docstring); returns the number of contacts."""
+    """Yarn segments against the meshes' sharp edges, and through closed meshes (module docstring), up to
+    PASSES passes per segment (a corner where edges meet); returns the number of contacts."""
     contacts = 0
     stack = np.empty(STACK, np.int64)
-    la0 = np.empty(3)
-    lb0 = np.empty(3)
-    la1 = np.empty(3)
-    lb1 = np.empty(3)
-    e0s = np.empty(3)
-    e1s = np.empty(3)
-    e0e = np.empty(3)
-    e1e = np.empty(3)
+    start = np.empty((2, 3))
+    end = np.empty((2, 3))
     pad = margin_m * (1.0 + 1e-9)
-    va, vb = meshes_in.vertex_start_m, meshes_in.vertex_end_m
-    for m in range(meshes_in.body.shape[0]):
-        k = meshes_in.body[m]
-        if not bodies_in.collide[k]:
-            continue
-        root = meshes_in.edge_node_start[m]
-        if meshes_in.edge_node_start[m + 1] == root or meshes_in.edge_range[root, 1] == meshes_in.edge_range[root, 0]:
-            continue  # no sharp edge
-        rot = bodies_in.rotation[k]
-        c1 = bodies_in.position_m[k].copy()
-        c0 = c1 - dt_s * bodies_in.velocity_m_s[k]
-        box = meshes_in.edge_box
-        for s in range(segments.shape[0]):
-            pa = segments[s, 0]
-            pb = segments[s, 1]
-            wa = particle_inv_mass[pa]
-            wb = particle_inv_mass[pb]
-            if wa == 0.0 and wb == 0.0:
+    for _ in range(SWEEPS):  # segments share masses: sweep again while one moved another
+        swept = 0
+        for m in range(meshes_in.body.shape[0]):
+            k = meshes_in.body[m]
+            if not bodies_in.collide[k]:
                 continue
-            for a in range(3):
-                la1[a] = rot[0, a] * (particle_position_m_inout[pa, 0] - c1[0]) + rot[1, a] * (
-                    particle_position_m_inout[pa, 1] - c1[1]) + rot[2, a] * (particle_position_m_inout[pa, 2] - c1[2])
-                lb1[a] = rot[0, a] * (particle_position_m_inout[pb, 0] - c1[0]) + rot[1, a] * (
-                    particle_position_m_inout[pb, 1] - c1[1]) + rot[2, a] * (particle_position_m_inout[pb, 2] - c1[2])
-                la0[a] = rot[0, a] * (prev_position_m[pa, 0] - c0[0]) + rot[1, a] * (prev_position_m[pa, 1] - c0[1]) \
-                    + rot[2, a] * (prev_position_m[pa, 2] - c0[2])
-                lb0[a] = rot[0, a] * (prev_position_m[pb, 0] - c0[0]) + rot[1, a] * (prev_position_m[pb, 1] - c0[1]) \
-                    + rot[2, a] * (prev_position_m[pb, 2] - c0[2])
-            lo0 = min(la0[0], lb0[0], la1[0], lb1[0]) - pad
-            lo1 = min(la0[1], lb0[1], la1[1], lb1[1]) - pad
-            lo2 = min(la0[2], lb0[2], la1[2], lb1[2]) - pad
-            hi0 = max(la0[0], lb0[0], la1[0], lb1[0]) + pad
-            hi1 = max(la0[1], lb0[1], la1[1], lb1[1]) + pad
-            hi2 = max(la0[2], lb0[2], la1[2], lb1[2]) + pad
-            if not _overlaps(box, root, lo0, lo1, lo2, hi0, hi1, hi2):
-                continue
-            moved = False
-            stack[0] = root
-            top = 1
-            while top > 0:
-                top -= 1
-                node = stack[top]
-                if not _overlaps(box, node, lo0, lo1, lo2, hi0, hi1, hi2):
+            root = meshes_in.tri_node_start[m]  # the triangles' box holds the edges
+            sharp = meshes_in.edge_range[meshes_in.edge_node_start[m], 1] > meshes_in.edge_range[meshes_in.edge_node_start[m], 0]
+            closed = meshes_in.closed[m]
+            rot = bodies_in.rotation[k]
+            c1 = bodies_in.position_m[k].copy()
+            c0 = c1 - dt_s * bodies_in.velocity_m_s[k]
+            box = meshes_in.tri_box
+            for s in range(segments.shape[0]):
+                inverse_masses = (particle_inv_mass[segments[s, 0]], particle_inv_mass[segments[s, 1]])
+                if inverse_masses[0] == 0.0 and inverse_masses[1] == 0.0:
                     continue
-                if meshes_in.edge_child[node, 0] >= 0:
-                    stack[top] = meshes_in.edge_child[node, 0]
-                    stack[top + 1] = meshes_in.edge_child[node, 1]
-                    top += 2
-                    continue
-                for q in range(meshes_in.edge_range[node, 0], meshes_in.edge_range[node, 1]):
-                    e = meshes_in.edge_order[q]
-                    i0 = meshes_in.edges[e, 0]
-                    i1 = meshes_in.edges[e, 1]
+                for end_ in range(2):
+                    p = segments[s, end_]
                     for a in range(3):
-                        e0s[a] = va[i0, a]
-                        e1s[a] = va[i1, a]
-                        e0e[a] = vb[i0, a]
-                        e1e[a] = vb[i1, a]
-                    s1, u1 = _segment_closest(la1, lb1, e0e, e1e)
-                    wx = la1 + s1 * (lb1 - la1) - (e0e + u1 * (e1e - e0e))
-                    dist = math.sqrt(wx @ wx)
-                    f0 = _volume(la0, lb0, e0s, e1s)
-                    f1 = _volume(la1, lb1, e0e, e1e)
-                    crossed = False
-                    if (f0 > 0.0 and f1 < 0.0) or (f0 < 0.0 and f1 > 0.0):
-                        t = f0 / (f0 - f1)
-                        at = la0 + t * (la1 - la0)
-                        bt = lb0 + t * (lb1 - lb0)
-                        et0 = e0s + t * (e0e - e0s)
-                        et1 = e1s + t * (e1e - e1s)
-                        st, ut = _segment_closest(at, bt, et0, et1)
-                        wt = at + st * (bt - at) - (et0 + ut * (et1 - et0))
-                        crossed = (wt @ wt) <= margin_m * margin_m
-                    if crossed:
-                        s0, u0 = _segment_closest(la0, lb0, e0s, e1s)
-                        w0 = la0 + s0 * (lb0 - la0) - (e0s + u0 * (e1s - e0s))
-                        n0 = math.sqrt(w0 @ w0)
-                        if n0 <= 0.0:
-                            continue
-                        n = w0 / n0
-                        sep = wx @ n
-                    elif dist < margin_m and dist > 0.0:
-                        n = wx / dist
-                        sep = dist
-                    else:
-                        continue
-                    delta = margin_m - sep
-                    ca = (1.0 - s1) * wa
-                    cb = s1 * wb
-                    denom = (1.0 - s1) * ca + s1 * cb
-                    if denom <= 0.0:
-                        continue
-                    lam = delta / denom
-                    la1 += ca * lam * n
-                    lb1 += cb * lam * n
-                    moved = True
-                    contacts += 1
-            if moved:
-                for a in range(3):
-                    particle_position_m_inout[pa, a] = c1[a] + rot[a, 0] * la1[0] + rot[a, 1] * la1[1] + rot[a, 2] * la1[2]
-                    particle_position_m_inout[pb, a] = c1[a] + rot[a, 0] * lb1[0] + rot[a, 1] * lb1[1] + rot[a, 2] * lb1[2]
+                        end[end_, a] = rot[0, a] * (particle_position_m_inout[p, 0] - c1[0]) + rot[1, a] * (
+                            particle_position_m_inout[p, 1] - c1[1]) + rot[2, a] * (particle_position_m_inout[p, 2] - c1[2])
+                        start[end_, a] = rot[0, a] * (prev_position_m[p, 0] - c0[0]) + rot[1, a] * (
+                            prev_position_m[p, 1] - c0[1]) + rot[2, a] * (prev_position_m[p, 2] - c0[2])
+                if not _overlaps(box, root, min(start[0, 0], start[1, 0], end[0, 0], end[1, 0]) - pad,
+                                 min(start[0, 1], start[1, 1], end[0, 1], end[1, 1]) - pad,
+                                 min(start[0, 2], start[1, 2], end[0, 2], end[1, 2]) - pad,
+                                 max(start[0, 0], start[1, 0], end[0, 0], end[1, 0]) + pad,
+                                 max(start[0, 1], start[1, 1], end[0, 1], end[1, 1]) + pad,
+                                 max(start[0, 2], start[1, 2], end[0, 2], end[1, 2]) + pad):
+                    continue
+                moved = 0
+                for _ in range(PASSES):
+                    hits = _segment_pass(m, meshes_in, start, end, inverse_masses, margin_m, stack) if sharp else 0
+                    if closed:
+                        hits += _segment_through(m, meshes_in, end, inverse_masses, margin_m, stack)
+                    moved += hits
+                    if hits == 0:
+                        break
+                if moved:
+                    swept += moved
+                    for end_ in range(2):
+                        p = segments[s, end_]
+                        for a in range(3):
+                            particle_position_m_inout[p, a] = c1[a] + rot[a, 0] * end[end_, 0] + rot[a, 1] * end[end_, 1] \
+                                + rot[a, 2] * end[end_, 2]
+        contacts += swept
+        if swept == 0:
+            break
     return contacts
 
 
@@ -526,17 +606,11 @@ def mesh_distances(m, meshes_in, bodies_in, reach_m, x, distance_out):
         best = np.inf
         stack[0] = meshes_in.tri_node_start[m]
         top = 1
-        while top > 0:
-            top -= 1
-            node = stack[top]
-            if not _overlaps(meshes_in.tri_box, node, l1[0] - reach_m, l1[1] - reach_m, l1[2] - reach_m,
-                             l1[0] + reach_m, l1[1] + reach_m, l1[2] + reach_m):
-                continue
-            if meshes_in.tri_child[node, 0] >= 0:
-                stack[top] = meshes_in.tri_child[node, 0]
-                stack[top + 1] = meshes_in.tri_child[node, 1]
-                top += 2
-                continue
+        while True:
+            node, top = next_leaf(stack, top, meshes_in.tri_child, meshes_in.tri_box, l1[0] - reach_m, l1[1] - reach_m,
+                                  l1[2] - reach_m, l1[0] + reach_m, l1[1] + reach_m, l1[2] + reach_m)
+            if node < 0:
+                break
             for q in range(meshes_in.tri_range[node, 0], meshes_in.tri_range[node, 1]):
                 j = meshes_in.tri_order[q]
                 vb = meshes_in.vertex_end_m
@@ -547,3 +621,37 @@ def mesh_distances(m, meshes_in, bodies_in, reach_m, x, distance_out):
                                                           vb[t[j, 2], 2])
                 best = min(best, math.sqrt((l1[0] - qx) ** 2 + (l1[1] - qy) ** 2 + (l1[2] - qz) ** 2))
         distance_out[i] = best if best <= reach_m else np.inf
+
+
+@nb.njit(cache=True, fastmath=False)
+def place_outside_meshes(
+    # model and state: the meshes (MeshesIn) and the bodies (BodiesIn)
+    meshes_in, bodies_in, margin_m,
+    # state in
+    particles, particle_inv_mass,
+    # state in/out
+    particle_position_m_inout,
+):
+    """Move each free particle of `particles` within `margin_m` of a colliding mesh (or just inside a
+    closed one) out to the margin, without friction: a placement, as rigid_contact.place_outside_bodies
+    (masses a split puts into a mesh)."""
+    stack = np.empty(STACK, np.int64)
+    local = np.empty(3)
+    for m in range(meshes_in.body.shape[0]):
+        k = meshes_in.body[m]
+        if not bodies_in.collide[k]:
+            continue
+        rot = bodies_in.rotation[k]
+        c = bodies_in.position_m[k]
+        for i in range(particles.shape[0]):
+            p = particles[i]
+            if particle_inv_mass[p] == 0.0:
+                continue
+            for a in range(3):
+                local[a] = rot[0, a] * (particle_position_m_inout[p, 0] - c[0]) + rot[1, a] * (
+                    particle_position_m_inout[p, 1] - c[1]) + rot[2, a] * (particle_position_m_inout[p, 2] - c[2])
+            moved, x0, x1, x2, _, _, _, _, _, _, _, _ = _resolve_point(m, meshes_in, local, local, margin_m, margin_m,
+                                                                      stack)
+            if moved:
+                for a in range(3):
+                    particle_position_m_inout[p, a] = c[a] + rot[a, 0] * x0 + rot[a, 1] * x1 + rot[a, 2] * x2

@@ -10,7 +10,7 @@ import numba as nb
 
 from fraytool.sim.kernels.forces import add_spring_force
 from fraytool.kinds import SHAPE_BOX, SHAPE_PLANE
-from fraytool.sim.kernels.rigid_contact import plane_distance, surface_contact
+from fraytool.sim.kernels.rigid_contact import coulomb_friction, plane_distance, surface_contact
 
 
 @nb.njit(cache=True, fastmath=False)
@@ -290,17 +290,7 @@ def _collide_slaved_one(s, k, crossing_node, crossing_weight, bodies_in, margin_
         rx -= w * prev_position_m[node, 0]
         ry -= w * prev_position_m[node, 1]
         rz -= w * prev_position_m[node, 2]
-    rn = rx * nx + ry * ny + rz * nz
-    tx = rx - rn * nx
-    ty = ry - rn * ny
-    tz = rz - rn * nz
-    tl = math.sqrt(tx * tx + ty * ty + tz * tz)
-    limit = bodies_in.friction[k] * (-dist)
-    if tl > 0.0:
-        scale = 1.0 if tl <= limit else limit / tl
-        cx -= scale * tx
-        cy -= scale * ty
-        cz -= scale * tz
+    cx, cy, cz = coulomb_friction(cx, cy, cz, rx, ry, rz, nx, ny, nz, bodies_in.friction[k] * (-dist))
     for q in range(4):
         node = crossing_node[s, q]
         g = crossing_weight[s, q] * particle_inv_mass[node] / norm

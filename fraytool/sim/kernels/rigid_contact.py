@@ -74,6 +74,24 @@ def surface_contact(shape, center, rotation, params, x, margin):
 
 
 @nb.njit(cache=True, fastmath=False, inline="always")
+def coulomb_friction(px, py, pz, rx, ry, rz, nx, ny, nz, limit):
+    """Point p after position-based Coulomb friction (Macklin et al. 2014 §6.1): r is its displacement
+    relative to the surface over the step, n the contact's unit normal, limit = mu x penetration depth.
+    The tangential part t of r is removed when |t| <= limit (static), else shortened by limit (kinetic)."""
+    rn = rx * nx + ry * ny + rz * nz
+    tx = rx - rn * nx
+    ty = ry - rn * ny
+    tz = rz - rn * nz
+    tl = math.sqrt(tx * tx + ty * ty + tz * tz)
+    if tl > 0.0:
+        scale = 1.0 if tl <= limit else limit / tl
+        px -= scale * tx
+        py -= scale * ty
+        pz -= scale * tz
+    return px, py, pz
+
+
+@nb.njit(cache=True, fastmath=False, inline="always")
 def plane_distance(rotation, normal, ex, ey, ez, margin):
     """Signed distance of the point centre + (ex, ey, ez) from a plane body (normal R n), margin included."""
     nx = rotation[0, 0] * normal[0] + rotation[0, 1] * normal[1] + rotation[0, 2] * normal[2]
@@ -169,17 +187,7 @@ def _contact_range(particles, lo, hi, k, frame, dynamic, dt_s, bodies_in, margin
         rx = px - prev_position_m[p, 0] - step_x
         ry = py - prev_position_m[p, 1] - step_y
         rz = pz - prev_position_m[p, 2] - step_z
-        rn = rx * nx + ry * ny + rz * nz
-        tx = rx - rn * nx
-        ty = ry - rn * ny
-        tz = rz - rn * nz
-        tl = math.sqrt(tx * tx + ty * ty + tz * tz)
-        limit = friction * (-d)
-        if tl > 0.0:
-            scale = 1.0 if tl <= limit else limit / tl
-            px -= scale * tx
-            py -= scale * ty
-            pz -= scale * tz
+        px, py, pz = coulomb_friction(px, py, pz, rx, ry, rz, nx, ny, nz, friction * (-d))
         particle_position_m_inout[p, 0] = px
         particle_position_m_inout[p, 1] = py
         particle_position_m_inout[p, 2] = pz

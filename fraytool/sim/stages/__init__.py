@@ -89,7 +89,7 @@ def build_stages(model: Model, speed_limit_m_s: float, ctx: StepContext) -> Step
         from fraytool.sim.stages.tearing import TearingStage, YarnContactStage  # only scenes that tear
         from fraytool.sim.tearing import YarnTearing
 
-        ctx.yarn_tearing = YarnTearing(model)
+        ctx.yarn_tearing = YarnTearing(model, meshes=geometry)
         if ctx.yarn_tearing.yarn_level:
             stages.append(YarnContactStage())
         tearing_stage = TearingStage()

@@ -6,7 +6,7 @@ import numpy as np
 
 from fraytool.kinds import STRUCT_WARP, STRUCT_WEFT
 from fraytool.sim.kernels.bodies import bodies_in
-from fraytool.sim.kernels.mesh_contact import collide_mesh_edges, collide_meshes
+from fraytool.sim.kernels.mesh_contact import collide_mesh_segments, collide_meshes
 from fraytool.sim.mesh_geometry import MeshGeometry
 from fraytool.sim.model import Model
 from fraytool.sim.stages.base import BODIES, POSITIONS, START_POSITIONS, TOPOLOGY, StepContext
@@ -19,7 +19,7 @@ class MeshContact:
     or by this one when the scene has no other body)."""
 
     name = "collisions"
-    kernel = "collide_meshes, collide_mesh_edges"
+    kernel = "collide_meshes, collide_mesh_segments"
     reads = frozenset({POSITIONS, START_POSITIONS, BODIES, TOPOLOGY})
     writes = frozenset({POSITIONS})
 
@@ -33,7 +33,7 @@ class MeshContact:
 
     def segments(self, state: State) -> np.ndarray:
         """Alive yarn segments (structural springs) as (S, 2) particle slots, kept per topology epoch."""
-        key = (state.topology_epoch, int(state.spring_alive.sum()))
+        key = state.topology_epoch  # a cut or a split bumps it (State.bump_topology)
         if key != self._segments_key:
             s = np.flatnonzero(self._structural & state.spring_alive)
             self._segments = np.ascontiguousarray(np.stack([state.spring_particle_a[s], state.spring_particle_b[s]],
@@ -48,7 +48,7 @@ class MeshContact:
         margin = 0.5 * m.thickness_m
         hits = collide_meshes(*ctx.lists.free(state), meshes, bodies, margin, dt_s, state.particle_inv_mass,
                               ctx.prev_position_m, state.particle_position_m)
-        hits += collide_mesh_edges(self.segments(state), meshes, bodies, margin, dt_s, state.particle_inv_mass,
+        hits += collide_mesh_segments(self.segments(state), meshes, bodies, margin, dt_s, state.particle_inv_mass,
                                    ctx.prev_position_m, state.particle_position_m)
         if self.after_analytic:
             ctx.counters.rigid_contacts_last += hits

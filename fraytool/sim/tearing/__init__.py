@@ -50,8 +50,11 @@ class YarnTearing:
     the scans of free yarn runs. So a resumed run or a replay from a copy matches an unbroken one.
     """
 
-    def __init__(self, model: Model):
+    def __init__(self, model: Model, meshes=None):
+        """`meshes`: the solver's mesh bodies (fraytool.sim.mesh_geometry.MeshGeometry), where the scene has
+        colliding ones: a split's masses are placed outside them too (settle)."""
         self.model = model
+        self.meshes = meshes
         self.topology = build_tear_topology(model)
         self.model_in = tear_model(model, self.topology)
         """The kernels' read-only group: the model's arrays and the topology tables (references)."""
@@ -201,6 +204,11 @@ class YarnTearing:
                             prev_position_m)
             if bodies:
                 place_outside_bodies(bodies_in(m, state), 0.5 * m.thickness_m, slots, state.particle_inv_mass, x)
+            if self.meshes is not None:
+                from fraytool.sim.kernels.mesh_contact import place_outside_meshes
+
+                place_outside_meshes(self.meshes.meshes_in(m), bodies_in(m, state), 0.5 * m.thickness_m, slots,
+                                     state.particle_inv_mass, x)
         if settle_crosses_yarns(start, x, state.spring_particle_a, state.spring_particle_b,
                                 self._yarn_segments[state.spring_alive[self._yarn_segments]]):
             x[:] = start  # rare: left to the next step's contact rather than through another yarn
