@@ -43,7 +43,8 @@ from fraytool.sim.kernels.rigid_contact import coulomb_friction
 PASSES = 3
 """Resolution passes per mass (the second and third only where the first moved it)."""
 SWEEPS = 8
-"""Sweeps over all yarn segments per step (two segments share a mass: one's move can undo another's)."""
+"""Sweeps over the yarn segments per step: all of them, then those at a mass the sweep before moved (two
+segments share a mass: one's move can undo another's)."""
 EDGE_ROUNDS = 4
 """Rounds of a segment's move off one edge (the closest points slide as it moves)."""
 STACK = 64
@@ -484,18 +485,23 @@ def _segment_through(m, meshes_in, seg_end_inout, inverse_masses, margin_m, stac
             break
         for q in range(meshes_in.tri_range[node, 0], meshes_in.tri_range[node, 1]):
             j = meshes_in.tri_order[q]
-            a, b, c = vb[tris[j, 0]], vb[tris[j, 1]], vb[tris[j, 2]]
-            n = np.cross(b - a, c - a)
-            da = (la1 - a) @ n
-            db = (lb1 - a) @ n
+            ax, ay, az = _vertex(vb, tris[j, 0])
+            bx, by, bz = _vertex(vb, tris[j, 1])
+            cx, cy, cz = _vertex(vb, tris[j, 2])
+            nx = (by - ay) * (cz - az) - (bz - az) * (cy - ay)
+            ny = (bz - az) * (cx - ax) - (bx - ax) * (cz - az)
+            nz = (bx - ax) * (cy - ay) - (by - ay) * (cx - ax)
+            da = (la1[0] - ax) * nx + (la1[1] - ay) * ny + (la1[2] - az) * nz
+            db = (lb1[0] - ax) * nx + (lb1[1] - ay) * ny + (lb1[2] - az) * nz
             if not ((da > 0.0 and db < 0.0) or (da < 0.0 and db > 0.0)):
                 continue
             t = da / (da - db)
-            p = la1 + t * (lb1 - la1)
-            qx, qy, qz, _, _, _ = closest_on_triangle(p[0], p[1], p[2], a[0], a[1], a[2], b[0], b[1], b[2],
-                                                      c[0], c[1], c[2])
-            scale = np.abs(b - a).sum() + np.abs(c - a).sum()
-            if (qx - p[0]) ** 2 + (qy - p[1]) ** 2 + (qz - p[2]) ** 2 <= (1e-9 * scale) ** 2:
+            px = la1[0] + t * (lb1[0] - la1[0])
+            py = la1[1] + t * (lb1[1] - la1[1])
+            pz = la1[2] + t * (lb1[2] - la1[2])
+            qx, qy, qz, _, _, _ = closest_on_triangle(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz)
+            scale = abs(bx - ax) + abs(by - ay) + abs(bz - az) + abs(cx - ax) + abs(cy - ay) + abs(cz - az)
+            if (qx - px) ** 2 + (qy - py) ** 2 + (qz - pz) ** 2 <= (1e-9 * scale) ** 2:
                 first = min(first, t)
                 last = max(last, t)
     if last <= first:
@@ -539,7 +545,10 @@ def collide_mesh_segments(
     start = np.empty((2, 3))
     end = np.empty((2, 3))
     pad = margin_m * (1.0 + 1e-9)
-    for _ in range(SWEEPS):  # segments share masses: sweep again while one moved another
+    # segments share masses: sweep again, over the segments at a mass moved in the sweep before
+    moved_before = np.zeros(particle_inv_mass.shape[0], np.bool_)
+    moved_now = np.zeros(particle_inv_mass.shape[0], np.bool_)
+    for sweep in range(SWEEPS):
         swept = 0
         for m in range(meshes_in.body.shape[0]):
             k = meshes_in.body[m]
@@ -553,6 +562,8 @@ def collide_mesh_segments(
             c0 = c1 - dt_s * bodies_in.velocity_m_s[k]
             box = meshes_in.tri_box
             for s in range(segments.shape[0]):
+                if sweep > 0 and not (moved_before[segments[s, 0]] or moved_before[segments[s, 1]]):
+                    continue
                 inverse_masses = (particle_inv_mass[segments[s, 0]], particle_inv_mass[segments[s, 1]])
                 if inverse_masses[0] == 0.0 and inverse_masses[1] == 0.0:
                     continue
@@ -582,12 +593,15 @@ def collide_mesh_segments(
                     swept += moved
                     for end_ in range(2):
                         p = segments[s, end_]
+                        moved_now[p] = True
                         for a in range(3):
                             particle_position_m_inout[p, a] = c1[a] + rot[a, 0] * end[end_, 0] + rot[a, 1] * end[end_, 1] \
                                 + rot[a, 2] * end[end_, 2]
         contacts += swept
         if swept == 0:
             break
+        moved_before, moved_now = moved_now, moved_before
+        moved_now[:] = False
     return contacts
 
 

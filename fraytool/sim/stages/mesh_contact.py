@@ -20,6 +20,7 @@ class MeshContact:
 
     name = "collisions"
     kernel = "collide_meshes, collide_mesh_segments"
+    segments_too = True
     reads = frozenset({POSITIONS, START_POSITIONS, BODIES, TOPOLOGY})
     writes = frozenset({POSITIONS})
 
@@ -48,8 +49,9 @@ class MeshContact:
         margin = 0.5 * m.thickness_m
         hits = collide_meshes(*ctx.lists.free(state), meshes, bodies, margin, dt_s, state.particle_inv_mass,
                               ctx.prev_position_m, state.particle_position_m)
-        hits += collide_mesh_segments(self.segments(state), meshes, bodies, margin, dt_s, state.particle_inv_mass,
-                                   ctx.prev_position_m, state.particle_position_m)
+        if self.segments_too:
+            hits += collide_mesh_segments(self.segments(state), meshes, bodies, margin, dt_s,
+                                          state.particle_inv_mass, ctx.prev_position_m, state.particle_position_m)
         if self.after_analytic:
             ctx.counters.rigid_contacts_last += hits
         else:
@@ -60,6 +62,10 @@ class MeshContact:
 
 
 class MeshContactBeforeLimit(MeshContact):
-    """The mesh pass of step 5 in scenes that tear (as core.RigidContactBeforeLimit)."""
+    """The mesh pass of step 5 in scenes that tear (as core.RigidContactBeforeLimit): the masses only, so
+    that the strain limit sees the mesh's push; the yarn segments are resolved once, in step 6 (they are
+    most of the mesh contact's cost, and the limit does not read them)."""
 
     name = "contact_before_limit"
+    kernel = "collide_meshes"
+    segments_too = False
