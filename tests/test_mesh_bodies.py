@@ -429,3 +429,27 @@ def test_fit_and_shadow_casters_hold_a_mesh_by_its_bounding_sphere():
     record = SimpleNamespace(particle_position_m=np.zeros((1, 3)), body_position_m=np.array([[1.0, 0.0, 0.0]]))
     points = shot_points(topology, [record])
     assert points[:, 0].max() == pytest.approx(1.0 + radius)
+
+
+def test_exr_depth_and_alpha_hold_a_mesh_body(tmp_path):
+    """`render --exr --alpha` of the golden scene with its ball replaced by a mesh of it (an icosphere):
+    Z at the image centre is the mesh's distance along the view axis and A is opaque there, as
+    tests/test_render_outputs.py checks for the analytic ball."""
+    pytest.importorskip("OpenEXR")
+    from fraytool.commands.main import main
+    from fraytool.render.exr import read_exr
+
+    trimesh.creation.icosphere(subdivisions=4, radius=0.035).export(tmp_path / "ball.obj")
+    text = (Path(__file__).resolve().parent / "scenes" / "golden_small.toml").read_text()
+    text = text.replace('shape = "sphere"\nradius_m = 0.035', 'shape = "mesh"\nfile = "ball.obj"')
+    assert 'file = "ball.obj"' in text
+    scene = tmp_path / "mesh_ball.toml"
+    scene.write_text(text)
+    out = tmp_path / "out"
+    level = ["--resolution", "64x48", "--samples", "1", "--camera-position", "0,0.02,0.3",
+             "--camera-target", "0,0.02,0", "--frames", "0:1"]  # (test_render_outputs.LEVEL_FLAGS)
+    assert main(["render", str(scene), "-o", str(out), *level, "--exr", "--alpha", "--no-mp4"]) == 0
+    exr = read_exr(out / "exr" / "frame_000000.exr")
+    assert exr["A"][23, 31] == 1.0
+    assert abs(exr["Z"][23, 31] - (0.3 - 0.035)) < 5e-4  # the mesh's front, facets within 0.1 mm of the sphere
+    assert float(exr["A"][0, 0]) == 0.0 and np.isinf(exr["Z"][0, 0])  # the sky behind
