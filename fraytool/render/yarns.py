@@ -21,7 +21,7 @@ from typing import Mapping
 
 import numpy as np
 
-from fraytool.grid import base_yarn_points, crossing_normals
+from fraytool.grid import base_yarn_points, crossing_normals, yarn_neighbours
 
 WEFT = 0
 WARP = 1
@@ -67,11 +67,28 @@ def yarn_points(topology: Mapping[str, np.ndarray], particle_position_m: np.ndar
     weft_mass, warp_mass = pos[:C], pos[C:2 * C]
     # The crossing's centre: its base mass, or the middle of its couple.
     centre = np.where(level[:, None], 0.5 * (weft_mass + warp_mass), weft_mass)
-    n = crossing_normals(centre, W, H)
+    n = crossing_normals(centre, W, H, _neighbours(topology, C, W, H))
     weft_pt, warp_pt = base_yarn_points(centre, n, np.asarray(topology["crossing_weft_on_top"], bool), T)
     weft_pt = np.where(level[:, None], weft_mass, weft_pt)
     warp_pt = np.where(level[:, None], warp_mass, warp_pt)
     return weft_pt, warp_pt, n
+
+
+def _neighbours(topology: Mapping[str, np.ndarray], C: int, W: int, H: int):
+    """Yarn neighbours of a shaped panel's crossings (fraytool.grid.yarn_neighbours); None for a full grid."""
+    if C == W * H:
+        return None
+    return yarn_neighbours(np.asarray(topology["crossing_weft_springs"]), np.asarray(topology["crossing_warp_springs"]),
+                           np.asarray(topology["spring_crossing_a"]), np.asarray(topology["spring_crossing_b"]))
+
+
+def crossing_places(topology: Mapping[str, np.ndarray]) -> np.ndarray:
+    """Place j * warp_yarns + i on the grid of every crossing, shape (C,), int64 (a full grid: 0..C-1)."""
+    C = int(_scalar(topology, "crossing_count"))
+    if "crossing_grid_i" not in topology:  # frames written before shaped panels
+        return np.arange(C, dtype=np.int64)
+    W = int(_scalar(topology, "warp_yarns"))
+    return np.asarray(topology["crossing_grid_j"], np.int64) * W + np.asarray(topology["crossing_grid_i"], np.int64)
 
 
 def _runs(link_alive: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -88,6 +105,12 @@ def _runs(link_alive: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return starts, ends - starts + 1
 
 
+def _on_grid(points: np.ndarray, places: np.ndarray, size: int) -> np.ndarray:
+    out = np.zeros((size, 3))
+    out[places] = points
+    return out
+
+
 def yarn_pieces(topology: Mapping[str, np.ndarray], particle_position_m: np.ndarray,
                 crossing_yarn_level: np.ndarray, spring_alive: np.ndarray) -> YarnPieces:
     """All yarn pieces of a frame (see the module docstring for the rules)."""
@@ -96,16 +119,29 @@ def yarn_pieces(topology: Mapping[str, np.ndarray], particle_position_m: np.ndar
     alive = np.asarray(spring_alive, dtype=bool)
     precut = np.asarray(topology["spring_precut"], dtype=bool) if "spring_precut" in topology \
         else np.zeros(alive.shape, dtype=bool)  # frames written before cuts existed
+    if "spring_cut_time_s" in topology:  # scissors leave clean ends too
+        precut = precut | np.isfinite(np.asarray(topology["spring_cut_time_s"]))
     weft_pt, warp_pt, normal = yarn_points(topology, particle_position_m, crossing_yarn_level)
-    crossing = np.arange(W * H).reshape(H, W)
+    places = crossing_places(topology)
+    if places.size != W * H:  # a shaped panel: lay its crossings on the full grid (gaps are never drawn)
+        crossing = np.full(W * H, -1, np.int64)
+        crossing[places] = np.arange(places.size)
+        weft_pt, warp_pt = (_on_grid(p, places, W * H) for p in (weft_pt, warp_pt))
+        crossing = crossing.reshape(H, W)
+    else:
+        crossing = np.arange(W * H).reshape(H, W)
 
-    # Weft yarn j = row j; warp yarn i = column i.
+    # Weft yarn j = row j; warp yarn i = column i. No spring (-1, a shaped panel's gap): a clean end.
     weft_s = np.asarray(topology["weft_structural_spring"])
     warp_s = np.asarray(topology["warp_structural_spring"])
+    weft_link = (weft_s >= 0) & alive[weft_s]
+    warp_link = (warp_s >= 0) & alive[warp_s]
+    weft_clean = (weft_s < 0) | precut[weft_s]
+    warp_clean = (warp_s < 0) | precut[warp_s]
     rows = [
-        (WEFT, weft_pt.reshape(H, W, 3), crossing, alive[weft_s].reshape(H, W - 1), precut[weft_s].reshape(H, W - 1)),
-        (WARP, warp_pt.reshape(H, W, 3).transpose(1, 0, 2), crossing.T, alive[warp_s].reshape(W, H - 1),
-         precut[warp_s].reshape(W, H - 1)),
+        (WEFT, weft_pt.reshape(H, W, 3), crossing, weft_link.reshape(H, W - 1), weft_clean.reshape(H, W - 1)),
+        (WARP, warp_pt.reshape(H, W, 3).transpose(1, 0, 2), crossing.T, warp_link.reshape(W, H - 1),
+         warp_clean.reshape(W, H - 1)),
     ]
     pts, offs, kinds, yarns, firsts, bstart, bend, normals = [], [], [], [], [], [], [], []
     base = 0

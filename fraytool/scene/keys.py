@@ -30,7 +30,7 @@ REQUIRED: Any = _Required()
 @dataclass(frozen=True)
 class Key:
     kind: str
-    """"float", "int", "bool", "str", "vec3", "color", "int2", "float2", "path", "table2d"."""
+    """"float", "int", "bool", "str", "vec3", "color", "int2", "float2", "points2", "path", "table2d"."""
     default: Any = REQUIRED
     """Value when the key is not given; REQUIRED if it must be; None for "not given" (optional)."""
     lo: Optional[float] = None
@@ -55,6 +55,7 @@ class Key:
             "color": "an array of 3 numbers in [0, 1]",
             "int2": "an array of 2 integers",
             "float2": "an array of 2 numbers",
+            "points2": "an array of [u, v] arrays of 2 finite numbers, each",
             "path": "an array of [t, x, y, z] arrays of finite numbers, times from 0 to 1e6 s and increasing, "
                     "positions",
             "table2d": "equal-length rows of the integers 0 and 1 (not true / false)",
@@ -133,6 +134,17 @@ class Key:
             if not all(self.in_range(v) for v in pair):
                 return False, None
             return True, pair
+        if k == "points2":
+            if not _is_seq(value):
+                return False, None
+            points = []
+            for row in value:
+                if not _is_seq(row) or len(row) != 2 or not all(_is_number(v) for v in row):
+                    return False, None
+                points.append((float(row[0]), float(row[1])))
+                if not all(self.in_range(v) for v in points[-1]):
+                    return False, None
+            return True, tuple(points)
         if k == "path":
             if not _is_seq(value):
                 return False, None

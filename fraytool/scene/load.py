@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any, Optional, Sequence
 
 from fraytool.errors import SceneError
-from fraytool.scene import rules, schema
+from fraytool.scene import panel_shape, rules, schema
 from fraytool.scene.keys import REQUIRED, Key, show
 from fraytool.scene.overrides import apply_overrides, describe
 from fraytool.scene.spec import (
@@ -37,6 +37,7 @@ from fraytool.scene.spec import (
     MultiresSpec,
     TearingSpec,
     TimeSpec,
+    WeakLineSpec,
 )
 
 
@@ -193,17 +194,19 @@ def parse_scene(text: str, source: str = "<string>", overrides: Sequence[tuple[s
                for i, a in enumerate(doc.get("attachments", []))]
     cut_raw = [(_read_table(c, f"cuts.{i}", schema.TOP["cuts"], problems), i)
                for i, c in enumerate(doc.get("cuts", []))]
+    weak_raw = [(_read_table(w, f"weak_lines.{i}", schema.TOP["weak_lines"], problems), i)
+                for i, w in enumerate(doc.get("weak_lines", []))]
     if problems.lines:
         raise SceneError(problems.lines)
 
-    spec = _assemble(values, bodies_raw, att_raw, cut_raw, source, problems, stem, scene_file)
+    spec = _assemble(values, bodies_raw, att_raw, cut_raw, source, problems, stem, scene_file, weak_raw)
     if problems.lines:
         raise SceneError(problems.lines)
     return spec
 
 
 def _assemble(values: dict, bodies_raw: list, att_raw: list, cut_raw: list, source: str,
-              problems: _Problems, stem: str, scene_file: str = "") -> SceneSpec:
+              problems: _Problems, stem: str, scene_file: str = "", weak_raw: Sequence = ()) -> SceneSpec:
     """Build the SceneSpec from checked tables, applying the rules that tie keys together."""
     s, t, c = values["scene"], values["time"], values["cloth"]
     name = s["name"] or stem
@@ -220,6 +223,16 @@ def _assemble(values: dict, bodies_raw: list, att_raw: list, cut_raw: list, sour
                       springs=SpringSpec(**values["cloth.springs"]), strain=strain, tearing=tear,
                       multires=multires)
     problems.extend("cloth", rules.cloth_problems(cloth.spacing_m, cloth.thickness_m))
+    shape_rules = rules.cloth_shape_problems(cloth.warp_yarns, cloth.weft_yarns, cloth.outline_m, cloth.mask,
+                                             cloth.mask_size_m, cloth.grain_deg)
+    problems.extend("cloth", shape_rules)
+    if not shape_rules:
+        problems.extend("cloth", panel_shape.shape_problems(cloth, scene_file))
+    grid = panel_shape.grid_size(cloth, scene_file) if not shape_rules else None
+    if cloth.multires.factor > 1 and (cloth.outline_m or cloth.mask):
+        problems.add("cloth.multires", "factor", cloth.multires.factor,
+                     "a shaped panel (outline_m or mask) is simulated at yarn resolution: factor must be 1")
+    warp_yarns, weft_yarns = grid or (max(cloth.warp_yarns, 2), max(cloth.weft_yarns, 2))
 
     bodies = []
     names: set[str] = set()
@@ -236,14 +249,26 @@ def _assemble(values: dict, bodies_raw: list, att_raw: list, cut_raw: list, sour
     attachments = []
     for a, i in att_raw:
         att = AttachmentSpec(**a)
-        problems.extend(f"attachments.{i}", rules.attachment_problems(att, names, cloth.warp_yarns, cloth.weft_yarns))
+        problems.extend(f"attachments.{i}", rules.attachment_problems(att, names, warp_yarns, weft_yarns))
         attachments.append(att)
 
     cuts = []
     for c_raw, i in cut_raw:
         cut = CutSpec(**c_raw)
-        problems.extend(f"cuts.{i}", rules.cut_problems(cut, cloth.warp_yarns, cloth.weft_yarns))
+        problems.extend(f"cuts.{i}", rules.cut_problems(cut, warp_yarns, weft_yarns))
         cuts.append(cut)
+
+    if any(c.path_m for c in cuts) and not tear.enabled:
+        problems.add("cuts", None, None, "scissors (path_m) cut in the tearing stage: set [cloth.tearing] "
+                                         "enabled = true")
+    weak_lines = []
+    for w_raw, i in weak_raw:
+        w = WeakLineSpec(**w_raw)
+        problems.extend(f"weak_lines.{i}", rules.weak_line_problems(w))
+        weak_lines.append(w)
+    problems.extend("cloth", rules.tear_map_problems(cloth.tear_map, cloth.tear_map_strain))
+    if cloth.tear_map and not shape_rules:
+        problems.extend("cloth", panel_shape.tear_map_problems(cloth, scene_file))
 
     render, camera = RenderSpec(**values["render"]), CameraSpec(**values["camera"])
     problems.extend("render", rules.render_problems(render))
@@ -260,6 +285,7 @@ def _assemble(values: dict, bodies_raw: list, att_raw: list, cut_raw: list, sour
         bodies=tuple(bodies),
         attachments=tuple(attachments),
         cuts=tuple(cuts),
+        weak_lines=tuple(weak_lines),
         self_collision=SelfCollisionSpec(**values["self_collision"]),
         camera=camera,
         render=render,
@@ -300,6 +326,18 @@ def scene_hash(spec: SceneSpec) -> str:
     d["scene"].pop("description")
     if not d["cuts"]:
         d.pop("cuts")  # scenes without cuts keep the digest they had before cuts existed
+    for raw in d.get("cuts", []):
+        if not raw["path_m"]:  # snips keep the digest they had before scissors existed
+            for k in ("path_m", "start_s", "end_s"):
+                raw.pop(k)
+    if not d["weak_lines"]:
+        d.pop("weak_lines")
+    for k, default in _PANEL_KEY_DEFAULTS.items():  # cloths without them keep the digest they had before
+        if d["cloth"][k] == default:
+            d["cloth"].pop(k)
+    for k in ("mask", "tear_map"):
+        if d["cloth"].get(k):
+            d["cloth"][k] = _file_digest(panel_shape.resolve(getattr(spec.cloth, k), spec.source_file))
     d["time"].pop("frames")  # frame k does not depend on how many follow it
     d["time"].pop("fps")
     d["time"].pop("stability")
@@ -312,6 +350,18 @@ def scene_hash(spec: SceneSpec) -> str:
     d["sim_revision"] = SIM_REVISION
     blob = json.dumps(d, sort_keys=True, default=list).encode()
     return hashlib.sha256(blob).hexdigest()[:16]
+
+
+_PANEL_KEY_DEFAULTS = {k: schema.TOP["cloth"][k].default for k in
+                       ("outline_m", "mask", "mask_size_m", "grain_deg", "edge", "tear_map", "tear_map_strain")}
+"""[cloth] keys of shaped panels, left out of the digest at their defaults."""
+
+
+def _file_digest(path: Path) -> str:
+    try:
+        return hashlib.sha256(path.read_bytes()).hexdigest()
+    except OSError:
+        return str(path)  # not readable: loading the scene has said so
 
 
 def _mesh_digest(file: str, scene_file: str) -> str:

@@ -44,6 +44,31 @@ def cloth_problems(spacing_m: float, thickness_m: float) -> list[Problem]:
     return []
 
 
+def cloth_shape_problems(warp_yarns: int, weft_yarns: int, outline_m, mask: str, mask_size_m,
+                         grain_deg: float) -> list[Problem]:
+    """[cloth]: a rectangle of warp_yarns x weft_yarns, or a shape (outline_m or mask) that sets the grid."""
+    out: list[Problem] = []
+    shaped = bool(outline_m) or bool(mask)
+    if outline_m and mask:
+        out.append(("mask", mask, "give outline_m or mask, not both"))
+    if not shaped:
+        for k, v in (("warp_yarns", warp_yarns), ("weft_yarns", weft_yarns)):
+            if v < 2:
+                out.append((k, v, "must be an integer >= 2 (or give outline_m or mask: the shape sets the grid)")
+                           if v else (None, None, f"missing required key `{k}`: an integer >= 2 (or give "
+                                                   "outline_m or mask: the shape sets the grid)"))
+        if grain_deg != 0.0:
+            out.append(("grain_deg", grain_deg, "turns the weave of a shaped panel (outline_m or mask); a "
+                                                "rectangle turns with its plane"))
+    else:
+        for k, v in (("warp_yarns", warp_yarns), ("weft_yarns", weft_yarns)):
+            if v:
+                out.append((k, v, "leave it out with outline_m or mask: the shape sets the grid"))
+    if mask and not (mask_size_m[0] > 0 and mask_size_m[1] > 0):
+        out.append(("mask_size_m", list(mask_size_m), "with mask: the width and height the image covers, both > 0 [m]"))
+    return out
+
+
 def strain_problems(s: StrainSpec) -> list[Problem]:
     """[cloth.strain]: the dashpot past the limit belongs to the compliant limit."""
     if s.damping_ratio > 0.0 and s.stiffness_n_per_m == 0.0:
@@ -154,8 +179,23 @@ def scene_name_problems(name: str, from_file_name: bool) -> list[Problem]:
 
 
 def cut_problems(c: CutSpec, warp_yarns: int, weft_yarns: int) -> list[Problem]:
-    """[[cuts]]: both ends within one spacing of the grid (-1 <= i <= warp_yarns, likewise j), and apart."""
+    """[[cuts]]: a snip (start and end within one spacing of the grid, -1 <= i <= warp_yarns, likewise j,
+    and apart) or scissors (path_m of 2 points or more, end_s not before start_s)."""
     out: list[Problem] = []
+    if c.path_m:
+        if c.start is not None or c.end is not None:
+            out.append(("path_m", "[...]", "give path_m (scissors) or start and end (a snip), not both"))
+        if len(c.path_m) < 2:
+            out.append(("path_m", [list(p) for p in c.path_m], "needs at least 2 points [u, v]"))
+        if c.end_s < c.start_s:
+            out.append(("end_s", c.end_s, f"must not be before start_s = {c.start_s:g}"))
+        return out
+    if c.start is None or c.end is None:
+        return [(None, None, "give start and end (a snip, in yarn indices) or path_m with start_s and end_s "
+                             "(scissors)")]
+    if c.start_s or c.end_s:
+        out.append(("start_s", c.start_s, "start_s and end_s time scissors along path_m; a snip along start-end "
+                                          "is there from the first frame"))
     for name, (i, j) in (("start", c.start), ("end", c.end)):
         if not (-1.0 <= i <= warp_yarns and -1.0 <= j <= weft_yarns):
             out.append((name, [i, j], f"must be [i, j] with -1 <= i <= {warp_yarns} and -1 <= j <= {weft_yarns} "
@@ -163,6 +203,21 @@ def cut_problems(c: CutSpec, warp_yarns: int, weft_yarns: int) -> list[Problem]:
     if c.start == c.end:
         out.append(("end", list(c.end), "must differ from start (a cut is a line)"))
     return out
+
+
+def weak_line_problems(w) -> list[Problem]:
+    """[[weak_lines]]: a polyline of at least 2 points."""
+    if len(w.points_m) < 2:
+        return [("points_m", [list(p) for p in w.points_m], "needs at least 2 points [u, v] (a line)")]
+    return []
+
+
+def tear_map_problems(tear_map: str, tear_map_strain) -> list[Problem]:
+    """[cloth] tear_map needs the strains it maps to."""
+    if tear_map and not (tear_map_strain[0] > 0 and tear_map_strain[1] > 0):
+        return [("tear_map_strain", list(tear_map_strain), "with tear_map: the mean break strain at black and "
+                                                           "at white, both > 0")]
+    return []
 
 
 def render_problems(r: RenderSpec) -> list[Problem]:

@@ -29,6 +29,7 @@ TOP: dict[str, dict[str, Key]] = {
     "bodies": keys_of(spec.BodySpec),
     "attachments": keys_of(spec.AttachmentSpec),
     "cuts": keys_of(spec.CutSpec),
+    "weak_lines": keys_of(spec.WeakLineSpec),
     "camera": keys_of(spec.CameraSpec),
     "render": keys_of(spec.RenderSpec),
     "output": keys_of(spec.OutputSpec),
@@ -36,5 +37,5 @@ TOP: dict[str, dict[str, Key]] = {
 }
 """Table name (dotted for sub-tables) -> key name -> Key."""
 REQUIRED_TABLES = ("time", "cloth", "cloth.springs")
-ARRAY_TABLES = ("bodies", "attachments", "cuts")
+ARRAY_TABLES = ("bodies", "attachments", "cuts", "weak_lines")
 """Tables written [[name]], any number of times."""

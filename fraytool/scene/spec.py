@@ -127,10 +127,12 @@ class MultiresSpec:
 class ClothSpec:
     """[cloth] with its sub-tables [cloth.springs], [cloth.strain], [cloth.tearing] and [cloth.multires]."""
 
-    warp_yarns: int = key("int", lo=2, hi=4096,
-                          doc="number of warp yarns (columns, index i); they run along the cloth's second axis")
-    weft_yarns: int = key("int", lo=2, hi=4096,
-                          doc="number of weft yarns (rows, index j); they run along the cloth's first axis")
+    warp_yarns: int = key("int", 0, lo=0, hi=4096,
+                          doc="number of warp yarns (columns, index i); they run along the cloth's second axis; "
+                              "at least 2; leave out with outline_m or mask (the shape sets the grid)")
+    weft_yarns: int = key("int", 0, lo=0, hi=4096,
+                          doc="number of weft yarns (rows, index j); they run along the cloth's first axis; "
+                              "at least 2; leave out with outline_m or mask")
     spacing_m: float = key("float", lo=1e-6, hi=1.0, doc="distance between neighbouring yarns at rest [m]")
     thickness_m: float = key("float", lo=1e-7, hi=0.1,
                              doc="cloth thickness T [m]: weft and warp masses of a couple are T apart")
@@ -148,6 +150,26 @@ class ClothSpec:
     multires: MultiresSpec = field(default_factory=MultiresSpec)
     twill: str = key("str", "2/1", doc='with weave = "twill": floats over/under, e.g. "2/1", "2/2", "3/1"')
     satin_shafts: int = key("int", 5, lo=5, hi=16, doc='with weave = "satin": threads per repeat')
+    outline_m: tuple[tuple[float, float], ...] = key(
+        "points2", (), lo=-WORLD_M, hi=WORLD_M,
+        doc="panel shape: a polygon [[u, v], ...] in the cloth's plane [m], u along the plane's first axis and v "
+            "along its second from origin_m; only crossings inside it exist (docs/panels.md)")
+    mask: str = key("str", "", doc="panel shape from a greyscale image, relative to the scene file: crossings over "
+                    "white (>= 50 %) exist; the image covers mask_size_m from origin_m, its bottom row at v = 0")
+    mask_size_m: tuple[float, float] = key("float2", (0.0, 0.0), lo=0, hi=WORLD_M,
+                                           doc="with mask: width (u) and height (v) the image covers [m]")
+    grain_deg: float = key("float", 0.0, lo=-360, hi=360,
+                           doc="with outline_m or mask: angle of the weft yarns from the plane's first axis "
+                               "[degrees] (the warp runs at grain_deg + 90)")
+    tear_map: str = key("str", "", doc="greyscale image over the panel's extent (the outline's or mask's bounding "
+                        "rectangle, or the rectangle of crossings), relative to the scene file: the mean break strain "
+                        "of each yarn spring, from tear_map_strain[0] at black to [1] at white")
+    tear_map_strain: tuple[float, float] = key("float2", (0.0, 0.0), lo=0, hi=10,
+                                               doc="with tear_map: mean break strain at black and at white "
+                                                   "(break_strain_spread still draws each spring's own)")
+    edge: str = key("str", "raw", choices=("raw", "hemmed"),
+                    doc="the panel's border: raw (torn or pulled, its yarns fray) or hemmed (border crossings "
+                        "never split into yarns, and border yarns hold twice the break strain)")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -200,11 +222,36 @@ class AttachmentSpec:
 class CutSpec:
     """One [[cuts]] entry: a snip made in the cloth before the shot, like the nick a tailor cuts
     before tearing fabric by hand. Every spring whose rest segment meets the straight line from
-    `start` to `end` is absent from the first frame on (not counted as broken)."""
+    `start` to `end` is absent from the first frame on (not counted as broken). Or scissors: a cut
+    along `path_m` that grows from start_s to end_s (docs/panels.md "Tear control")."""
 
-    start: tuple[float, float] = key("float2", lo=-1e6, hi=1e6,
-                                     doc="[i, j] in yarn indices (warp i, weft j); 39.5 lies between yarns 39 and 40")
-    end: tuple[float, float] = key("float2", lo=-1e6, hi=1e6, doc="[i, j] in yarn indices, the other end of the line")
+    start: Optional[tuple[float, float]] = key("float2", None, lo=-1e6, hi=1e6,
+                                               doc="[i, j] in yarn indices (warp i, weft j); 39.5 lies between "
+                                                   "yarns 39 and 40")
+    end: Optional[tuple[float, float]] = key("float2", None, lo=-1e6, hi=1e6,
+                                             doc="[i, j] in yarn indices, the other end of the line")
+    path_m: tuple[tuple[float, float], ...] = key(
+        "points2", (), lo=-WORLD_M, hi=WORLD_M,
+        doc="scissors instead of start and end: a polyline [[u, v], ...] in the cloth's plane [m] (as outline_m), "
+            "cut from its first point to its last between start_s and end_s")
+    start_s: float = key("float", 0.0, lo=0, hi=1e6, doc="with path_m: when the scissors reach the first point [s]")
+    end_s: float = key("float", 0.0, lo=0, hi=1e6, doc="with path_m: when they reach the last point [s]; "
+                       "the cut advances at a constant speed along the path")
+
+
+@dataclass(frozen=True, kw_only=True)
+class WeakLineSpec:
+    """One [[weak_lines]] entry: a band along a polyline where the cloth is weaker, like a perforation
+    (docs/panels.md "Tear control")."""
+
+    points_m: tuple[tuple[float, float], ...] = key(
+        "points2", lo=-WORLD_M, hi=WORLD_M,
+        doc="polyline [[u, v], ...] in the cloth's plane [m], as outline_m (at least 2 points)")
+    width_m: float = key("float", lo=0, lo_open=True, hi=WORLD_M,
+                         doc="width of the band [m]: yarn springs whose middle is within width_m / 2 of the line")
+    factor: float = key("float", 0.5, lo=0, lo_open=True, hi=10,
+                        doc="their break strain is multiplied by this (below 1: weaker; it stays above the "
+                            "transition strain)")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -309,6 +356,7 @@ class SceneSpec:
     bodies: tuple[BodySpec, ...] = ()
     attachments: tuple[AttachmentSpec, ...] = ()
     cuts: tuple[CutSpec, ...] = ()
+    weak_lines: tuple[WeakLineSpec, ...] = ()
     self_collision: SelfCollisionSpec = field(default_factory=SelfCollisionSpec)
     camera: CameraSpec = field(default_factory=CameraSpec)
     render: RenderSpec = field(default_factory=RenderSpec)

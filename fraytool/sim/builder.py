@@ -45,7 +45,10 @@ from fraytool.scene.spec import (
     SpringSpec,
     StrainSpec,
     TearingSpec,
+    WeakLineSpec,
 )
+from fraytool.scene.panel_shape import (PanelShapeError, crossing_fraction_along, distance_to_polyline, panel_shape,
+                                       sample_map, tear_map_image)
 from fraytool.sim.model import Model
 
 Vec3 = tuple[float, float, float]
@@ -56,6 +59,7 @@ _SCENE, _WORLD, _CLOTH, _SPRINGS = (schema.TOP[t] for t in ("scene", "world", "c
 _STRAIN, _TEARING, _SELF = (schema.TOP[t] for t in ("cloth.strain", "cloth.tearing", "self_collision"))
 _MULTIRES = schema.TOP["cloth.multires"]
 _BODY, _ATTACH, _CUT = schema.TOP["bodies"], schema.TOP["attachments"], schema.TOP["cuts"]
+_WEAK = schema.TOP["weak_lines"]
 
 
 class ModelBuilderError(SceneError, ValueError):
@@ -86,12 +90,21 @@ def euler_rotation(deg: tuple[float, float, float]) -> np.ndarray:
     return rz @ ry @ rx
 
 
-def select_crossings(att: AttachmentSpec, nx: int, ny: int, rest: np.ndarray) -> np.ndarray:
-    """Crossings chosen by an attachment: an edge, a corner block, index ranges or a region."""
-    ii, jj = np.meshgrid(np.arange(nx), np.arange(ny))
-    ii, jj = ii.ravel(), jj.ravel()  # crossing order c = j * nx + i
+def select_crossings(att: AttachmentSpec, nx: int, ny: int, rest: np.ndarray,
+                     crossing_grid: Optional[np.ndarray] = None) -> np.ndarray:
+    """Crossings chosen by an attachment: an edge, a corner block, index ranges or a region.
+    `crossing_grid` (ny, nx) maps a grid place to its crossing, -1 where a shaped panel has none (default:
+    the full rectangle); an edge of a shaped panel is its border crossings on that side (the neighbour
+    that way is missing)."""
+    if crossing_grid is None:
+        crossing_grid = np.arange(nx * ny, dtype=np.int64).reshape(ny, nx)
+    present = crossing_grid >= 0
+    jj, ii = np.nonzero(present)  # crossing order: row-major over the present places
     if att.edge is not None:
-        mask = {"left": ii == 0, "right": ii == nx - 1, "bottom": jj == 0, "top": jj == ny - 1}[att.edge]
+        pad = np.pad(present, 1)
+        missing = {"left": ~pad[1:-1, :-2], "right": ~pad[1:-1, 2:], "bottom": ~pad[:-2, 1:-1],
+                   "top": ~pad[2:, 1:-1]}[att.edge]
+        mask = missing[jj, ii]
     elif att.corner is not None:
         k = att.corner_size
         left = ii < k
@@ -110,14 +123,14 @@ def select_crossings(att: AttachmentSpec, nx: int, ny: int, rest: np.ndarray) ->
 
 
 def springs_across(start: Sequence[float], end: Sequence[float], spring_crossing_a: np.ndarray,
-                   spring_crossing_b: np.ndarray, warp_yarns: int) -> np.ndarray:
+                   spring_crossing_b: np.ndarray, crossing_i: np.ndarray, crossing_j: np.ndarray) -> np.ndarray:
     """Springs whose rest segment meets the line from `start` to `end` ([i, j] in yarn indices, the
-    grid coordinates of crossing (i, j)), ends included: a bool mask over the springs. Exact for the
-    half-integer lines that run between yarns."""
+    grid coordinates of crossing (i, j) = (crossing_i[c], crossing_j[c])), ends included: a bool mask
+    over the springs. Exact for the half-integer lines that run between yarns."""
     p = np.asarray(start, float)
     d = np.asarray(end, float) - p
-    a = np.stack([spring_crossing_a % warp_yarns, spring_crossing_a // warp_yarns], axis=1).astype(float)
-    e = np.stack([spring_crossing_b % warp_yarns, spring_crossing_b // warp_yarns], axis=1).astype(float) - a
+    a = np.stack([crossing_i[spring_crossing_a], crossing_j[spring_crossing_a]], axis=1).astype(float)
+    e = np.stack([crossing_i[spring_crossing_b], crossing_j[spring_crossing_b]], axis=1).astype(float) - a
     den = d[0] * e[:, 1] - d[1] * e[:, 0]
     w = a - p
     ok = den != 0.0  # parallel segments do not cut each other (a line along a yarn cuts no spring)
@@ -178,6 +191,7 @@ class ModelBuilder:
         self.bodies: list[BodySpec] = []
         self.attachments: list[AttachmentSpec] = []
         self.cuts: list[CutSpec] = []
+        self.weak_lines: list[WeakLineSpec] = []
         self._mesh_assets: dict[str, Any] = {}  # mesh body name -> fraytool.scene.mesh_files.MeshAsset
 
     # --- checking arguments ---------------------------------------------------------------------------
@@ -209,8 +223,16 @@ class ModelBuilder:
     # --- the cloth and its solver settings ----------------------------------------------------------
 
     @_keys_doc("cloth", "cloth.springs")
-    def add_cloth(self, *, warp_yarns: int, weft_yarns: int, spacing_m: float, thickness_m: float,
+    def add_cloth(self, *, spacing_m: float, thickness_m: float,
                   mass_per_crossing_kg: float, structural_n_per_m: float,
+                  warp_yarns: int = _CLOTH["warp_yarns"].default, weft_yarns: int = _CLOTH["weft_yarns"].default,
+                  outline_m: Sequence[Sequence[float]] = _CLOTH["outline_m"].default,
+                  mask: str = _CLOTH["mask"].default,
+                  mask_size_m: Sequence[float] = _CLOTH["mask_size_m"].default,
+                  grain_deg: float = _CLOTH["grain_deg"].default,
+                  edge: str = _CLOTH["edge"].default,
+                  tear_map: str = _CLOTH["tear_map"].default,
+                  tear_map_strain: Sequence[float] = _CLOTH["tear_map_strain"].default,
                   origin_m: Sequence[float] = _CLOTH["origin_m"].default,
                   plane: str = _CLOTH["plane"].default,
                   weave: str = _CLOTH["weave"].default,
@@ -221,17 +243,31 @@ class ModelBuilder:
                   shear_n_per_m: float = _SPRINGS["shear_n_per_m"].default,
                   damping: float = _SPRINGS["damping"].default) -> None:
         """The woven cloth: a grid of warp_yarns x weft_yarns crossings, spacing_m apart, in `plane`
-        from `origin_m`, with its weave and springs ([cloth] and [cloth.springs]). One per model."""
+        from `origin_m`, with its weave and springs ([cloth] and [cloth.springs]); or a panel cut from
+        that grid by `outline_m` (a polygon in the plane [m]) or `mask` (a greyscale image file), its
+        weave turned by `grain_deg` (docs/panels.md). One per model."""
         args = _given(locals())
         if self.cloth is not None:
             self._raise("add_cloth", [(None, None, "a model holds one cloth; add_cloth was already called")])
         v = self._check("add_cloth", {**_CLOTH, **_SPRINGS}, args)
         table, problems = rules.weave_table(v["weave"], v["twill"], v["satin_shafts"], v["table"])
-        self._raise("add_cloth", problems + rules.cloth_problems(v["spacing_m"], v["thickness_m"]))
+        self._raise("add_cloth", problems + rules.cloth_problems(v["spacing_m"], v["thickness_m"])
+                    + rules.cloth_shape_problems(v["warp_yarns"], v["weft_yarns"], v["outline_m"], v["mask"],
+                                                 v["mask_size_m"], v["grain_deg"])
+                    + rules.tear_map_problems(v["tear_map"], v["tear_map_strain"]))
         springs = SpringSpec(**{k: v.pop(k) for k in _SPRINGS})
         del v["table"]
         # strain and tearing are set apart (set_strain_limit, set_tearing); finalize() reads those.
-        self.cloth = ClothSpec(**v, weave_table=table, springs=springs)
+        cloth = ClothSpec(**v, weave_table=table, springs=springs)
+        try:
+            shape = panel_shape(cloth)
+            self._tear_map = tear_map_image(cloth) if cloth.tear_map else None
+        except PanelShapeError as exc:
+            self._raise("add_cloth", exc.problems)
+        if cloth.outline_m or cloth.mask:  # the shape sets the grid
+            cloth = dataclasses.replace(cloth, warp_yarns=shape.warp_yarns, weft_yarns=shape.weft_yarns)
+        self.cloth = cloth
+        self._shape = shape
 
     @_keys_doc("cloth.strain")
     def set_strain_limit(self, *, limit: float = _STRAIN["limit"].default,
@@ -396,63 +432,91 @@ class ModelBuilder:
         self.attachments.append(att)
 
     @_keys_doc("cuts")
-    def add_cut(self, *, start: Sequence[float], end: Sequence[float]) -> None:
+    def add_cut(self, *, start: Optional[Sequence[float]] = None, end: Optional[Sequence[float]] = None,
+                path_m: Sequence[Sequence[float]] = _CUT["path_m"].default,
+                start_s: float = _CUT["start_s"].default, end_s: float = _CUT["end_s"].default) -> None:
         """A snip made before the shot: every spring whose rest segment meets the line from `start`
         to `end` (yarn indices [i, j]; half-integers fall between yarns) is absent from the first
         frame on. It is not a break (`broken_springs` does not count it), and its yarn ends are
-        drawn clean, not frayed. Call after add_cloth."""
+        drawn clean, not frayed. Or scissors: `path_m`, a polyline in the cloth's plane [m] (as
+        outline_m), cut from its first point at start_s to its last at end_s (needs tearing on).
+        Call after add_cloth."""
         if self.cloth is None:
             self._raise("add_cut", [(None, None, "call add_cloth first (cuts are on its grid)")])
         cut = CutSpec(**self._check("add_cut", _CUT, _given(locals())))
         self._raise("add_cut", rules.cut_problems(cut, self.cloth.warp_yarns, self.cloth.weft_yarns))
         self.cuts.append(cut)
 
+    @_keys_doc("weak_lines")
+    def add_weak_line(self, *, points_m: Sequence[Sequence[float]], width_m: float,
+                      factor: float = _WEAK["factor"].default) -> None:
+        """A weaker band along a polyline in the cloth's plane [m] (as outline_m), like a perforation:
+        the yarn springs whose middle lies within width_m / 2 of it break at `factor` x their drawn
+        break strain (docs/panels.md "Tear control"). Call after add_cloth."""
+        if self.cloth is None:
+            self._raise("add_weak_line", [(None, None, "call add_cloth first (weak lines are in its plane)")])
+        line = WeakLineSpec(**self._check("add_weak_line", _WEAK, _given(locals())))
+        self._raise("add_weak_line", rules.weak_line_problems(line))
+        self.weak_lines.append(line)
+
     # --- finalize -------------------------------------------------------------------------------------
 
     def _grid(self, c: ClothSpec):
-        nx, ny = c.warp_yarns, c.weft_yarns
+        """(nx, ny, crossing grid (ny, nx) -> crossing or -1, rest positions (C, 3), weft on top (C,)):
+        the crossings of the panel's shape in row-major order (for a rectangle, c = j * nx + i)."""
+        shape = self._shape
+        nx, ny = shape.warp_yarns, shape.weft_yarns
+        present = shape.present
+        grid = np.full((ny, nx), -1, np.int64)
+        grid[present] = np.arange(int(present.sum()))
+        jj, ii = np.nonzero(present)
         a0, a1 = _PLANE_AXES[c.plane]
-        ii, jj = np.meshgrid(np.arange(nx), np.arange(ny))
-        rest = np.zeros((nx * ny, 3))
-        rest[:, a0] = ii.ravel() * c.spacing_m
-        rest[:, a1] = jj.ravel() * c.spacing_m
+        uv = shape.uv_m[present]
+        rest = np.zeros((uv.shape[0], 3))
+        rest[:, a0] = uv[:, 0]
+        rest[:, a1] = uv[:, 1]
         rest += np.asarray(c.origin_m)
         table = np.asarray(c.weave_table, dtype=bool)
-        top = table[jj.ravel() % table.shape[0], ii.ravel() % table.shape[1]]
-        return nx, ny, rest, top
+        top = table[jj % table.shape[0], ii % table.shape[1]]
+        return nx, ny, grid, rest, top
 
     @staticmethod
-    def _springs(k: SpringSpec, nx: int, ny: int, rest: np.ndarray):
+    def _springs(k: SpringSpec, grid: np.ndarray, rest: np.ndarray):
+        """Springs between crossings of `grid` (ny, nx; -1 where the panel has no crossing): a spring is
+        built where all the crossings it joins or spans are there (a bend over its middle crossing, a
+        shear spring over its whole cell)."""
+        ny, nx = grid.shape
         parts: list[tuple[int, np.ndarray, np.ndarray, float]] = []
         count = 0
         weft_struct = np.full((ny, max(nx - 1, 0)), -1, np.int32)
         warp_struct = np.full((nx, max(ny - 1, 0)), -1, np.int32)
 
-        def add(kind, a, b, ks):
+        def add(kind, a, b, ks, *also):
+            """Springs a-b of grid places (arrays of crossings, -1 for none) where a, b and `also` exist;
+            returns their slots, -1 where not built, in the shape of a."""
             nonlocal count
-            a, b = np.asarray(a, np.int32).ravel(), np.asarray(b, np.int32).ravel()
+            ok = (a >= 0) & (b >= 0)
+            for x in also:
+                ok &= x >= 0
+            slots = np.full(a.shape, -1, np.int32)
+            a, b = np.asarray(a[ok], np.int32).ravel(), np.asarray(b[ok], np.int32).ravel()
             parts.append((kind, a, b, ks))
             count += a.size
-            return np.arange(count - a.size, count, dtype=np.int32)
+            slots[ok] = np.arange(count - a.size, count, dtype=np.int32)
+            return slots
 
-        idx = crossing_index
-        jj, ii = np.meshgrid(np.arange(ny), np.arange(nx - 1), indexing="ij")
-        weft_struct[:, :] = add(STRUCT_WEFT, idx(ii, jj, nx), idx(ii + 1, jj, nx),
-                                k.structural_n_per_m).reshape(ny, nx - 1)
-        ii, jj = np.meshgrid(np.arange(nx), np.arange(ny - 1), indexing="ij")
-        warp_struct[:, :] = add(STRUCT_WARP, idx(ii, jj, nx), idx(ii, jj + 1, nx),
-                                k.structural_n_per_m).reshape(nx, ny - 1)
+        g = grid
+        weft_struct[:, :] = add(STRUCT_WEFT, g[:, :-1], g[:, 1:], k.structural_n_per_m)
+        warp_struct[:, :] = add(STRUCT_WARP, g[:-1, :].T, g[1:, :].T, k.structural_n_per_m)
         if k.bend_n_per_m > 0:
-            jj, ii = np.meshgrid(np.arange(ny), np.arange(nx - 2), indexing="ij")
-            add(BEND_WEFT, idx(ii, jj, nx), idx(ii + 2, jj, nx), k.bend_n_per_m)
-            ii, jj = np.meshgrid(np.arange(nx), np.arange(ny - 2), indexing="ij")
-            add(BEND_WARP, idx(ii, jj, nx), idx(ii, jj + 2, nx), k.bend_n_per_m)
+            add(BEND_WEFT, g[:, :-2], g[:, 2:], k.bend_n_per_m, g[:, 1:-1])
+            add(BEND_WARP, g[:-2, :].T, g[2:, :].T, k.bend_n_per_m, g[1:-1, :].T)
         shear_twin_pairs = None
         if k.shear_n_per_m > 0:
-            jj, ii = np.meshgrid(np.arange(ny - 1), np.arange(nx - 1), indexing="ij")
-            ii, jj = ii.ravel(), jj.ravel()
-            s1 = add(SHEAR, idx(ii, jj, nx), idx(ii + 1, jj + 1, nx), k.shear_n_per_m)
-            s2 = add(SHEAR, idx(ii + 1, jj, nx), idx(ii, jj + 1, nx), k.shear_n_per_m)
+            cell = (g[:-1, :-1], g[:-1, 1:], g[1:, :-1], g[1:, 1:])  # (i, j), (i+1, j), (i, j+1), (i+1, j+1)
+            s1 = add(SHEAR, cell[0], cell[3], k.shear_n_per_m, cell[1], cell[2])
+            s2 = add(SHEAR, cell[1], cell[2], k.shear_n_per_m, cell[0], cell[3])
+            s1, s2 = s1[s1 >= 0], s2[s2 >= 0]
             shear = np.concatenate([s1, s2])
             twins = add(SHEAR_TWIN, np.concatenate([parts[-2][1], parts[-1][1]]),
                         np.concatenate([parts[-2][2], parts[-1][2]]), 0.5 * k.shear_n_per_m)
@@ -468,34 +532,67 @@ class ModelBuilder:
         rest_len = np.linalg.norm(rest[b] - rest[a], axis=1)
         return kind, a, b, stiff, rest_len, twin, weft_struct, warp_struct
 
-    def _break_strains(self, count: int) -> np.ndarray:
-        """Per-spring break strain ~ Normal(break_strain, spread), clipped above the transition strain.
+    def _break_strains(self, count: int, spring_uv_m: np.ndarray) -> np.ndarray:
+        """Per-spring break strain ~ Normal(mean, spread), clipped above the transition strain. The mean is
+        break_strain, or the tear map's value under the spring's middle (`spring_uv_m`, in the cloth's
+        plane); a weak line then scales the draw (docs/panels.md "Tear control").
 
         The floor does not depend on yarn_level, so a base-model-only run of a scene (yarn_level =
         false, for comparison) tears a cloth with exactly the same break strains."""
         t = self.tearing
+        c = self.cloth
         rng = np.random.default_rng(self.seed)
-        draw = t.break_strain + t.break_strain_spread * rng.standard_normal(count)
+        mean: float | np.ndarray = t.break_strain
+        if self._tear_map is not None:
+            lo, hi = c.tear_map_strain
+            mean = lo + (hi - lo) * sample_map(self._tear_map, self._shape.extent_uv_m, spring_uv_m)
+        draw = mean + t.break_strain_spread * rng.standard_normal(count)
+        for line in self.weak_lines:
+            near = distance_to_polyline(spring_uv_m, np.asarray(line.points_m, float)) <= 0.5 * line.width_m
+            draw[near] *= line.factor
         floor = t.transition_strain * 1.01 if t.transition_strain < t.break_strain else 1e-3
         return np.maximum(draw, floor)
+
+    def _scissor_times(self, kind: np.ndarray, a: np.ndarray, b: np.ndarray, uv: np.ndarray) -> np.ndarray:
+        """When scissors ([[cuts]] path_m) cut each structural spring [s]; inf for never, shape (S,)."""
+        out = np.full(kind.shape[0], np.inf)
+        structural = np.flatnonzero((kind == STRUCT_WEFT) | (kind == STRUCT_WARP))
+        for cut in self.cuts:
+            if not cut.path_m:
+                continue
+            f = crossing_fraction_along(uv[a[structural]], uv[b[structural]], np.asarray(cut.path_m, float))
+            hit = ~np.isnan(f)
+            times = cut.start_s + f[hit] * (cut.end_s - cut.start_s)
+            out[structural[hit]] = np.minimum(out[structural[hit]], times)
+        return out
 
     def finalize(self) -> Model:
         """Turn everything added into the immutable Model (typed arrays); the builder can go on."""
         c = self.cloth
         if c is None:
             self._raise("finalize", [(None, None, "no cloth: call add_cloth first")])
-        nx, ny, rest, top = self._grid(c)
-        n = nx * ny
-        kind, a, b, stiff, rest_len, twin, weft_struct, warp_struct = self._springs(c.springs, nx, ny, rest)
+        if any(cut.path_m for cut in self.cuts) and not self.tearing.enabled:
+            self._raise("finalize", [(None, None, "scissors (add_cut with path_m) cut in the tearing stage: "
+                                                  "call set_tearing()")])
+        if self.multires.factor > 1 and (c.outline_m or c.mask):
+            self._raise("finalize", [(None, None, "a shaped panel (outline_m or mask) is simulated at yarn "
+                                                  "resolution: set_multires(factor=1)")])
+        nx, ny, grid, rest, top = self._grid(c)
+        n = rest.shape[0]
+        crossing_j, crossing_i = (x.astype(np.int32) for x in np.nonzero(grid >= 0))
+        kind, a, b, stiff, rest_len, twin, weft_struct, warp_struct = self._springs(c.springs, grid, rest)
 
         cw = np.full((n, 2), -1, np.int32)
         cv = np.full((n, 2), -1, np.int32)
-        s = weft_struct.ravel()
+        s = weft_struct[weft_struct >= 0]
         cw[a[s], 1] = s
         cw[b[s], 0] = s
-        s = warp_struct.ravel()
+        s = warp_struct[warp_struct >= 0]
         cv[a[s], 1] = s
         cv[b[s], 0] = s
+        # the panel's border: a crossing missing one of its four yarn neighbours
+        border = (cw < 0).any(axis=1) | (cv < 0).any(axis=1)
+        hemmed = border if c.edge == "hemmed" else np.zeros(n, bool)
 
         bodies = self.bodies
         names = tuple(bd.name for bd in bodies)
@@ -512,7 +609,7 @@ class ModelBuilder:
         att_p, att_b, att_off = [], [], []
         for att in self.attachments:
             body = names.index(att.body)
-            sel = select_crossings(att, nx, ny, rest)
+            sel = select_crossings(att, nx, ny, rest, grid)
             att_p.extend(sel.tolist())
             att_b.extend([body] * len(sel))
             att_off.extend((rot[body].T @ (rest[sel] - body_pos0[body]).T).T.tolist())
@@ -523,12 +620,18 @@ class ModelBuilder:
 
         precut = np.zeros(len(kind), dtype=bool)
         for cut in self.cuts:
-            precut |= springs_across(cut.start, cut.end, a, b, nx)
+            if not cut.path_m:
+                precut |= springs_across(cut.start, cut.end, a, b, crossing_i, crossing_j)
         precut &= kind != SHEAR_TWIN  # a twin is born with its shear spring; a cut one has none
 
         t = self.tearing
         strain = self.strain
-        break_strain = self._break_strains(len(kind))
+        uv = self._shape.uv_m[self._shape.present]  # each crossing in the cloth's plane [m]
+        break_strain = self._break_strains(len(kind), 0.5 * (uv[a] + uv[b]))
+        cut_time = self._scissor_times(kind, a, b, uv)
+        if c.edge == "hemmed":  # a hem folds the border over: two layers of yarn hold it
+            along_hem = ((kind == STRUCT_WEFT) | (kind == STRUCT_WARP)) & hemmed[a] & hemmed[b]
+            break_strain[along_hem] *= 2.0
         # the lowest strain at which a spring could split its crossings or be cut: coarse cells refine
         # at refine_fraction of it (docs/multires.md "When a cell refines")
         structural = (kind == STRUCT_WEFT) | (kind == STRUCT_WARP)
@@ -547,6 +650,10 @@ class ModelBuilder:
             crossing_weft_on_top=top,
             crossing_weft_springs=cw,
             crossing_warp_springs=cv,
+            crossing_grid_i=crossing_i,
+            crossing_grid_j=crossing_j,
+            crossing_hemmed=hemmed,
+            crossing_plane_uv_m=uv,
             spring_kind=kind,
             spring_crossing_a=a,
             spring_crossing_b=b,
@@ -555,6 +662,7 @@ class ModelBuilder:
             spring_break_strain=break_strain,
             spring_twin=twin,
             spring_precut=precut,
+            spring_cut_time_s=cut_time,
             weft_structural_spring=weft_struct,
             warp_structural_spring=warp_struct,
             attachment_particle=att_p_arr[first],
@@ -594,7 +702,7 @@ class ModelBuilder:
             seed=self.seed,
             coarse_factor=mr.factor,
             refine_strain=mr.refine_fraction * tear_from,
-            refine_band_cells=max(mr.band_cells, split_walk_band(top.reshape(ny, nx), mr.factor)) if mr.factor > 1 else mr.band_cells,
+            refine_band_cells=max(mr.band_cells, split_walk_band(top.reshape(ny, nx), mr.factor)) if mr.factor > 1 and n == nx * ny else mr.band_cells,
             refine_near_bodies=mr.refine_near_bodies,
         )
 
@@ -693,8 +801,14 @@ def scene_builder(spec: SceneSpec) -> ModelBuilder:
     call finalize()."""
     c = spec.cloth
     builder = ModelBuilder(seed=spec.scene.seed, gravity_m_s2=spec.gravity_m_s2)
+    from fraytool.scene.panel_shape import resolve
+
     builder.add_cloth(warp_yarns=c.warp_yarns, weft_yarns=c.weft_yarns, spacing_m=c.spacing_m,
                       thickness_m=c.thickness_m, mass_per_crossing_kg=c.mass_per_crossing_kg, origin_m=c.origin_m,
+                      outline_m=c.outline_m, mask=str(resolve(c.mask, spec.source_file)) if c.mask else "",
+                      mask_size_m=c.mask_size_m, grain_deg=c.grain_deg, edge=c.edge,
+                      tear_map=str(resolve(c.tear_map, spec.source_file)) if c.tear_map else "",
+                      tear_map_strain=c.tear_map_strain,
                       plane=c.plane, weave=c.weave, twill=c.twill, satin_shafts=c.satin_shafts,
                       table=[[int(v) for v in row] for row in c.weave_table] if c.weave == "table" else None,
                       **dataclasses.asdict(c.springs))
@@ -718,4 +832,6 @@ def scene_builder(spec: SceneSpec) -> ModelBuilder:
         builder.add_attachment(**dataclasses.asdict(att))
     for cut in spec.cuts:
         builder.add_cut(**dataclasses.asdict(cut))
+    for line in spec.weak_lines:
+        builder.add_weak_line(**dataclasses.asdict(line))
     return builder

@@ -33,7 +33,7 @@ def particle_diagnostic(model: Model, state: State, particle: int, limit: int = 
     """Where a particle sits and its springs, the most strained first (non-finite counts as most)."""
     n = model.crossing_count
     crossing = particle % n
-    i, j = crossing % model.warp_yarns, crossing // model.warp_yarns
+    i, j = int(model.crossing_grid_i[crossing]), int(model.crossing_grid_j[crossing])
     if particle >= n:
         layer = "warp mass of a yarn-level couple"
     elif state.crossing_yarn_level[crossing]:

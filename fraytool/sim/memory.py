@@ -26,11 +26,24 @@ TEARING_BYTES_PER_CROSSING = 1400
 
 def estimate_bytes(spec: SceneSpec) -> int:
     """Peak resident memory [bytes] a simulation of `spec` is expected to need."""
-    crossings = spec.cloth.warp_yarns * spec.cloth.weft_yarns
+    crossings = crossing_count(spec.cloth, spec.source_file)
     per = BYTES_PER_CROSSING
     if spec.cloth.tearing.enabled or spec.self_collision.enabled:
         per += TEARING_BYTES_PER_CROSSING
     return BASE_BYTES + crossings * per + mesh_bytes(spec)
+
+
+def crossing_count(cloth, scene_file: str = "") -> int:
+    """Crossings the cloth builds: warp_yarns x weft_yarns, or those inside a shaped panel (0 when its
+    shape has problems, which loading reports)."""
+    if not cloth.outline_m and not cloth.mask:
+        return cloth.warp_yarns * cloth.weft_yarns
+    from fraytool.scene.panel_shape import PanelShapeError, panel_shape
+
+    try:
+        return int(panel_shape(cloth, scene_file).present.sum())
+    except PanelShapeError:
+        return 0
 
 
 def mesh_bytes(spec: SceneSpec) -> int:

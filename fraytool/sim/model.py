@@ -50,6 +50,17 @@ class Model:
     """Structural weft springs at each crossing (to i-1, to i+1; -1 if none), shape (crossing_count, 2), int32."""
     crossing_warp_springs: np.ndarray
     """Structural warp springs at each crossing (to j-1, to j+1; -1 if none), shape (crossing_count, 2), int32."""
+    crossing_grid_i: np.ndarray
+    """Warp yarn (grid column) i of each crossing, shape (crossing_count,), int32. A rectangle holds every
+    place of the grid, c = j * warp_yarns + i; a shaped panel (docs/panels.md) only the places inside its
+    shape, in the same row-major order."""
+    crossing_grid_j: np.ndarray
+    """Weft yarn (grid row) j of each crossing, shape (crossing_count,), int32."""
+    crossing_plane_uv_m: np.ndarray
+    """Rest place of each crossing in the cloth's plane [m] from origin_m (u along the plane's first axis, v
+    its second), where outline_m, weak lines and scissors are given, shape (crossing_count, 2), float64."""
+    crossing_hemmed: np.ndarray
+    """Crossings on a hemmed border: never split into a mass couple, shape (crossing_count,), bool."""
 
     spring_kind: np.ndarray
     """Spring kind (STRUCT_WEFT ... SHEAR_TWIN), shape (spring_count,), int8."""
@@ -69,10 +80,15 @@ class Model:
     spring_precut: np.ndarray
     """Springs cut before the shot by a [[cuts]] line: dead from the first frame, never broken, shape
     (spring_count,), bool."""
+    spring_cut_time_s: np.ndarray
+    """When scissors ([[cuts]] path_m) cut each structural spring [s], inf for never; such a cut is not a
+    break and leaves clean ends, like a snip; shape (spring_count,), float64."""
     weft_structural_spring: np.ndarray
-    """Spring joining crossings (i, j) and (i+1, j): shape (weft_yarns, warp_yarns - 1), int32."""
+    """Spring joining crossings (i, j) and (i+1, j): shape (weft_yarns, warp_yarns - 1), int32; -1 where a
+    shaped panel has no such spring."""
     warp_structural_spring: np.ndarray
-    """Spring joining crossings (i, j) and (i, j+1): shape (warp_yarns, weft_yarns - 1), int32."""
+    """Spring joining crossings (i, j) and (i, j+1): shape (warp_yarns, weft_yarns - 1), int32; -1 where a
+    shaped panel has no such spring."""
 
     attachment_particle: np.ndarray
     """Particle slots held by a rigid body, shape (attachment_count,), int32."""
@@ -175,9 +191,23 @@ class Model:
         that are not yarn segments (bend, shear), shape (spring_count,), int32."""
         yarn = np.full(self.spring_count, -1, np.int32)
         weft, warp = self.weft_structural_spring, self.warp_structural_spring
-        yarn[weft.ravel()] = np.repeat(np.arange(weft.shape[0], dtype=np.int32), weft.shape[1])
-        yarn[warp.ravel()] = self.weft_yarns + np.repeat(np.arange(warp.shape[0], dtype=np.int32), warp.shape[1])
+        weft_yarn = np.repeat(np.arange(weft.shape[0], dtype=np.int32), weft.shape[1])
+        warp_yarn = self.weft_yarns + np.repeat(np.arange(warp.shape[0], dtype=np.int32), warp.shape[1])
+        yarn[weft.ravel()[weft.ravel() >= 0]] = weft_yarn[weft.ravel() >= 0]
+        yarn[warp.ravel()[warp.ravel() >= 0]] = warp_yarn[warp.ravel() >= 0]
         return yarn
+
+    def crossing_grid(self) -> np.ndarray:
+        """Crossing at each place of the grid, -1 where a shaped panel has none, shape (weft_yarns,
+        warp_yarns), int64."""
+        grid = np.full((self.weft_yarns, self.warp_yarns), -1, np.int64)
+        grid[self.crossing_grid_j, self.crossing_grid_i] = np.arange(self.crossing_count)
+        return grid
+
+    @property
+    def full_grid(self) -> bool:
+        """Every place of the grid holds a crossing (a rectangle): c = j * warp_yarns + i."""
+        return self.crossing_count == self.warp_yarns * self.weft_yarns
 
     def state(self) -> State:
         """State at rest: base-level crossings at their rest positions, bodies at their start poses."""

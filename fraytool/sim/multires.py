@@ -259,8 +259,8 @@ def _stiff_of(kind: np.ndarray, stiff: dict) -> np.ndarray:
 
 def initial_refined(model, layout: CoarseLayout) -> np.ndarray:
     """Cells refined from the first step: those holding a held crossing that its interpolation would not
-    keep on its body (`followed_by_interpolation`) or a spring cut by a [[cuts]] line (a cut cloth is
-    torn there), and a band of refine_band_cells around them; with refine_near_bodies, those with a
+    keep on its body (`followed_by_interpolation`) or a spring cut by a [[cuts]] line or scissors (a cut
+    cloth is torn there), and a band of refine_band_cells around them; with refine_near_bodies, those with a
     node within a moving body's reach at the start (as the Refinement stage tests every step after). A
     grid with no crossing between its nodes (cells of one spacing) is refined whole: it is already as
     coarse as it gets."""
@@ -270,7 +270,7 @@ def initial_refined(model, layout: CoarseLayout) -> np.ndarray:
     unfollowed = model.attachment_particle[~followed_by_interpolation(model, layout)]
     held = layout.crossing_cells[unfollowed].ravel()
     refined[held[held >= 0]] = True
-    cut = layout.spring_cells[model.spring_precut].ravel()
+    cut = layout.spring_cells[model.spring_precut | np.isfinite(model.spring_cut_time_s)].ravel()  # and scissors
     refined[cut[cut >= 0]] = True
     refined = dilate(refined, layout.cells_x, layout.cells_y, int(model.refine_band_cells))
     for k, reach in zip(*moving_body_reach(model, layout)):

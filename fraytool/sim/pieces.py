@@ -62,7 +62,13 @@ def dilate_on_grid(model: Model, marked: np.ndarray, spacings: int = NEAR_SPACIN
     """Crossings within `spacings` grid steps (in i and in j) of a `marked` crossing, shape (crossing_count,)."""
     from fraytool.sim.multires import dilate  # (cells or crossings: a grid all the same)
 
-    return dilate(marked, model.warp_yarns, model.weft_yarns, spacings)
+    if model.full_grid:
+        return dilate(marked, model.warp_yarns, model.weft_yarns, spacings)
+    # a shaped panel: dilate over its whole grid, read back at its crossings' places
+    places = model.crossing_grid_j.astype(np.int64) * model.warp_yarns + model.crossing_grid_i
+    on_grid = np.zeros(model.warp_yarns * model.weft_yarns, bool)
+    on_grid[places[marked]] = True
+    return dilate(on_grid, model.warp_yarns, model.weft_yarns, spacings)[places]
 
 
 def crossings_near_grips(model: Model, spacings: int = NEAR_SPACINGS) -> np.ndarray:
@@ -108,3 +114,17 @@ def woven_strain_away(model: Model, state: State, near_grips: np.ndarray, self_c
                                       state.spring_particle_a, state.spring_particle_b, state.spring_rest_length_m,
                                       state.particle_position_m)
     return float(strain), int(spring)
+
+
+def tear_distance_to_weak_lines(model: Model, state: State, weak_lines) -> np.ndarray:
+    """Distance [m] from the middle of every broken yarn spring (at rest, in the cloth's plane) to the
+    nearest of `weak_lines` (WeakLineSpec, docs/panels.md "Tear control"), shape (broken springs,)."""
+    from fraytool.scene.panel_shape import distance_to_polyline
+
+    broken = np.flatnonzero(state.spring_broken)
+    uv = model.crossing_plane_uv_m
+    mid = 0.5 * (uv[model.spring_crossing_a[broken]] + uv[model.spring_crossing_b[broken]])
+    best = np.full(broken.size, np.inf)
+    for line in weak_lines:
+        best = np.minimum(best, distance_to_polyline(mid, np.asarray(line.points_m, float)))
+    return best

@@ -197,11 +197,11 @@ class Simulation:
             return None
         s = shot.max_woven_strain_away_spring
         ca, cb = int(m.spring_crossing_a[s]), int(m.spring_crossing_b[s])
-        w = m.warp_yarns
-        yarn = f"weft yarn {ca // w}" if int(m.spring_kind[s]) == STRUCT_WEFT else f"warp yarn {ca % w}"
+        gi, gj = m.crossing_grid_i, m.crossing_grid_j
+        yarn = f"weft yarn {gj[ca]}" if int(m.spring_kind[s]) == STRUCT_WEFT else f"warp yarn {gi[ca]}"
         return (f"strain limiting did not hold where the cloth is woven, away from grips and bodies: strain "
                 f"{shot.max_woven_strain_away:.4f} (limit {m.strain_limit:g} + {tolerance:g}) at frame "
-                f"{shot.max_woven_strain_away_frame} on spring {s} ({yarn}, crossings ({ca % w},{ca // w})-"
-                f"({cb % w},{cb // w})); strain-limiting cap hits: "
+                f"{shot.max_woven_strain_away_frame} on spring {s} ({yarn}, crossings ({gi[ca]},{gj[ca]})-"
+                f"({gi[cb]},{gj[cb]})); strain-limiting cap hits: "
                 f"{shot.strain_cap_hits_before + self.solver.strain_cap_hits}: raise [cloth.strain] max_iterations "
                 f"or shorten the step")

@@ -40,6 +40,7 @@ def colour_groups(model: Model) -> tuple[np.ndarray, np.ndarray]:
     weft = model.weft_structural_spring
     warp = model.warp_structural_spring
     groups = [weft[:, 0::2], weft[:, 1::2], warp[:, 0::2], warp[:, 1::2]]
+    groups = [g[g >= 0] for g in groups]  # (-1: no spring at that place of a shaped panel)
     springs = np.concatenate([np.sort(g.ravel()) for g in groups]).astype(np.int32)
     starts = np.concatenate([[0], np.cumsum([g.size for g in groups])]).astype(np.int64)
     return springs, starts
@@ -55,6 +56,8 @@ def yarn_line_springs(model: Model) -> tuple[np.ndarray, np.ndarray, np.ndarray]
     starts = np.concatenate([np.arange(weft.shape[0]) * weft.shape[1],
                              weft.size + np.arange(warp.shape[0] + 1) * warp.shape[1]]).astype(np.int64)
     groups = np.array([0, weft.shape[0], weft.shape[0] + warp.shape[0]], np.int64)
+    if (springs < 0).any():  # a shaped panel: a yarn's runs between the gaps are lines of their own
+        return _working_runs(springs, starts, groups, springs >= 0)
     return springs, starts, groups
 
 

@@ -86,6 +86,10 @@ class YarnTearing:
         """Scratch: crossing_yarn_level before this step's transitions (which crossings just split)."""
         self.settle_reverts = 0
         """Settles undone because they would have carried a yarn segment through another."""
+        cut_time = model.spring_cut_time_s
+        self._scissored = np.flatnonzero(np.isfinite(cut_time)) if cut_time.size else np.zeros(0, np.int64)
+        """Structural springs that scissors cut during the shot ([[cuts]] path_m), with their times."""
+        self._scissor_time_s = cut_time[self._scissored] if cut_time.size else np.zeros(0)
 
     def restrict_scans(self, working: Optional[np.ndarray], made_at: int = -1) -> None:
         """Scan only the structural springs where `working` (a mask over spring slots, made at topology
@@ -140,8 +144,10 @@ class YarnTearing:
 
     # -- stage 7 -----------------------------------------------------------------------------
     def __call__(self, state: State, prev_position_m: np.ndarray, dt_s: float) -> None:
-        """Transitions (yarn-level model only), then cuts."""
+        """Scissors due by now, transitions (yarn-level model only), then cuts."""
         self._sync(state)
+        if self._scissored.size:
+            self._scissor(state, dt_s)
         particles, crossings, springs = state_groups(state)
         splits = 0
         if self.yarn_level:
@@ -162,6 +168,19 @@ class YarnTearing:
             state.bump_topology()
         self.splits_last = int(splits)
         self.cuts_last = int(cuts)
+
+    def _scissor(self, state: State, dt_s: float) -> None:
+        """Cut the springs the scissors have reached by the end of this step (their bend and shear
+        springs with them, as any cut); a scissor cut is not a break. Read from the state alone, so a
+        resumed run cuts the same springs at the same steps."""
+        due = self._scissored[(self._scissor_time_s <= state.time_s + dt_s) & state.spring_alive[self._scissored]]
+        if not due.size:
+            return
+        _, _, springs = state_groups(state)
+        for s in due:
+            cut_structural(int(s), self.model_in, springs)
+            state.spring_broken[s] = False
+        self._changed(state)
 
     # -- single operations (tests, tools) -------------------------------------------------------
     def split(self, state: State, crossings: Iterable[int], prev_position_m: Optional[np.ndarray] = None) -> int:

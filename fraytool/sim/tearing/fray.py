@@ -33,9 +33,8 @@ def _woven(k, crossing_yarn_level, couple_connected):
 def _free_length(start, step, along_weft, model_in, particles_in, crossings_in, springs_in):
     """Yarn length from cut-end crossing `start`, walking by `step` (+1/-1) along a weft
     (along_weft) or warp yarn, to the first woven crossing or the end of the piece."""
-    warp_yarns, weft_yarns = model_in.warp_yarns, model_in.weft_yarns
-    weft_structural_spring = model_in.weft_structural_spring
-    warp_structural_spring = model_in.warp_structural_spring
+    yarn_springs = model_in.crossing_weft_springs if along_weft else model_in.crossing_warp_springs
+    side = 1 if step > 0 else 0
     crossing_yarn_level, couple_connected = crossings_in.crossing_yarn_level, crossings_in.couple_connected
     spring_particle_a, spring_particle_b = springs_in.spring_particle_a, springs_in.spring_particle_b
     spring_alive = springs_in.spring_alive
@@ -43,20 +42,10 @@ def _free_length(start, step, along_weft, model_in, particles_in, crossings_in, 
     length = 0.0
     k = start
     while not _woven(k, crossing_yarn_level, couple_connected):
-        i = k % warp_yarns
-        j = k // warp_yarns
-        if along_weft:
-            i2 = i + step
-            if i2 < 0 or i2 >= warp_yarns:
-                break  # cloth border: the piece ends
-            s = weft_structural_spring[j, min(i, i2)]
-            k2 = k + step
-        else:
-            j2 = j + step
-            if j2 < 0 or j2 >= weft_yarns:
-                break
-            s = warp_structural_spring[i, min(j, j2)]
-            k2 = k + step * warp_yarns
+        s = yarn_springs[k, side]
+        if s < 0:
+            break  # cloth border (a shaped panel's too): the piece ends
+        k2 = model_in.spring_crossing_b[s] if side == 1 else model_in.spring_crossing_a[s]
         if not spring_alive[s]:
             break  # another cut: the piece ends
         a = spring_particle_a[s]

@@ -32,7 +32,7 @@ TearModel = namedtuple("TearModel", [
     "warp_yarns", "weft_yarns", "yarn_count", "thickness_m", "disconnect_distance_m", "transition_strain",
     "propagation_inclusive", "ineffective_length",
     # crossings (Model)
-    "crossing_weft_on_top", "crossing_weft_springs", "crossing_warp_springs",
+    "crossing_weft_on_top", "crossing_weft_springs", "crossing_warp_springs", "crossing_grid",
     # springs (Model)
     "spring_kind", "spring_crossing_a", "spring_crossing_b", "spring_twin",
     "spring_break_strain", "weft_structural_spring", "warp_structural_spring",
@@ -68,7 +68,7 @@ def tear_model(model: Model, topology: TearTopology) -> TearModel:
         transition_strain=m.transition_strain, propagation_inclusive=m.propagation_inclusive,
         ineffective_length=m.ineffective_length,
         crossing_weft_on_top=m.crossing_weft_on_top, crossing_weft_springs=m.crossing_weft_springs,
-        crossing_warp_springs=m.crossing_warp_springs,
+        crossing_warp_springs=m.crossing_warp_springs, crossing_grid=t.crossing_grid,
         spring_kind=m.spring_kind, spring_crossing_a=m.spring_crossing_a, spring_crossing_b=m.spring_crossing_b,
         spring_twin=m.spring_twin,
         spring_break_strain=m.spring_break_strain, weft_structural_spring=m.weft_structural_spring,

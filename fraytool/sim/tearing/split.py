@@ -72,41 +72,45 @@ def _centre_difference(k1, k0, crossing_count, particle_position_m, crossing_yar
 
 
 @nb.njit(cache=True, fastmath=False)
-def _raw_normal(c, warp_yarns, weft_yarns, particle_position_m, crossing_yarn_level):
-    """Un-normalised du x dv at crossing c (one-sided differences at the border, as in grid.py)."""
-    n = warp_yarns * weft_yarns
-    i = c % warp_yarns
-    j = c // warp_yarns
-    if i == 0:
-        u0, u1 = c, c + 1
-    elif i == warp_yarns - 1:
-        u0, u1 = c - 1, c
-    else:
-        u0, u1 = c - 1, c + 1
-    if j == 0:
-        v0, v1 = c, c + warp_yarns
-    elif j == weft_yarns - 1:
-        v0, v1 = c - warp_yarns, c
-    else:
-        v0, v1 = c - warp_yarns, c + warp_yarns
+def _yarn_neighbour(c, springs, side, spring_crossing_a, spring_crossing_b):
+    """The crossing next to c along a yarn (side 0: towards lower index, 1: higher) through its
+    structural spring slot `springs[c, side]`; c itself where there is none (the border)."""
+    s = springs[c, side]
+    if s < 0:
+        return c
+    return spring_crossing_a[s] if side == 0 else spring_crossing_b[s]
+
+
+@nb.njit(cache=True, fastmath=False)
+def _raw_normal(c, model_in, particle_position_m, crossing_yarn_level):
+    """Un-normalised du x dv at crossing c (one-sided differences at the border, as in grid.py); the
+    neighbours are the crossings joined to c by its structural spring slots, so a shaped panel's border
+    is a border too."""
+    n = model_in.crossing_weft_on_top.shape[0]
+    cws, cvs = model_in.crossing_weft_springs, model_in.crossing_warp_springs
+    ca, cb = model_in.spring_crossing_a, model_in.spring_crossing_b
+    u0 = _yarn_neighbour(c, cws, 0, ca, cb)
+    u1 = _yarn_neighbour(c, cws, 1, ca, cb)
+    v0 = _yarn_neighbour(c, cvs, 0, ca, cb)
+    v1 = _yarn_neighbour(c, cvs, 1, ca, cb)
     dux, duy, duz = _centre_difference(u1, u0, n, particle_position_m, crossing_yarn_level)
     dvx, dvy, dvz = _centre_difference(v1, v0, n, particle_position_m, crossing_yarn_level)
     return duy * dvz - duz * dvy, duz * dvx - dux * dvz, dux * dvy - duy * dvx
 
 
 @nb.njit(cache=True, fastmath=False)
-def crossing_normal_at(c, warp_yarns, weft_yarns, particle_position_m, crossing_yarn_level):
+def crossing_normal_at(c, model_in, particle_position_m, crossing_yarn_level):
     """Unit cloth normal n_c at crossing c: `fraytool.grid.crossing_normals` over crossing centres,
     for one crossing. A degenerate crossing (neighbours collinear) gets the mean normal of the cloth
     (or +z), the same fallback as grid.py."""
-    nx, ny, nz = _raw_normal(c, warp_yarns, weft_yarns, particle_position_m, crossing_yarn_level)
+    nx, ny, nz = _raw_normal(c, model_in, particle_position_m, crossing_yarn_level)
     length = math.sqrt(nx * nx + ny * ny + nz * nz)
     if length > 1e-300:
         return nx / length, ny / length, nz / length
     # Rare: average the unit normals of every non-degenerate crossing.
     mx, my, mz = 0.0, 0.0, 0.0
-    for k in range(warp_yarns * weft_yarns):
-        ax, ay, az = _raw_normal(k, warp_yarns, weft_yarns, particle_position_m, crossing_yarn_level)
+    for k in range(model_in.crossing_weft_on_top.shape[0]):
+        ax, ay, az = _raw_normal(k, model_in, particle_position_m, crossing_yarn_level)
         la = math.sqrt(ax * ax + ay * ay + az * az)
         if la > 1e-300:
             mx += ax / la
@@ -141,7 +145,6 @@ def split_crossing(c, model_in, particles_inout, crossings_inout, springs_inout,
 
     Writes the couple's two particles (and their previous positions), the crossing's flags, and the
     ends, stiffnesses and alive flags (a shear twin is born) of the springs at c."""
-    warp_yarns, weft_yarns = model_in.warp_yarns, model_in.weft_yarns
     thickness_m = model_in.thickness_m
     crossing_weft_on_top, crossing_attached = model_in.crossing_weft_on_top, model_in.crossing_attached
     spring_kind, spring_twin = model_in.spring_kind, model_in.spring_twin
@@ -160,7 +163,7 @@ def split_crossing(c, model_in, particles_inout, crossings_inout, springs_inout,
         return False  # already a couple
     if crossing_attached[c]:
         return False  # held crossings stay base level (an attachment holds one slot)
-    n = warp_yarns * weft_yarns
+    n = crossing_weft_on_top.shape[0]
     w = n + c
     spring_rest_length_m = springs_inout.spring_rest_length_m
     first, last = crossing_spring_start[c], crossing_spring_start[c + 1]
@@ -172,7 +175,7 @@ def split_crossing(c, model_in, particles_inout, crossings_inout, springs_inout,
         if spring_kind[s] == SHEAR and (spring_alive[spring_twin[s]] or spring_broken[spring_twin[s]]):
             twin_before[k - first] = _spring_length(spring_twin[s], spring_particle_a, spring_particle_b,
                                                     particle_position_m)
-    nx, ny, nz = crossing_normal_at(c, warp_yarns, weft_yarns, particle_position_m, crossing_yarn_level)
+    nx, ny, nz = crossing_normal_at(c, model_in, particle_position_m, crossing_yarn_level)
     half_t = 0.5 * thickness_m if crossing_weft_on_top[c] else -0.5 * thickness_m
     ox, oy, oz = half_t * nx, half_t * ny, half_t * nz
     x0, x1, x2 = particle_position_m[c, 0], particle_position_m[c, 1], particle_position_m[c, 2]
@@ -280,31 +283,21 @@ def _walk_and_split(start, step, s_dir, model_in, particles_inout, crossings_ino
     split each next crossing, up to and including the first one whose weave flag differs from the
     previous one (model_in.propagation_inclusive) or up to just before it (exclusive reading); returns
     the number of crossings split."""
-    warp_yarns, weft_yarns = model_in.warp_yarns, model_in.weft_yarns
     inclusive = model_in.propagation_inclusive
     crossing_weft_on_top, crossing_attached = model_in.crossing_weft_on_top, model_in.crossing_attached
-    weft_structural_spring = model_in.weft_structural_spring
-    warp_structural_spring = model_in.warp_structural_spring
+    yarn_springs = model_in.crossing_weft_springs if s_dir == 0 else model_in.crossing_warp_springs
+    spring_crossing_a, spring_crossing_b = model_in.spring_crossing_a, model_in.spring_crossing_b
+    side = 1 if step > 0 else 0
     spring_alive = springs_inout.spring_alive
     if crossing_attached[start]:
         return 0  # a held crossing is a wall
     count = 0
     k = start
     while True:
-        i = k % warp_yarns
-        j = k // warp_yarns
-        if s_dir == 0:
-            i2 = i + step
-            if i2 < 0 or i2 >= warp_yarns:
-                break  # cloth border
-            spring = weft_structural_spring[j, min(i, i2)]
-            k2 = k + step
-        else:
-            j2 = j + step
-            if j2 < 0 or j2 >= weft_yarns:
-                break
-            spring = warp_structural_spring[i, min(j, j2)]
-            k2 = k + step * warp_yarns
+        spring = yarn_springs[k, side]
+        if spring < 0:
+            break  # cloth border (a shaped panel's too)
+        k2 = spring_crossing_b[spring] if side == 1 else spring_crossing_a[spring]
         if not spring_alive[spring]:
             break  # the yarn is cut here
         flips = crossing_weft_on_top[k2] != crossing_weft_on_top[k]

@@ -26,7 +26,11 @@ class TearTopology:
     """Springs (every kind but SHEAR_TWIN; a twin follows its shear spring) with an end at the
     crossing, grouped by crossing, shape (nnz,), int32."""
     crossing_attached: np.ndarray
-    """True where the crossing's base mass is held by a rigid body, shape (crossing_count,), bool."""
+    """True where the crossing's base mass is held by a rigid body or lies on a hemmed border (it never
+    splits, and anchors its yarns), shape (crossing_count,), bool."""
+    crossing_grid: np.ndarray
+    """Crossing at each place of the grid, -1 where a shaped panel has none (Model.crossing_grid), shape
+    (weft_yarns, warp_yarns), int64."""
     structural_springs: np.ndarray
     """Slots of all structural springs (weft and warp), ascending, shape (K,), int32."""
     structural_yarn: np.ndarray
@@ -59,12 +63,11 @@ def spanned_structural_springs(model: Model) -> tuple[np.ndarray, np.ndarray]:
     topology_problems makes them again."""
     S = model.spring_count
     kind = model.spring_kind
-    W = model.warp_yarns
     ca, cb = model.spring_crossing_a, model.spring_crossing_b
     weft = model.weft_structural_spring
     warp = model.warp_structural_spring
-    ia, ja = ca % W, ca // W
-    ib, jb = cb % W, cb // W
+    ia, ja = model.crossing_grid_i[ca], model.crossing_grid_j[ca]
+    ib, jb = model.crossing_grid_i[cb], model.crossing_grid_j[cb]
 
     # Bend springs: (i, j)-(i+2, j) spans weft[j, i], weft[j, i+1]; (i, j)-(i, j+2) spans warp[i, j], warp[i, j+1].
     bend_span = np.full((S, 2), -1, np.int32)
@@ -106,6 +109,7 @@ def build_tear_topology(model: Model) -> TearTopology:
     attached = np.zeros(n, bool)
     held = model.attachment_particle[model.attachment_particle < n]
     attached[held] = True
+    attached |= model.crossing_hemmed
 
     bend_span, cell_border = spanned_structural_springs(model)
     bends = np.nonzero((kind == BEND_WEFT) | (kind == BEND_WARP))[0]
@@ -120,6 +124,7 @@ def build_tear_topology(model: Model) -> TearTopology:
         crossing_spring_start=c_start,
         crossing_spring_list=c_list,
         crossing_attached=attached,
+        crossing_grid=model.crossing_grid(),
         structural_springs=structural,
         structural_yarn=model.spring_yarn()[structural],
         structural_bend_start=b_start,

@@ -34,19 +34,21 @@ def _yarn_fragments(springs, crossings, crossing_attached, spring_alive, left_ou
     n = springs.shape[0]
     a = 0
     for k in range(n):
-        if crossing_attached[crossings[k]]:
+        c = crossings[k]
+        if c >= 0 and crossing_attached[c]:
             a = -ANCHORED
         s = springs[k]
-        if not spring_alive[s]:
+        if s < 0 or not spring_alive[s]:  # a cut, or a shaped panel's border (no spring there)
             a = k + 1
             continue
         left_out[s] = k - a + 1
     b = n  # crossing index of the piece's right end
     for k in range(n - 1, -1, -1):
-        if crossing_attached[crossings[k + 1]]:
+        c = crossings[k + 1]
+        if c >= 0 and crossing_attached[c]:
             b = ANCHORED
         s = springs[k]
-        if not spring_alive[s]:
+        if s < 0 or not spring_alive[s]:
             b = k
             continue
         right_out[s] = b - k
@@ -59,18 +61,25 @@ def yarn_fragments(model_in, springs_in, left_out, right_out):
     `_yarn_fragments` on every yarn."""
     warp_yarns, weft_yarns = model_in.warp_yarns, model_in.weft_yarns
     weft_structural_spring, warp_structural_spring = model_in.weft_structural_spring, model_in.warp_structural_spring
+    crossing_grid = model_in.crossing_grid
     crossing_attached = model_in.crossing_attached
     spring_alive = springs_in.spring_alive
     weft_crossings = np.empty(warp_yarns, np.int64)
     for j in range(weft_yarns):
         for i in range(warp_yarns):
-            weft_crossings[i] = j * warp_yarns + i
+            weft_crossings[i] = crossing_grid[j, i]
         _yarn_fragments(weft_structural_spring[j], weft_crossings, crossing_attached, spring_alive, left_out, right_out)
     warp_crossings = np.empty(weft_yarns, np.int64)
     for i in range(warp_yarns):
         for j in range(weft_yarns):
-            warp_crossings[j] = j * warp_yarns + i
+            warp_crossings[j] = crossing_grid[j, i]
         _yarn_fragments(warp_structural_spring[i], warp_crossings, crossing_attached, spring_alive, left_out, right_out)
+
+
+@nb.njit(cache=True, fastmath=False)
+def _alive(s, spring_alive):
+    """Spring slot s (-1: none, at a shaped panel's border) is there and alive."""
+    return s >= 0 and spring_alive[s]
 
 
 @nb.njit(cache=True, fastmath=False)
@@ -80,15 +89,16 @@ def _mark_free_runs(crossings, springs, crossing_yarn_level, spring_alive, free_
     n = crossings.shape[0]
     start = 0
     while start < n:
-        if not crossing_yarn_level[crossings[start]]:
+        if crossings[start] < 0 or not crossing_yarn_level[crossings[start]]:
             start += 1
             continue
         end = start  # the run: yarn-level crossings joined by live springs, crossings[start..end]
-        while end + 1 < n and spring_alive[springs[end]] and crossing_yarn_level[crossings[end + 1]]:
+        while end + 1 < n and _alive(springs[end], spring_alive) and crossing_yarn_level[crossings[end + 1]]:
             end += 1
-        # a side is free at the border or across a cut spring; anchored at a base-level crossing
-        free = (start == 0 or not spring_alive[springs[start - 1]]
-                or end == n - 1 or not spring_alive[springs[end]])
+        # a side is free at the border (or a shaped panel's) or across a cut spring; anchored at a
+        # base-level crossing
+        free = (start == 0 or not _alive(springs[start - 1], spring_alive)
+                or end == n - 1 or not _alive(springs[end], spring_alive))
         if free:
             for k in range(start, end + 1):
                 free_out[crossings[k]] = True
@@ -102,6 +112,7 @@ def free_yarn_runs(model_in, crossings_in, springs_in, weft_free_out, warp_free_
     border) before a base-level crossing anchors it (module docstring)."""
     warp_yarns, weft_yarns = model_in.warp_yarns, model_in.weft_yarns
     weft_structural_spring, warp_structural_spring = model_in.weft_structural_spring, model_in.warp_structural_spring
+    crossing_grid = model_in.crossing_grid
     crossing_yarn_level = crossings_in.crossing_yarn_level
     spring_alive = springs_in.spring_alive
     weft_free_out[:] = False
@@ -109,10 +120,10 @@ def free_yarn_runs(model_in, crossings_in, springs_in, weft_free_out, warp_free_
     weft_crossings = np.empty(warp_yarns, np.int64)
     for j in range(weft_yarns):
         for i in range(warp_yarns):
-            weft_crossings[i] = j * warp_yarns + i
+            weft_crossings[i] = crossing_grid[j, i]
         _mark_free_runs(weft_crossings, weft_structural_spring[j], crossing_yarn_level, spring_alive, weft_free_out)
     warp_crossings = np.empty(weft_yarns, np.int64)
     for i in range(warp_yarns):
         for j in range(weft_yarns):
-            warp_crossings[j] = j * warp_yarns + i
+            warp_crossings[j] = crossing_grid[j, i]
         _mark_free_runs(warp_crossings, warp_structural_spring[i], crossing_yarn_level, spring_alive, warp_free_out)
