@@ -13,7 +13,9 @@ BEND_WEFT = 2
 BEND_WARP = 3
 SHEAR = 4
 SHEAR_TWIN = 5
-SPRING_KIND_NAMES = ("structural_weft", "structural_warp", "bend_weft", "bend_warp", "shear", "shear_twin")
+STITCH = 6
+"""A seam's stitch ([[seams]]): a thread joining two panel edges, acting only in tension."""
+SPRING_KIND_NAMES = ("structural_weft", "structural_warp", "bend_weft", "bend_warp", "shear", "shear_twin", "stitch")
 
 # Rigid body shapes and motions (body_shape, body_motion values).
 SHAPE_SPHERE, SHAPE_BOX, SHAPE_PLANE, SHAPE_MESH = 0, 1, 2, 3

@@ -10,14 +10,13 @@ uniform mat4 u_view_proj;
 uniform vec3 u_eye;              // camera position [m]
 uniform vec3 u_light_dir;        // unit vector towards the key light
 uniform float u_shininess;
-uniform vec3 u_weft_color;       // linear RGB
-uniform vec3 u_warp_color;       // linear RGB
+uniform vec3 u_yarn_colors[32];  // linear RGB by colour index (fraytool.render.color.yarn_palette)
 
 in vec3 in_position;
 in vec3 in_normal;
 in vec3 in_tangent;
 in float in_alpha;
-in float in_warp;
+in float in_warp;                // colour index: 2 panel + (0 weft, 1 warp); 2 P a seam's thread
 
 out vec3 v_normal;
 out vec2 v_kajiya;               // (diffuse sin(T, L), specular cos(thetaL - thetaE)^p)
@@ -41,7 +40,7 @@ void main() {
     float cos_cone = max(tl * te + sin_tl * sin_te, 0.0);
     v_kajiya = vec2(sin_tl, pow(cos_cone, u_shininess));
     v_normal = in_normal;
-    v_albedo = vec4(mix(u_weft_color, u_warp_color, in_warp), in_alpha);
+    v_albedo = vec4(u_yarn_colors[int(in_warp + 0.5)], in_alpha);
 #if defined(SHADOWS) || defined(RIBBON)
     v_position = in_position;
 #endif

@@ -289,7 +289,7 @@ BAD = {
     "thick cloth": (cloth(thickness_m=0.006), ["thickness_m = 0.006", "must be below spacing_m = 0.005"]),
     "short origin": (cloth(origin_m=(0.0, 0.1)), ["origin_m = [0.0, 0.1]", "3 numbers"]),
     "damping above 1": (cloth(damping=1.5), ["damping = 1.5", "<= 1"]),
-    "second cloth": (lambda b: (cloth()(b), cloth()(b)), ["add_cloth", "one cloth"]),
+    "second cloth": (lambda b: (cloth()(b), cloth()(b)), ["add_cloth", "add_panel adds more"]),
     "seed below 0": (lambda b: ModelBuilder(seed=-1), ["ModelBuilder: seed = -1", ">= 0"]),
     "zero strain limit": (lambda b: b.set_strain_limit(limit=0.0), ["set_strain_limit: limit = 0.0", "> 0"]),
     "damper on a hard limit": (lambda b: b.set_strain_limit(damping_ratio=1.0),

@@ -76,7 +76,8 @@ def render_stage_timings(spec: SceneSpec, out_dir: Optional[Path] = None, frames
         records = [store.load_frame(f) for f in range(frames)]
         ctx = create_context()
         try:
-            renderer = Renderer(ctx, (W, H), samples, spec.render, spec.camera, topology)
+            renderer = Renderer(ctx, (W, H), samples, spec.render, spec.camera, topology,
+                                panels_spec=spec.all_panels)
             builder = GeometryBuilder(topology, YarnStyle.from_spec(spec.render, topology), renderer.camera, H)
             renderer.render(builder.build(records[0]))  # warm-up: numba, shaders, buffers
             geometry_s, draw_s, read_s, images = [], [], [], []

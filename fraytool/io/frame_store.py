@@ -17,6 +17,7 @@ simulation is deterministic, so frames that verify are never rewritten with othe
 from __future__ import annotations
 
 import hashlib
+import os
 import json
 import re
 from dataclasses import dataclass, field
@@ -33,6 +34,8 @@ from fraytool.io.frame_record import FrameRecord, atomic_save_npz, atomic_write_
 MANIFEST = "manifest.json"
 TOPOLOGY = "topology.npz"
 CHECKPOINT = "checkpoint.npz"
+PREVIOUS_CHECKPOINT = "checkpoint.previous.npz"
+"""The checkpoint before the one being written, put back if the write fails (FrameStore.write_frame)."""
 MAX_FRAMES = 1_000_000
 """Most frames a store counts (as the largest [time] frames)."""
 MAX_PROBLEMS = 50
@@ -364,11 +367,26 @@ class FrameStore:
         digest = self._scene_hash or self.scene_hash()
         if write_record:
             save_verified(self.frame_path(record.frame), record.arrays(), digest)
-        if checkpoint is not None:
-            save_verified(self.dir / CHECKPOINT, {**checkpoint, "frame": np.asarray(record.frame)}, digest)
         m = dict(self._manifest or self.manifest() or {})
         m["frames_complete"] = record.frame + 1
-        self._write_manifest(m)
+        if checkpoint is None:
+            self._write_manifest(m)
+            return
+        ckpt, prev = self.dir / CHECKPOINT, self.dir / PREVIOUS_CHECKPOINT
+        had = ckpt.exists()
+        if had:
+            os.replace(ckpt, prev)  # kept until the manifest counts the new checkpoint's frame
+        try:
+            save_verified(ckpt, {**checkpoint, "frame": np.asarray(record.frame)}, digest)
+            self._write_manifest(m)
+        except BaseException:
+            # a failed write (a full disk) leaves the checkpoint the manifest counts, not one ahead of it
+            if had:
+                os.replace(prev, ckpt)
+            else:
+                ckpt.unlink(missing_ok=True)
+            raise
+        prev.unlink(missing_ok=True)
 
     def update_manifest(self, **fields) -> None:
         m = self.manifest() or {}

@@ -66,3 +66,31 @@ def over_background(rgba: np.ndarray, background_srgb) -> np.ndarray:
     a = f[..., 3:4]
     lin = srgb_to_linear(f[..., :3]) * a + srgb_to_linear(np.asarray(background_srgb, np.float32)) * (1.0 - a)
     return np.clip(np.rint(linear_to_srgb(lin) * scale), 0, scale).astype(rgba.dtype)
+
+
+MAX_YARN_COLORS = 32
+"""Entries of the yarn shader's palette (shaders/yarn.vert u_yarn_colors)."""
+THREAD_SRGB = (0.13, 0.13, 0.15)
+"""sRGB colour of a seam's stitches (a dark thread)."""
+
+
+def yarn_palette(render, panels=()) -> np.ndarray:
+    """The yarn colours by colour index, sRGB, shape (MAX_YARN_COLORS, 3): index 2 p is panel p's weft and
+    2 p + 1 its warp (a panel's own warp_color / weft_color, else [render]'s), index 2 P (P panels) the
+    seams' thread; panels past the palette's room repeat the last panels' colours. With one panel and no
+    colours of its own: [render] weft_color, warp_color, as before panels."""
+    out = np.empty((MAX_YARN_COLORS, 3))
+    out[:] = THREAD_SRGB
+    panels = list(panels) or [None]
+    for p, panel in enumerate(panels[: (MAX_YARN_COLORS - 1) // 2]):
+        weft = getattr(panel, "weft_color", None) or render.weft_color
+        warp = getattr(panel, "warp_color", None) or render.warp_color
+        out[2 * p], out[2 * p + 1] = weft, warp
+    return out
+
+
+def color_index(kind: np.ndarray, panel: np.ndarray) -> np.ndarray:
+    """Palette index of a yarn piece from its kind (0 weft, 1 warp) and panel: 2 panel + kind, kept inside
+    the palette (yarn_palette)."""
+    limit = (MAX_YARN_COLORS - 1) // 2 - 1
+    return (2 * np.minimum(panel, limit) + kind).astype(np.float32)

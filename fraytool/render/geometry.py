@@ -167,7 +167,7 @@ class GeometryBuilder:
         tangents = polyline_tangents(curves.points, curves.offsets)
         alpha = fade_alpha(curves.points, curves.offsets, pieces.broken_start, pieces.broken_end,
                            st.fade_length_m)
-        warp = np.repeat(pieces.kind.astype(np.float32), np.diff(curves.offsets))
+        warp = np.repeat(pieces.color_index, np.diff(curves.offsets))  # palette index (fraytool.render.color)
         tri = self._triangles(curves.offsets, detail.sides)
         tube = sweep_tubes(curves.points, tangents, curves.offsets, st.radius_m, detail.sides, alpha, warp,
                            reference_normal=pieces.normal, triangles=tri)
@@ -186,7 +186,7 @@ class GeometryBuilder:
         tangents = polyline_tangents(curves.points, curves.offsets)
         alpha = fade_alpha(curves.points, curves.offsets, pieces.broken_start, pieces.broken_end,
                            st.fade_length_m)
-        warp = np.repeat(pieces.kind.astype(np.float32), np.diff(curves.offsets))
+        warp = np.repeat(pieces.color_index, np.diff(curves.offsets))  # palette index (fraytool.render.color)
         eye = self.camera.eye if self.camera is not None else np.zeros(3)
         vertices = ribbon_vertices(curves.points, tangents, st.radius_m, alpha, warp, eye)
         shadow, shadow_tri = (shadow_casters(curves.points, tangents, curves.offsets, alpha, st.radius_m,

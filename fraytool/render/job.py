@@ -125,6 +125,9 @@ class RenderJob:
             "revision": RENDER_REVISION,
             "shaders": shaders.hexdigest(),
         }
+        colors = [(p.warp_color, p.weft_color) for p in self.spec.all_panels]
+        if len(colors) > 1 or colors[0] != (None, None):  # panels' own colours (none: the digest as before)
+            settings["panel_colors"] = colors
         if self.target != "srgb8":  # only when not the default, so the default digest stays as it was
             settings.update(target=self.target, png_bits=self.png_bits)
         blob = json.dumps(settings, sort_keys=True, default=list).encode()

@@ -56,6 +56,7 @@ from fraytool.render.color import (
     linear_to_srgb,
     srgb_to_linear,
     straight_alpha_srgb,
+    yarn_palette,
 )
 from fraytool.errors import RunError
 from fraytool.render.context import check_gl_error
@@ -161,9 +162,12 @@ class Renderer:
 
     def __init__(self, ctx: moderngl.Context, size: tuple[int, int], samples: int, render: RenderSpec,
                  camera: CameraSpec, topology: Mapping[str, np.ndarray], wireframe: str = "off",
-                 alpha: bool = False, target: str = "srgb8", depth: bool = False):
+                 alpha: bool = False, target: str = "srgb8", depth: bool = False, panels_spec=()):
         """`alpha`: a transparent background; `read()` then gives (H, W, 4) straight alpha (docs/rendering.md).
-        `target`: "srgb8" or "float" (`read_linear()`); `depth`: keep the depth for `read_depth_m()`."""
+        `target`: "srgb8" or "float" (`read_linear()`); `depth`: keep the depth for `read_depth_m()`.
+        `panels_spec`: the scene's cloth panels (SceneSpec.all_panels), for their own yarn colours."""
+        self.palette = yarn_palette(render, panels_spec)
+        """sRGB yarn colours by colour index (fraytool.render.color.yarn_palette)."""
         if wireframe not in WIREFRAME_MODES:
             raise ValueError(f"wireframe must be one of {WIREFRAME_MODES}, got {wireframe!r}")
         if target not in TARGETS:
@@ -299,8 +303,7 @@ class Renderer:
         y["u_specular"].value = r.specular
         y["u_shininess"].value = r.shininess
         y["u_kajiya_weight"].value = KAJIYA_WEIGHT
-        y["u_weft_color"].value = tuple(srgb_to_linear(r.weft_color))
-        y["u_warp_color"].value = tuple(srgb_to_linear(r.warp_color))
+        y["u_yarn_colors"].write(srgb_to_linear(self.palette).astype("f4").tobytes())
         self._body_prog["u_color"].value = tuple(srgb_to_linear(r.body_color))
         self._background = tuple(srgb_to_linear(r.background))
         stored = linear_to_srgb(self._background) if self.target == "srgb8" else np.asarray(self._background)

@@ -153,7 +153,7 @@ def render_job(job: RenderJob, ctx: moderngl.Context, store: FrameStore, stream:
         files.append(_ExrFiles(job))
     W, H = job.size
     renderer = Renderer(ctx, job.size, job.samples, job.spec.render, job.spec.camera, topology, job.wireframe,
-                        alpha=job.alpha, target=job.target, depth=job.exr)
+                        alpha=job.alpha, target=job.target, depth=job.exr, panels_spec=job.spec.all_panels)
     digest = job.digest(renderer.samples)
     builder = GeometryBuilder(topology, YarnStyle.from_spec(job.spec.render, topology), renderer.camera, H)
     want_yarns = job.wireframe != "only"

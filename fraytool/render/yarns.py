@@ -16,12 +16,13 @@ Everything is vectorised over all yarns of the frame.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Mapping
 
 import numpy as np
 
 from fraytool.grid import base_yarn_points, crossing_normals, yarn_neighbours
+from fraytool.kinds import STITCH
 
 WEFT = 0
 WARP = 1
@@ -45,10 +46,18 @@ class YarnPieces:
     """True where the piece ends at a cut, shape (K,), bool."""
     normal: np.ndarray
     """Cloth normal at the piece's first crossing (orients the tube frames), shape (K, 3)."""
+    color: np.ndarray = None
+    """Palette index per piece (fraytool.render.color.yarn_palette: 2 panel + kind for yarns, 2 P for a
+    seam's stitch), shape (K,), float32; None: the kind (one panel)."""
 
     @property
     def count(self) -> int:
         return int(self.kind.shape[0])
+
+    @property
+    def color_index(self) -> np.ndarray:
+        """Palette index per piece (see `color`), float32."""
+        return self.kind.astype(np.float32) if self.color is None else self.color
 
 
 def _scalar(topology: Mapping[str, np.ndarray], key: str) -> float:
@@ -167,7 +176,7 @@ def yarn_pieces(topology: Mapping[str, np.ndarray], particle_position_m: np.ndar
         bend.append((ends % n != n - 1) & ~clean[ends])
         normals.append(normal[first])
     offsets = np.concatenate(offs + [[base]]).astype(np.int64)
-    return YarnPieces(
+    pieces = YarnPieces(
         points=np.concatenate(pts),
         offsets=offsets,
         kind=np.concatenate(kinds),
@@ -176,4 +185,38 @@ def yarn_pieces(topology: Mapping[str, np.ndarray], particle_position_m: np.ndar
         broken_start=np.concatenate(bstart),
         broken_end=np.concatenate(bend),
         normal=np.concatenate(normals),
+    )
+    if "crossing_panel" not in topology or int(np.asarray(topology["crossing_panel"]).max(initial=0)) == 0:
+        if not (np.asarray(topology["spring_kind"]) == STITCH).any():
+            return pieces  # one panel, no seams: colours by kind, as always
+    return _with_panels_and_stitches(pieces, topology, particle_position_m, alive, normal)
+
+
+def _with_panels_and_stitches(pieces: YarnPieces, topology: Mapping[str, np.ndarray], particle_position_m: np.ndarray,
+                              alive: np.ndarray, normal: np.ndarray) -> YarnPieces:
+    """Colour each piece by its panel, and add every live stitch of a seam as a piece of two points (its
+    two masses), in the thread's colour (fraytool.render.color)."""
+    from fraytool.render.color import color_index
+
+    panel = np.asarray(topology["crossing_panel"]) if "crossing_panel" in topology else \
+        np.zeros(int(_scalar(topology, "crossing_count")), np.int32)
+    color = color_index(pieces.kind, panel[pieces.first_crossing])
+    kind = np.asarray(topology["spring_kind"])
+    st = np.flatnonzero((kind == STITCH) & alive)
+    if not st.size:
+        return replace(pieces, color=color)
+    a, b = np.asarray(topology["spring_crossing_a"])[st], np.asarray(topology["spring_crossing_b"])[st]
+    x = np.asarray(particle_position_m, np.float64)
+    k = pieces.count
+    thread = color_index(np.zeros(1, np.int8), np.array([int(panel.max()) + 1]))[0]
+    return YarnPieces(
+        points=np.concatenate([pieces.points, np.stack([x[a], x[b]], axis=1).reshape(-1, 3)]),
+        offsets=np.concatenate([pieces.offsets, pieces.offsets[-1] + 2 * np.arange(1, st.size + 1)]),
+        kind=np.concatenate([pieces.kind, np.full(st.size, WEFT, np.int8)]),
+        yarn=np.concatenate([pieces.yarn, np.full(st.size, -1, np.int32)]),
+        first_crossing=np.concatenate([pieces.first_crossing, a.astype(np.int32)]),
+        broken_start=np.concatenate([pieces.broken_start, np.zeros(st.size, bool)]),
+        broken_end=np.concatenate([pieces.broken_end, np.zeros(st.size, bool)]),
+        normal=np.concatenate([pieces.normal, normal[a]]),
+        color=np.concatenate([color, np.full(st.size, thread, np.float32)]),
     )

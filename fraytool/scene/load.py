@@ -12,7 +12,7 @@ import hashlib
 import json
 import re
 import tomllib
-from dataclasses import asdict
+from dataclasses import asdict, replace
 from pathlib import Path
 from typing import Any, Optional, Sequence
 
@@ -36,6 +36,7 @@ from fraytool.scene.spec import (
     StrainSpec,
     MultiresSpec,
     TearingSpec,
+    SeamSpec,
     TimeSpec,
     WeakLineSpec,
 )
@@ -90,7 +91,8 @@ def _read_table(doc: dict, where: str, keys: dict[str, Key], problems: _Problems
     out: dict[str, Any] = {}
     for name, value in doc.items():
         if name not in keys:
-            if isinstance(value, dict) and f"{where}.{name}" in schema.TOP:
+            base = re.sub(r"^cloth\.\d+$", "cloth", where)  # panel k of [[cloth]] has [cloth]'s sub-tables
+            if isinstance(value, dict) and f"{base}.{name}" in schema.TOP:
                 continue  # a sub-table, read on its own
             tables = sorted(t.split(".")[-1] for t in schema.TOP if t.startswith(where + ".") and
                             t.count(".") == where.count(".") + 1)
@@ -158,6 +160,9 @@ def parse_scene(text: str, source: str = "<string>", overrides: Sequence[tuple[s
         apply_overrides(doc, overrides)
         source += describe(overrides)
     problems = _Problems(source)
+    more_panels: list = []
+    if isinstance(doc.get("cloth"), list) and doc["cloth"] and all(isinstance(v, dict) for v in doc["cloth"]):
+        doc["cloth"], more_panels = doc["cloth"][0], doc["cloth"][1:]  # [[cloth]]: several panels
 
     for name, value in doc.items():
         if name not in schema.TOP:
@@ -196,43 +201,127 @@ def parse_scene(text: str, source: str = "<string>", overrides: Sequence[tuple[s
                for i, c in enumerate(doc.get("cuts", []))]
     weak_raw = [(_read_table(w, f"weak_lines.{i}", schema.TOP["weak_lines"], problems), i)
                 for i, w in enumerate(doc.get("weak_lines", []))]
+    seam_raw = [(_read_table(w, f"seams.{i}", schema.TOP["seams"], problems), i)
+                for i, w in enumerate(doc.get("seams", []))]
+    panels_raw = []
+    for k, panel in enumerate(more_panels, 1):
+        raw = {"cloth": _read_table(panel, f"cloth.{k}", schema.TOP["cloth"], problems)}
+        for sub in ("springs", "strain", "tearing", "multires"):
+            node = panel.get(sub)
+            raw[f"cloth.{sub}"] = (_read_table(node, f"cloth.{k}.{sub}", schema.TOP[f"cloth.{sub}"], problems)
+                                   if isinstance(node, dict) else None)
+        panels_raw.append(raw)
     if problems.lines:
         raise SceneError(problems.lines)
 
-    spec = _assemble(values, bodies_raw, att_raw, cut_raw, source, problems, stem, scene_file, weak_raw)
+    spec = _assemble(values, bodies_raw, att_raw, cut_raw, source, problems, stem, scene_file, weak_raw,
+                     panels_raw, seam_raw)
     if problems.lines:
         raise SceneError(problems.lines)
     return spec
 
 
+def _panel(where: str, c: dict, springs: dict, strain: StrainSpec, tear: TearingSpec, multires: MultiresSpec,
+           problems: _Problems, scene_file: str) -> tuple[ClothSpec, Optional[tuple[int, int]]]:
+    """One [cloth] panel from its checked keys, with its shape's and tear map's problems; and its grid size
+    (warp_yarns, weft_yarns), None if its shape has problems."""
+    table, weave_problems = rules.weave_table(c["weave"], c["twill"], c["satin_shafts"], c["table"])
+    problems.extend(where, weave_problems)
+    cloth = ClothSpec(**{k: v for k, v in c.items() if k != "table"}, weave_table=table,
+                      springs=SpringSpec(**springs), strain=strain, tearing=tear, multires=multires)
+    shape_rules = rules.cloth_shape_problems(cloth.warp_yarns, cloth.weft_yarns, cloth.outline_m, cloth.mask,
+                                             cloth.mask_size_m, cloth.grain_deg)
+    problems.extend(where, shape_rules)
+    if not shape_rules:
+        problems.extend(where, panel_shape.shape_problems(cloth, scene_file))
+    grid = panel_shape.grid_size(cloth, scene_file) if not shape_rules else None
+    problems.extend(where, rules.tear_map_problems(cloth.tear_map, cloth.tear_map_strain))
+    if cloth.tear_map and grid is not None and not rules.tear_map_problems(cloth.tear_map, cloth.tear_map_strain):
+        problems.extend(where, panel_shape.tear_map_problems(cloth, scene_file))
+    return cloth, grid
+
+
+def seam_problems(seam: SeamSpec, a: ClothSpec, b: ClothSpec, scene_file: str = "") -> list[rules.Problem]:
+    """[[seams]]: segments that exist on their panels' outlines, of about the same length (within 25 %)."""
+    from fraytool.scene.panel_shape import PanelShapeError, panel_shape as shape_of
+
+    out: list[rules.Problem] = []
+    lengths = []
+    for side, panel, k in (("a", a, seam.segment_a), ("b", b, seam.segment_b)):
+        try:
+            outline = shape_of(panel, scene_file).outline_uv_m
+        except PanelShapeError:
+            return []  # the panel's own problem is reported
+        if k >= len(outline):
+            out.append((f"segment_{side}", k, f"panel {panel.name!r} has segments 0 to {len(outline) - 1} "
+                                              "(segment k runs from outline point k to k + 1)"))
+            continue
+        lengths.append(float(((outline[(k + 1) % len(outline)] - outline[k]) ** 2).sum() ** 0.5))
+    if len(lengths) == 2 and max(lengths) > 1.25 * min(lengths):
+        out.append(("segment_b", seam.segment_b, f"is {lengths[1]:.4g} m long and segment_a {lengths[0]:.4g} m: "
+                                                 "a seam joins edges within 25 % of each other's length"))
+    if lengths and seam.stitch_spacing_m > lengths[0]:
+        out.append(("stitch_spacing_m", seam.stitch_spacing_m, f"must be at most segment_a's length "
+                                                               f"{lengths[0]:.4g} m (one stitch at least)"))
+    if (seam.panel_a, seam.segment_a) == (seam.panel_b, seam.segment_b):
+        out.append(("segment_b", seam.segment_b, "sews a segment to itself: give two different edges"))
+    return out
+
+
 def _assemble(values: dict, bodies_raw: list, att_raw: list, cut_raw: list, source: str,
-              problems: _Problems, stem: str, scene_file: str = "", weak_raw: Sequence = ()) -> SceneSpec:
+              problems: _Problems, stem: str, scene_file: str = "", weak_raw: Sequence = (),
+              panels_raw: Sequence = (), seam_raw: Sequence = ()) -> SceneSpec:
     """Build the SceneSpec from checked tables, applying the rules that tie keys together."""
     s, t, c = values["scene"], values["time"], values["cloth"]
     name = s["name"] or stem
     problems.extend("scene", rules.scene_name_problems(name, from_file_name=not s["name"]))
     tear = TearingSpec(**values["cloth.tearing"])
     problems.extend("cloth.tearing", rules.tearing_problems(tear))
-    table, weave_problems = rules.weave_table(c["weave"], c["twill"], c["satin_shafts"], c["table"])
-    problems.extend("cloth", weave_problems)
     strain = StrainSpec(**values["cloth.strain"])
     problems.extend("cloth.strain", rules.strain_problems(strain))
     multires = MultiresSpec(**values["cloth.multires"])
     problems.extend("cloth.multires", rules.multires_problems(multires))
-    cloth = ClothSpec(**{k: v for k, v in c.items() if k != "table"}, weave_table=table,
-                      springs=SpringSpec(**values["cloth.springs"]), strain=strain, tearing=tear,
-                      multires=multires)
+    cloth, first_grid = _panel("cloth", c, values["cloth.springs"], strain, tear, multires, problems, scene_file)
     problems.extend("cloth", rules.cloth_problems(cloth.spacing_m, cloth.thickness_m))
-    shape_rules = rules.cloth_shape_problems(cloth.warp_yarns, cloth.weft_yarns, cloth.outline_m, cloth.mask,
-                                             cloth.mask_size_m, cloth.grain_deg)
-    problems.extend("cloth", shape_rules)
-    if not shape_rules:
-        problems.extend("cloth", panel_shape.shape_problems(cloth, scene_file))
-    grid = panel_shape.grid_size(cloth, scene_file) if not shape_rules else None
-    if cloth.multires.factor > 1 and (cloth.outline_m or cloth.mask):
+    if cloth.multires.factor > 1 and (cloth.outline_m or cloth.mask or panels_raw):
         problems.add("cloth.multires", "factor", cloth.multires.factor,
-                     "a shaped panel (outline_m or mask) is simulated at yarn resolution: factor must be 1")
-    warp_yarns, weft_yarns = grid or (max(cloth.warp_yarns, 2), max(cloth.weft_yarns, 2))
+                     "a shaped panel (outline_m or mask) or several [[cloth]] panels are simulated at yarn "
+                     "resolution: factor must be 1")
+    panels, grids = [], {(cloth.name or "cloth"): first_grid}
+    for k, raw in enumerate(panels_raw, 1):
+        where = f"cloth.{k}"
+        shared = {"strain": (raw["cloth.strain"], strain, StrainSpec), "tearing": (raw["cloth.tearing"], tear, TearingSpec),
+                  "multires": (raw["cloth.multires"], multires, MultiresSpec)}
+        own = {}
+        for sub, (given, first, kind) in shared.items():
+            own[sub] = first if given is None else kind(**given)
+            if own[sub] != first:
+                problems.add(f"{where}.{sub}", None, None, f"every panel shares the first panel's [cloth.{sub}] "
+                                                            "(one solver): leave it out or make it the same")
+        if raw["cloth.springs"] is None:
+            problems.add(f"{where}.springs", None, None, "missing required table")
+            continue
+        panel, grid = _panel(where, raw["cloth"], raw["cloth.springs"], strain, tear, multires, problems, scene_file)
+        panel = replace(panel, name=panel.name or f"cloth{k}")
+        for key in ("spacing_m", "thickness_m"):
+            if getattr(panel, key) != getattr(cloth, key):
+                problems.add(where, key, getattr(panel, key), f"every panel shares the first panel's {key} = "
+                                                             f"{getattr(cloth, key):g} (one yarn model)")
+        if panel.springs.damping != cloth.springs.damping:
+            problems.add(f"{where}.springs", "damping", panel.springs.damping,
+                         f"every panel shares the first panel's damping = {cloth.springs.damping:g}")
+        if panel.name in grids:
+            problems.add(where, "name", panel.name, "must be unique among the [[cloth]] panels")
+        grids[panel.name] = grid
+        panels.append(panel)
+    cloth = replace(cloth, name=cloth.name or "cloth")
+
+    def panel_grid(where: str, panel_name: str) -> tuple[int, int]:
+        """(warp_yarns, weft_yarns) of the panel a table names ("": the first)."""
+        if panel_name and panel_name not in grids:
+            problems.add(where, "panel", panel_name, "must name one of the [[cloth]] panels: " + ", ".join(grids))
+        grid = grids.get(panel_name or cloth.name) or first_grid
+        return grid or (2, 2)
 
     bodies = []
     names: set[str] = set()
@@ -249,13 +338,13 @@ def _assemble(values: dict, bodies_raw: list, att_raw: list, cut_raw: list, sour
     attachments = []
     for a, i in att_raw:
         att = AttachmentSpec(**a)
-        problems.extend(f"attachments.{i}", rules.attachment_problems(att, names, warp_yarns, weft_yarns))
+        problems.extend(f"attachments.{i}", rules.attachment_problems(att, names, *panel_grid(f"attachments.{i}", att.panel)))
         attachments.append(att)
 
     cuts = []
     for c_raw, i in cut_raw:
         cut = CutSpec(**c_raw)
-        problems.extend(f"cuts.{i}", rules.cut_problems(cut, warp_yarns, weft_yarns))
+        problems.extend(f"cuts.{i}", rules.cut_problems(cut, *panel_grid(f"cuts.{i}", cut.panel)))
         cuts.append(cut)
 
     if any(c.path_m for c in cuts) and not tear.enabled:
@@ -264,11 +353,19 @@ def _assemble(values: dict, bodies_raw: list, att_raw: list, cut_raw: list, sour
     weak_lines = []
     for w_raw, i in weak_raw:
         w = WeakLineSpec(**w_raw)
+        panel_grid(f"weak_lines.{i}", w.panel)
         problems.extend(f"weak_lines.{i}", rules.weak_line_problems(w))
         weak_lines.append(w)
-    problems.extend("cloth", rules.tear_map_problems(cloth.tear_map, cloth.tear_map_strain))
-    if cloth.tear_map and not shape_rules:
-        problems.extend("cloth", panel_shape.tear_map_problems(cloth, scene_file))
+    all_panels = {p.name: p for p in [cloth] + panels}
+    seams = []
+    for s_raw, i in seam_raw:
+        seam = SeamSpec(**s_raw)
+        for side in ("a", "b"):
+            panel_grid(f"seams.{i}", getattr(seam, f"panel_{side}"))
+        if seam.panel_a in all_panels and seam.panel_b in all_panels and not problems.lines:
+            problems.extend(f"seams.{i}", seam_problems(seam, all_panels[seam.panel_a], all_panels[seam.panel_b],
+                                                        scene_file))
+        seams.append(seam)
 
     render, camera = RenderSpec(**values["render"]), CameraSpec(**values["camera"])
     problems.extend("render", rules.render_problems(render))
@@ -286,6 +383,8 @@ def _assemble(values: dict, bodies_raw: list, att_raw: list, cut_raw: list, sour
         attachments=tuple(attachments),
         cuts=tuple(cuts),
         weak_lines=tuple(weak_lines),
+        panels=tuple(panels),
+        seams=tuple(seams),
         self_collision=SelfCollisionSpec(**values["self_collision"]),
         camera=camera,
         render=render,
@@ -330,14 +429,23 @@ def scene_hash(spec: SceneSpec) -> str:
         if not raw["path_m"]:  # snips keep the digest they had before scissors existed
             for k in ("path_m", "start_s", "end_s"):
                 raw.pop(k)
-    if not d["weak_lines"]:
-        d.pop("weak_lines")
-    for k, default in _PANEL_KEY_DEFAULTS.items():  # cloths without them keep the digest they had before
-        if d["cloth"][k] == default:
-            d["cloth"].pop(k)
-    for k in ("mask", "tear_map"):
-        if d["cloth"].get(k):
-            d["cloth"][k] = _file_digest(panel_shape.resolve(getattr(spec.cloth, k), spec.source_file))
+    for raw, panel in zip([d["cloth"]] + list(d["panels"]), spec.all_panels):
+        for k in ("name", "warp_color", "weft_color"):  # names and colours change no frame
+            raw.pop(k)
+        for k, default in _PANEL_KEY_DEFAULTS.items():  # cloths without them keep the digest they had before
+            if raw[k] == default:
+                raw.pop(k)
+        for k in ("mask", "tear_map"):
+            if raw.get(k):
+                raw[k] = _file_digest(panel_shape.resolve(getattr(panel, k), spec.source_file))
+    d["panels"] = [[p.name for p in spec.all_panels], d["panels"]]  # seams and attachments name them
+    for table in ("panels", "seams", "weak_lines"):
+        if not getattr(spec, table):
+            d.pop(table)
+    for table in ("attachments", "cuts", "weak_lines"):
+        for raw in d.get(table, []):
+            if raw["panel"] == "":  # on the first panel, as before panels had names
+                raw.pop("panel")
     d["time"].pop("frames")  # frame k does not depend on how many follow it
     d["time"].pop("fps")
     d["time"].pop("stability")
@@ -353,7 +461,8 @@ def scene_hash(spec: SceneSpec) -> str:
 
 
 _PANEL_KEY_DEFAULTS = {k: schema.TOP["cloth"][k].default for k in
-                       ("outline_m", "mask", "mask_size_m", "grain_deg", "edge", "tear_map", "tear_map_strain")}
+                       ("outline_m", "mask", "mask_size_m", "grain_deg", "edge", "tear_map", "tear_map_strain",
+                        "rotation_deg", "wrap_radius_m")}
 """[cloth] keys of shaped panels, left out of the digest at their defaults."""
 
 

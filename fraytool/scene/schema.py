@@ -30,6 +30,7 @@ TOP: dict[str, dict[str, Key]] = {
     "attachments": keys_of(spec.AttachmentSpec),
     "cuts": keys_of(spec.CutSpec),
     "weak_lines": keys_of(spec.WeakLineSpec),
+    "seams": keys_of(spec.SeamSpec),
     "camera": keys_of(spec.CameraSpec),
     "render": keys_of(spec.RenderSpec),
     "output": keys_of(spec.OutputSpec),
@@ -37,5 +38,5 @@ TOP: dict[str, dict[str, Key]] = {
 }
 """Table name (dotted for sub-tables) -> key name -> Key."""
 REQUIRED_TABLES = ("time", "cloth", "cloth.springs")
-ARRAY_TABLES = ("bodies", "attachments", "cuts", "weak_lines")
+ARRAY_TABLES = ("bodies", "attachments", "cuts", "weak_lines", "seams")
 """Tables written [[name]], any number of times."""

@@ -127,6 +127,8 @@ class MultiresSpec:
 class ClothSpec:
     """[cloth] with its sub-tables [cloth.springs], [cloth.strain], [cloth.tearing] and [cloth.multires]."""
 
+    name: str = key("str", "", doc="panel name, unique among [[cloth]] panels; seams, attachments, cuts and weak "
+                    "lines name their panel by it (default: cloth for the first panel, cloth<k> for panel k)")
     warp_yarns: int = key("int", 0, lo=0, hi=4096,
                           doc="number of warp yarns (columns, index i); they run along the cloth's second axis; "
                               "at least 2; leave out with outline_m or mask (the shape sets the grid)")
@@ -140,6 +142,14 @@ class ClothSpec:
     origin_m: Vec3 = key("vec3", (0.0, 0.0, 0.0), lo=-WORLD_M, hi=WORLD_M, doc="world position of crossing (i = 0, j = 0) [m]")
     plane: str = key("str", "xz", choices=("xz", "xy", "yz"),
                      doc='plane the cloth spans at rest ("xz" flat, y up; "xy" vertical); weft along its first axis')
+    rotation_deg: Vec3 = key("vec3", (0.0, 0.0, 0.0), lo=-360, hi=360,
+                             doc="turns the panel about origin_m after plane and wrap_radius_m, as x, y, z Euler "
+                                 "angles [degrees] (R = Rz Ry Rx)")
+    wrap_radius_m: float = key("float", 0.0, lo=0, hi=WORLD_M,
+                               doc="wraps the panel's first axis around a cylinder of this radius [m] (a sleeve, a "
+                                   "tube), the cylinder's axis along the plane's second axis; 0: flat")
+    warp_color: Optional[Vec3] = key("color", None, doc="sRGB colour of this panel's warp yarns (default: [render] warp_color)")
+    weft_color: Optional[Vec3] = key("color", None, doc="sRGB colour of this panel's weft yarns (default: [render] weft_color)")
     weave: str = key("str", "plain", choices=("plain", "twill", "satin", "table"), doc="weave pattern")
     weave_table: tuple[tuple[bool, ...], ...]
     """Resolved repeat (from weave, twill, satin_shafts or the `table` key):
@@ -208,6 +218,7 @@ class AttachmentSpec:
     """One [[attachments]] entry: cloth masses held by a body. Exactly one selection is given."""
 
     body: str = key("str", doc="name of the rigid body that holds these cloth masses")
+    panel: str = key("str", "", doc="name of the [[cloth]] panel whose masses are held (default: the first)")
     edge: Optional[str] = key("str", None, choices=("left", "right", "bottom", "top"), doc="a whole edge")
     corner: Optional[str] = key("str", None, choices=("bottom_left", "bottom_right", "top_left", "top_right"),
                                 doc="a corner block of corner_size x corner_size masses")
@@ -225,6 +236,7 @@ class CutSpec:
     `start` to `end` is absent from the first frame on (not counted as broken). Or scissors: a cut
     along `path_m` that grows from start_s to end_s (docs/panels.md "Tear control")."""
 
+    panel: str = key("str", "", doc="name of the [[cloth]] panel cut (default: the first)")
     start: Optional[tuple[float, float]] = key("float2", None, lo=-1e6, hi=1e6,
                                                doc="[i, j] in yarn indices (warp i, weft j); 39.5 lies between "
                                                    "yarns 39 and 40")
@@ -244,6 +256,7 @@ class WeakLineSpec:
     """One [[weak_lines]] entry: a band along a polyline where the cloth is weaker, like a perforation
     (docs/panels.md "Tear control")."""
 
+    panel: str = key("str", "", doc="name of the [[cloth]] panel (default: the first)")
     points_m: tuple[tuple[float, float], ...] = key(
         "points2", lo=-WORLD_M, hi=WORLD_M,
         doc="polyline [[u, v], ...] in the cloth's plane [m], as outline_m (at least 2 points)")
@@ -252,6 +265,28 @@ class WeakLineSpec:
     factor: float = key("float", 0.5, lo=0, lo_open=True, hi=10,
                         doc="their break strain is multiplied by this (below 1: weaker; it stays above the "
                             "transition strain)")
+
+
+@dataclass(frozen=True, kw_only=True)
+class SeamSpec:
+    """One [[seams]] entry: stitches joining an edge of one panel to an edge of another (or of itself, to
+    close a tube), that break one by one (docs/panels.md "Seams")."""
+
+    panel_a: str = key("str", doc="name of the first [[cloth]] panel")
+    segment_a: int = key("int", lo=0, hi=100000, doc="its edge: segment k of its outline, from point k to k + 1 "
+                         "(a rectangle: 0 bottom, 1 right, 2 top, 3 left)")
+    panel_b: str = key("str", doc="name of the second panel (the same name sews a panel to itself)")
+    segment_b: int = key("int", lo=0, hi=100000, doc="its edge, as segment_a")
+    reverse: bool = key("bool", False, doc="sew segment_a's first point to segment_b's last (false: first to first)")
+    stitch_spacing_m: float = key("float", lo=0, lo_open=True, hi=1, doc="distance between stitches along "
+                                  "segment_a [m]")
+    stitch_length_m: float = key("float", 0.0, lo=0, hi=1, doc="rest length of a stitch [m] (the thread across the "
+                                 "seam); 0: the cloth's spacing_m")
+    stiffness_n_per_m: float = key("float", lo=0, lo_open=True, hi=1e9,
+                                   doc="stiffness of a stitch [N/m]; a thread: it pulls, never pushes")
+    break_strain: float = key("float", lo=0, lo_open=True, hi=10,
+                              doc="mean strain at which a stitch breaks; [cloth.tearing] break_strain_spread "
+                                  "draws each stitch's own from the seed")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -357,6 +392,9 @@ class SceneSpec:
     attachments: tuple[AttachmentSpec, ...] = ()
     cuts: tuple[CutSpec, ...] = ()
     weak_lines: tuple[WeakLineSpec, ...] = ()
+    panels: tuple[ClothSpec, ...] = ()
+    """The panels after the first ([[cloth]] written more than once; docs/panels.md): the first is `cloth`."""
+    seams: tuple[SeamSpec, ...] = ()
     self_collision: SelfCollisionSpec = field(default_factory=SelfCollisionSpec)
     camera: CameraSpec = field(default_factory=CameraSpec)
     render: RenderSpec = field(default_factory=RenderSpec)
@@ -366,3 +404,8 @@ class SceneSpec:
     @property
     def name(self) -> str:
         return self.scene.name
+
+    @property
+    def all_panels(self) -> tuple[ClothSpec, ...]:
+        """Every cloth panel, the first (`cloth`) first."""
+        return (self.cloth,) + self.panels

@@ -31,7 +31,8 @@ from typing import Any, Callable, Optional, Sequence
 import numpy as np
 
 from fraytool.errors import SceneError
-from fraytool.kinds import BEND_WARP, BEND_WEFT, MOTION_NAMES, SHAPE_NAMES, SHEAR, SHEAR_TWIN, STRUCT_WARP, STRUCT_WEFT
+from fraytool.kinds import (BEND_WARP, BEND_WEFT, MOTION_NAMES, SHAPE_NAMES, SHEAR, SHEAR_TWIN, STITCH, STRUCT_WARP,
+                            STRUCT_WEFT)
 from fraytool.scene import rules, schema
 from fraytool.scene.keys import Key, show
 from fraytool.scene.spec import (
@@ -44,6 +45,7 @@ from fraytool.scene.spec import (
     SelfCollisionSpec,
     SpringSpec,
     StrainSpec,
+    SeamSpec,
     TearingSpec,
     WeakLineSpec,
 )
@@ -59,7 +61,16 @@ _SCENE, _WORLD, _CLOTH, _SPRINGS = (schema.TOP[t] for t in ("scene", "world", "c
 _STRAIN, _TEARING, _SELF = (schema.TOP[t] for t in ("cloth.strain", "cloth.tearing", "self_collision"))
 _MULTIRES = schema.TOP["cloth.multires"]
 _BODY, _ATTACH, _CUT = schema.TOP["bodies"], schema.TOP["attachments"], schema.TOP["cuts"]
-_WEAK = schema.TOP["weak_lines"]
+_WEAK, _SEAM = schema.TOP["weak_lines"], schema.TOP["seams"]
+
+
+@dataclasses.dataclass(frozen=True)
+class _Panel:
+    """A panel added to the builder: its keys, its shape (which crossings of its grid exist) and its tear map."""
+
+    spec: ClothSpec
+    shape: Any
+    tear_map: Optional[np.ndarray]
 
 
 class ModelBuilderError(SceneError, ValueError):
@@ -192,6 +203,8 @@ class ModelBuilder:
         self.attachments: list[AttachmentSpec] = []
         self.cuts: list[CutSpec] = []
         self.weak_lines: list[WeakLineSpec] = []
+        self.seams: list[SeamSpec] = []
+        self._panels: list[_Panel] = []
         self._mesh_assets: dict[str, Any] = {}  # mesh body name -> fraytool.scene.mesh_files.MeshAsset
 
     # --- checking arguments ---------------------------------------------------------------------------
@@ -241,33 +254,93 @@ class ModelBuilder:
                   table: Optional[Sequence[Sequence[int]]] = _CLOTH["table"].default,
                   bend_n_per_m: float = _SPRINGS["bend_n_per_m"].default,
                   shear_n_per_m: float = _SPRINGS["shear_n_per_m"].default,
-                  damping: float = _SPRINGS["damping"].default) -> None:
+                  damping: float = _SPRINGS["damping"].default,
+                  name: str = "", rotation_deg: Sequence[float] = _CLOTH["rotation_deg"].default,
+                  wrap_radius_m: float = _CLOTH["wrap_radius_m"].default,
+                  warp_color: Optional[Sequence[float]] = None, weft_color: Optional[Sequence[float]] = None) -> None:
         """The woven cloth: a grid of warp_yarns x weft_yarns crossings, spacing_m apart, in `plane`
         from `origin_m`, with its weave and springs ([cloth] and [cloth.springs]); or a panel cut from
         that grid by `outline_m` (a polygon in the plane [m]) or `mask` (a greyscale image file), its
-        weave turned by `grain_deg` (docs/panels.md). One per model."""
-        args = _given(locals())
-        if self.cloth is not None:
-            self._raise("add_cloth", [(None, None, "a model holds one cloth; add_cloth was already called")])
-        v = self._check("add_cloth", {**_CLOTH, **_SPRINGS}, args)
+        weave turned by `grain_deg` (docs/panels.md). The first panel; add_panel adds more."""
+        if self._panels:
+            self._raise("add_cloth", [(None, None, "add_cloth makes the first panel and was already called; "
+                                                   "add_panel adds more")])
+        self._add_panel("add_cloth", _given(locals()))
+
+    @_keys_doc("cloth", "cloth.springs")
+    def add_panel(self, name: str, *, spacing_m: float, thickness_m: float,
+                  mass_per_crossing_kg: float, structural_n_per_m: float,
+                  warp_yarns: int = _CLOTH["warp_yarns"].default, weft_yarns: int = _CLOTH["weft_yarns"].default,
+                  outline_m: Sequence[Sequence[float]] = _CLOTH["outline_m"].default,
+                  mask: str = _CLOTH["mask"].default,
+                  mask_size_m: Sequence[float] = _CLOTH["mask_size_m"].default,
+                  grain_deg: float = _CLOTH["grain_deg"].default,
+                  edge: str = _CLOTH["edge"].default,
+                  tear_map: str = _CLOTH["tear_map"].default,
+                  tear_map_strain: Sequence[float] = _CLOTH["tear_map_strain"].default,
+                  origin_m: Sequence[float] = _CLOTH["origin_m"].default,
+                  plane: str = _CLOTH["plane"].default,
+                  weave: str = _CLOTH["weave"].default,
+                  twill: str = _CLOTH["twill"].default,
+                  satin_shafts: int = _CLOTH["satin_shafts"].default,
+                  table: Optional[Sequence[Sequence[int]]] = _CLOTH["table"].default,
+                  bend_n_per_m: float = _SPRINGS["bend_n_per_m"].default,
+                  shear_n_per_m: float = _SPRINGS["shear_n_per_m"].default,
+                  damping: float = _SPRINGS["damping"].default,
+                  rotation_deg: Sequence[float] = _CLOTH["rotation_deg"].default,
+                  wrap_radius_m: float = _CLOTH["wrap_radius_m"].default,
+                  warp_color: Optional[Sequence[float]] = None, weft_color: Optional[Sequence[float]] = None) -> None:
+        """One more cloth panel ([[cloth]] written again; docs/panels.md), with its own shape, weave, springs,
+        mass, place and colours. Every panel shares the first's spacing_m, thickness_m, damping and solver
+        settings; panels collide with each other through self-collision and are joined by add_seam."""
+        if not self._panels:
+            self._raise("add_panel", [(None, None, "call add_cloth first (the first panel)")])
+        self._add_panel("add_panel", _given(locals()))
+
+    def _add_panel(self, method: str, args: dict) -> None:
+        v = self._check(method, {**_CLOTH, **_SPRINGS}, args)
         table, problems = rules.weave_table(v["weave"], v["twill"], v["satin_shafts"], v["table"])
-        self._raise("add_cloth", problems + rules.cloth_problems(v["spacing_m"], v["thickness_m"])
+        self._raise(method, problems + rules.cloth_problems(v["spacing_m"], v["thickness_m"])
                     + rules.cloth_shape_problems(v["warp_yarns"], v["weft_yarns"], v["outline_m"], v["mask"],
                                                  v["mask_size_m"], v["grain_deg"])
                     + rules.tear_map_problems(v["tear_map"], v["tear_map_strain"]))
         springs = SpringSpec(**{k: v.pop(k) for k in _SPRINGS})
         del v["table"]
+        v["name"] = v["name"] or ("cloth" if not self._panels else f"cloth{len(self._panels)}")
         # strain and tearing are set apart (set_strain_limit, set_tearing); finalize() reads those.
         cloth = ClothSpec(**v, weave_table=table, springs=springs)
         try:
             shape = panel_shape(cloth)
-            self._tear_map = tear_map_image(cloth) if cloth.tear_map else None
+            tear_map = tear_map_image(cloth) if cloth.tear_map else None
         except PanelShapeError as exc:
-            self._raise("add_cloth", exc.problems)
+            self._raise(method, exc.problems)
+        first = self._panels[0].spec if self._panels else None
+        if first is not None:
+            shared = [(k, getattr(cloth, k), f"every panel shares the first panel's {k} = {getattr(first, k):g}")
+                      for k in ("spacing_m", "thickness_m") if getattr(cloth, k) != getattr(first, k)]
+            if springs.damping != first.springs.damping:
+                shared.append(("damping", springs.damping, f"every panel shares the first panel's damping = "
+                                                            f"{first.springs.damping:g}"))
+            if cloth.name in self.panel_names:
+                shared.append(("name", cloth.name, "must be unique among the panels"))
+            self._raise(method, shared)
         if cloth.outline_m or cloth.mask:  # the shape sets the grid
             cloth = dataclasses.replace(cloth, warp_yarns=shape.warp_yarns, weft_yarns=shape.weft_yarns)
-        self.cloth = cloth
-        self._shape = shape
+        self._panels.append(_Panel(cloth, shape, tear_map))
+        if first is None:
+            self.cloth = cloth
+
+    @property
+    def panel_names(self) -> list[str]:
+        return [p.spec.name for p in self._panels]
+
+    def _panel_index(self, method: str, name: str) -> int:
+        """Index of the panel called `name` ("": the first)."""
+        if not name:
+            return 0
+        if name not in self.panel_names:
+            self._raise(method, [("panel", name, "must name one of the panels: " + ", ".join(self.panel_names))])
+        return self.panel_names.index(name)
 
     @_keys_doc("cloth.strain")
     def set_strain_limit(self, *, limit: float = _STRAIN["limit"].default,
@@ -412,7 +485,7 @@ class ModelBuilder:
         return index
 
     @_keys_doc("attachments")
-    def add_attachment(self, body: str | int, *, edge: Optional[str] = None, corner: Optional[str] = None,
+    def add_attachment(self, body: str | int, *, panel: str = "", edge: Optional[str] = None, corner: Optional[str] = None,
                        corner_size: int = _ATTACH["corner_size"].default,
                        warp_range: Optional[Sequence[int]] = None, weft_range: Optional[Sequence[int]] = None,
                        region_center_m: Optional[Sequence[float]] = None,
@@ -427,12 +500,13 @@ class ModelBuilder:
                 self._raise("add_attachment", [("body", body, f"no body has this index ({len(self.bodies)} added)")])
             args["body"] = self.bodies[body].name
         att = AttachmentSpec(**self._check("add_attachment", _ATTACH, args))
+        c = self._panels[self._panel_index("add_attachment", att.panel)].spec
         self._raise("add_attachment", rules.attachment_problems(att, (b.name for b in self.bodies),
-                                                                self.cloth.warp_yarns, self.cloth.weft_yarns))
+                                                                c.warp_yarns, c.weft_yarns))
         self.attachments.append(att)
 
     @_keys_doc("cuts")
-    def add_cut(self, *, start: Optional[Sequence[float]] = None, end: Optional[Sequence[float]] = None,
+    def add_cut(self, *, panel: str = "", start: Optional[Sequence[float]] = None, end: Optional[Sequence[float]] = None,
                 path_m: Sequence[Sequence[float]] = _CUT["path_m"].default,
                 start_s: float = _CUT["start_s"].default, end_s: float = _CUT["end_s"].default) -> None:
         """A snip made before the shot: every spring whose rest segment meets the line from `start`
@@ -444,47 +518,73 @@ class ModelBuilder:
         if self.cloth is None:
             self._raise("add_cut", [(None, None, "call add_cloth first (cuts are on its grid)")])
         cut = CutSpec(**self._check("add_cut", _CUT, _given(locals())))
-        self._raise("add_cut", rules.cut_problems(cut, self.cloth.warp_yarns, self.cloth.weft_yarns))
+        c = self._panels[self._panel_index("add_cut", cut.panel)].spec
+        self._raise("add_cut", rules.cut_problems(cut, c.warp_yarns, c.weft_yarns))
         self.cuts.append(cut)
 
     @_keys_doc("weak_lines")
     def add_weak_line(self, *, points_m: Sequence[Sequence[float]], width_m: float,
-                      factor: float = _WEAK["factor"].default) -> None:
+                      factor: float = _WEAK["factor"].default, panel: str = "") -> None:
         """A weaker band along a polyline in the cloth's plane [m] (as outline_m), like a perforation:
         the yarn springs whose middle lies within width_m / 2 of it break at `factor` x their drawn
         break strain (docs/panels.md "Tear control"). Call after add_cloth."""
         if self.cloth is None:
             self._raise("add_weak_line", [(None, None, "call add_cloth first (weak lines are in its plane)")])
         line = WeakLineSpec(**self._check("add_weak_line", _WEAK, _given(locals())))
+        self._panel_index("add_weak_line", line.panel)
         self._raise("add_weak_line", rules.weak_line_problems(line))
         self.weak_lines.append(line)
 
+    @_keys_doc("seams")
+    def add_seam(self, *, panel_a: str, segment_a: int, panel_b: str, segment_b: int, stitch_spacing_m: float,
+                 stiffness_n_per_m: float, break_strain: float,
+                 stitch_length_m: float = _SEAM["stitch_length_m"].default,
+                 reverse: bool = _SEAM["reverse"].default) -> None:
+        """Stitches along segment_a of panel_a's outline to segment_b of panel_b's, every stitch_spacing_m:
+        threads of stiffness_n_per_m that pull (never push) and break one by one past their strain
+        (docs/panels.md "Seams"). Call after the panels."""
+        seam = SeamSpec(**self._check("add_seam", _SEAM, _given(locals())))
+        a = self._panels[self._panel_index("add_seam", seam.panel_a)]
+        b = self._panels[self._panel_index("add_seam", seam.panel_b)]
+        from fraytool.scene.load import seam_problems
+
+        self._raise("add_seam", seam_problems(seam, a.spec, b.spec))
+        self.seams.append(seam)
+
     # --- finalize -------------------------------------------------------------------------------------
 
-    def _grid(self, c: ClothSpec):
-        """(nx, ny, crossing grid (ny, nx) -> crossing or -1, rest positions (C, 3), weft on top (C,)):
-        the crossings of the panel's shape in row-major order (for a rectangle, c = j * nx + i)."""
-        shape = self._shape
-        nx, ny = shape.warp_yarns, shape.weft_yarns
-        present = shape.present
+    def _grid(self):
+        """The panels laid on one grid, block-diagonally (panel p's grid in rows and columns of its own, so no
+        spring joins two panels): (crossing grid (ny, nx) -> crossing or -1, each panel's grid offset (I, J),
+        and per crossing: its panel, its place in the plane (C, 2) [m], rest position (C, 3), weft on top).
+        Crossings are numbered row by row, so each panel's are consecutive (for one rectangle, c = j * nx + i)."""
+        nx = sum(p.shape.warp_yarns for p in self._panels)
+        ny = sum(p.shape.weft_yarns for p in self._panels)
         grid = np.full((ny, nx), -1, np.int64)
-        grid[present] = np.arange(int(present.sum()))
-        jj, ii = np.nonzero(present)
-        a0, a1 = _PLANE_AXES[c.plane]
-        uv = shape.uv_m[present]
-        rest = np.zeros((uv.shape[0], 3))
-        rest[:, a0] = uv[:, 0]
-        rest[:, a1] = uv[:, 1]
-        rest += np.asarray(c.origin_m)
-        table = np.asarray(c.weave_table, dtype=bool)
-        top = table[jj % table.shape[0], ii % table.shape[1]]
-        return nx, ny, grid, rest, top
+        offsets = []
+        I = J = 0
+        for p in self._panels:
+            h, w = p.shape.present.shape
+            grid[J:J + h, I:I + w][p.shape.present] = len(offsets)  # the panel's index, for now
+            offsets.append((I, J))
+            I, J = I + w, J + h
+        panel = grid[grid >= 0].astype(np.int32)
+        grid[grid >= 0] = np.arange(panel.size)
+        uv = np.concatenate([p.shape.uv_m[p.shape.present] for p in self._panels])
+        rest = np.concatenate([_panel_rest(p.spec, p.shape.uv_m[p.shape.present]) for p in self._panels])
+        top = []
+        for p in self._panels:
+            jj, ii = np.nonzero(p.shape.present)
+            table = np.asarray(p.spec.weave_table, dtype=bool)
+            top.append(table[jj % table.shape[0], ii % table.shape[1]])
+        return grid, offsets, panel, uv, rest, np.concatenate(top)
 
     @staticmethod
-    def _springs(k: SpringSpec, grid: np.ndarray, rest: np.ndarray):
+    def _springs(k: dict[str, np.ndarray], grid: np.ndarray, rest: np.ndarray):
         """Springs between crossings of `grid` (ny, nx; -1 where the panel has no crossing): a spring is
         built where all the crossings it joins or spans are there (a bend over its middle crossing, a
-        shear spring over its whole cell)."""
+        shear spring over its whole cell), and where its kind's stiffness at its first crossing
+        (`k[name][c]`, [cloth.springs] of the crossing's panel) is above 0."""
         ny, nx = grid.shape
         parts: list[tuple[int, np.ndarray, np.ndarray, float]] = []
         count = 0
@@ -492,39 +592,41 @@ class ModelBuilder:
         warp_struct = np.full((nx, max(ny - 1, 0)), -1, np.int32)
 
         def add(kind, a, b, ks, *also):
-            """Springs a-b of grid places (arrays of crossings, -1 for none) where a, b and `also` exist;
-            returns their slots, -1 where not built, in the shape of a."""
+            """Springs a-b of grid places (arrays of crossings, -1 for none) where a, b and `also` exist and
+            the stiffness ks (per crossing) at a is above 0; returns their slots, -1 where not built, in
+            the shape of a."""
             nonlocal count
             ok = (a >= 0) & (b >= 0)
             for x in also:
                 ok &= x >= 0
+            ok &= ks[np.maximum(a, 0)] > 0
             slots = np.full(a.shape, -1, np.int32)
             a, b = np.asarray(a[ok], np.int32).ravel(), np.asarray(b[ok], np.int32).ravel()
-            parts.append((kind, a, b, ks))
+            parts.append((kind, a, b, ks[a]))
             count += a.size
             slots[ok] = np.arange(count - a.size, count, dtype=np.int32)
             return slots
 
         g = grid
-        weft_struct[:, :] = add(STRUCT_WEFT, g[:, :-1], g[:, 1:], k.structural_n_per_m)
-        warp_struct[:, :] = add(STRUCT_WARP, g[:-1, :].T, g[1:, :].T, k.structural_n_per_m)
-        if k.bend_n_per_m > 0:
-            add(BEND_WEFT, g[:, :-2], g[:, 2:], k.bend_n_per_m, g[:, 1:-1])
-            add(BEND_WARP, g[:-2, :].T, g[2:, :].T, k.bend_n_per_m, g[1:-1, :].T)
+        weft_struct[:, :] = add(STRUCT_WEFT, g[:, :-1], g[:, 1:], k["structural_n_per_m"])
+        warp_struct[:, :] = add(STRUCT_WARP, g[:-1, :].T, g[1:, :].T, k["structural_n_per_m"])
+        if (k["bend_n_per_m"] > 0).any():
+            add(BEND_WEFT, g[:, :-2], g[:, 2:], k["bend_n_per_m"], g[:, 1:-1])
+            add(BEND_WARP, g[:-2, :].T, g[2:, :].T, k["bend_n_per_m"], g[1:-1, :].T)
         shear_twin_pairs = None
-        if k.shear_n_per_m > 0:
+        if (k["shear_n_per_m"] > 0).any():
             cell = (g[:-1, :-1], g[:-1, 1:], g[1:, :-1], g[1:, 1:])  # (i, j), (i+1, j), (i, j+1), (i+1, j+1)
-            s1 = add(SHEAR, cell[0], cell[3], k.shear_n_per_m, cell[1], cell[2])
-            s2 = add(SHEAR, cell[1], cell[2], k.shear_n_per_m, cell[0], cell[3])
+            s1 = add(SHEAR, cell[0], cell[3], k["shear_n_per_m"], cell[1], cell[2])
+            s2 = add(SHEAR, cell[1], cell[2], k["shear_n_per_m"], cell[0], cell[3])
             s1, s2 = s1[s1 >= 0], s2[s2 >= 0]
             shear = np.concatenate([s1, s2])
             twins = add(SHEAR_TWIN, np.concatenate([parts[-2][1], parts[-1][1]]),
-                        np.concatenate([parts[-2][2], parts[-1][2]]), 0.5 * k.shear_n_per_m)
+                        np.concatenate([parts[-2][2], parts[-1][2]]), 0.5 * k["shear_n_per_m"])
             shear_twin_pairs = (shear, twins)
         kind = np.concatenate([np.full(p[1].size, p[0], np.int8) for p in parts]) if parts else np.zeros(0, np.int8)
         a = np.concatenate([p[1] for p in parts]) if parts else np.zeros(0, np.int32)
         b = np.concatenate([p[2] for p in parts]) if parts else np.zeros(0, np.int32)
-        stiff = np.concatenate([np.full(p[1].size, p[3], float) for p in parts]) if parts else np.zeros(0)
+        stiff = np.concatenate([np.asarray(p[3], float) for p in parts]) if parts else np.zeros(0)
         twin = np.full(count, -1, np.int32)
         if shear_twin_pairs is not None:
             twin[shear_twin_pairs[0]] = shear_twin_pairs[1]
@@ -532,7 +634,7 @@ class ModelBuilder:
         rest_len = np.linalg.norm(rest[b] - rest[a], axis=1)
         return kind, a, b, stiff, rest_len, twin, weft_struct, warp_struct
 
-    def _break_strains(self, count: int, spring_uv_m: np.ndarray) -> np.ndarray:
+    def _break_strains(self, count: int, spring_uv_m: np.ndarray, spring_panel: np.ndarray) -> np.ndarray:
         """Per-spring break strain ~ Normal(mean, spread), clipped above the transition strain. The mean is
         break_strain, or the tear map's value under the spring's middle (`spring_uv_m`, in the cloth's
         plane); a weak line then scales the draw (docs/panels.md "Tear control").
@@ -540,31 +642,72 @@ class ModelBuilder:
         The floor does not depend on yarn_level, so a base-model-only run of a scene (yarn_level =
         false, for comparison) tears a cloth with exactly the same break strains."""
         t = self.tearing
-        c = self.cloth
         rng = np.random.default_rng(self.seed)
         mean: float | np.ndarray = t.break_strain
-        if self._tear_map is not None:
-            lo, hi = c.tear_map_strain
-            mean = lo + (hi - lo) * sample_map(self._tear_map, self._shape.extent_uv_m, spring_uv_m)
+        for k, p in enumerate(self._panels):
+            if p.tear_map is not None:
+                lo, hi = p.spec.tear_map_strain
+                on = spring_panel == k
+                mean = np.full(count, t.break_strain) if np.isscalar(mean) else mean
+                mean[on] = lo + (hi - lo) * sample_map(p.tear_map, p.shape.extent_uv_m, spring_uv_m[on])
         draw = mean + t.break_strain_spread * rng.standard_normal(count)
         for line in self.weak_lines:
-            near = distance_to_polyline(spring_uv_m, np.asarray(line.points_m, float)) <= 0.5 * line.width_m
+            on = spring_panel == self._panel_index("finalize", line.panel)
+            near = on & (distance_to_polyline(spring_uv_m, np.asarray(line.points_m, float)) <= 0.5 * line.width_m)
             draw[near] *= line.factor
         floor = t.transition_strain * 1.01 if t.transition_strain < t.break_strain else 1e-3
+        self._rng = rng  # the seams' stitches draw theirs next, from the same stream
         return np.maximum(draw, floor)
 
-    def _scissor_times(self, kind: np.ndarray, a: np.ndarray, b: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    def _scissor_times(self, kind: np.ndarray, a: np.ndarray, b: np.ndarray, uv: np.ndarray,
+                       crossing_panel: np.ndarray) -> np.ndarray:
         """When scissors ([[cuts]] path_m) cut each structural spring [s]; inf for never, shape (S,)."""
         out = np.full(kind.shape[0], np.inf)
-        structural = np.flatnonzero((kind == STRUCT_WEFT) | (kind == STRUCT_WARP))
         for cut in self.cuts:
             if not cut.path_m:
                 continue
+            on = crossing_panel[a] == self._panel_index("finalize", cut.panel)
+            structural = np.flatnonzero(((kind == STRUCT_WEFT) | (kind == STRUCT_WARP)) & on)
             f = crossing_fraction_along(uv[a[structural]], uv[b[structural]], np.asarray(cut.path_m, float))
             hit = ~np.isnan(f)
             times = cut.start_s + f[hit] * (cut.end_s - cut.start_s)
             out[structural[hit]] = np.minimum(out[structural[hit]], times)
         return out
+
+    def _stitches(self, uv: np.ndarray, crossing_panel: np.ndarray, border: np.ndarray, rest: np.ndarray):
+        """The seams' stitches (docs/panels.md "Seams"): along segment_a, n + 1 of them about stitch_spacing_m
+        apart (n = its length / stitch_spacing_m, rounded) at fractions k / n of its length, ends included,
+        each joining the border crossing of panel_a nearest that point to the border crossing of panel_b
+        nearest the point at the same fraction of segment_b (reversed: 1 - fraction); a pair made twice
+        counts once (the lower crossing wins a tie). Returns (a, b, rest length [m], stiffness [N/m], break
+        strain), the break strains drawn after the cloth's from the same seeded stream."""
+        out_a, out_b, out_rest, out_k, out_break = [], [], [], [], []
+        for seam in self.seams:
+            ends = []
+            for name, k in ((seam.panel_a, seam.segment_a), (seam.panel_b, seam.segment_b)):
+                p = self._panel_index("finalize", name)
+                outline = self._panels[p].shape.outline_uv_m
+                ends.append((p, outline[k], outline[(k + 1) % len(outline)]))
+            (pa, a0, a1), (pb, b0, b1) = ends
+            count = max(1, int(round(float(np.linalg.norm(a1 - a0)) / seam.stitch_spacing_m)))
+            f = np.arange(count + 1) / count
+            fb = 1.0 - f if seam.reverse else f
+            pairs = []
+            for p, pts in ((pa, a0 + f[:, None] * (a1 - a0)), (pb, b0 + fb[:, None] * (b1 - b0))):
+                candidates = np.flatnonzero(border & (crossing_panel == p))
+                d = np.linalg.norm(uv[candidates][None, :, :] - pts[:, None, :], axis=2)
+                pairs.append(candidates[d.argmin(axis=1)])
+            pair = np.unique(np.stack(pairs, axis=1), axis=0)
+            pair = pair[pair[:, 0] != pair[:, 1]]
+            out_a.append(pair[:, 0])
+            out_b.append(pair[:, 1])
+            length = seam.stitch_length_m or self.cloth.spacing_m
+            out_rest.append(np.full(len(pair), length))
+            out_k.append(np.full(len(pair), seam.stiffness_n_per_m))
+            draw = seam.break_strain + self.tearing.break_strain_spread * self._rng.standard_normal(len(pair))
+            out_break.append(np.maximum(draw, 1e-3))
+        cat = np.concatenate
+        return (cat(out_a).astype(np.int32), cat(out_b).astype(np.int32), cat(out_rest), cat(out_k), cat(out_break))
 
     def finalize(self) -> Model:
         """Turn everything added into the immutable Model (typed arrays); the builder can go on."""
@@ -574,13 +717,17 @@ class ModelBuilder:
         if any(cut.path_m for cut in self.cuts) and not self.tearing.enabled:
             self._raise("finalize", [(None, None, "scissors (add_cut with path_m) cut in the tearing stage: "
                                                   "call set_tearing()")])
-        if self.multires.factor > 1 and (c.outline_m or c.mask):
-            self._raise("finalize", [(None, None, "a shaped panel (outline_m or mask) is simulated at yarn "
-                                                  "resolution: set_multires(factor=1)")])
-        nx, ny, grid, rest, top = self._grid(c)
+        if self.multires.factor > 1 and (c.outline_m or c.mask or len(self._panels) > 1):
+            self._raise("finalize", [(None, None, "a shaped panel (outline_m or mask) or several panels are "
+                                                  "simulated at yarn resolution: set_multires(factor=1)")])
+        grid, offsets, crossing_panel, uv, rest, top = self._grid()
+        ny, nx = grid.shape
         n = rest.shape[0]
         crossing_j, crossing_i = (x.astype(np.int32) for x in np.nonzero(grid >= 0))
-        kind, a, b, stiff, rest_len, twin, weft_struct, warp_struct = self._springs(c.springs, grid, rest)
+        per_panel = lambda value: np.array([value(p.spec) for p in self._panels], float)[crossing_panel]
+        stiffness = {k: per_panel(lambda c, k=k: getattr(c.springs, k))
+                     for k in ("structural_n_per_m", "bend_n_per_m", "shear_n_per_m")}
+        kind, a, b, stiff, rest_len, twin, weft_struct, warp_struct = self._springs(stiffness, grid, rest)
 
         cw = np.full((n, 2), -1, np.int32)
         cv = np.full((n, 2), -1, np.int32)
@@ -592,7 +739,7 @@ class ModelBuilder:
         cv[b[s], 0] = s
         # the panel's border: a crossing missing one of its four yarn neighbours
         border = (cw < 0).any(axis=1) | (cv < 0).any(axis=1)
-        hemmed = border if c.edge == "hemmed" else np.zeros(n, bool)
+        hemmed = border & np.array([p.spec.edge == "hemmed" for p in self._panels])[crossing_panel]
 
         bodies = self.bodies
         names = tuple(bd.name for bd in bodies)
@@ -609,7 +756,10 @@ class ModelBuilder:
         att_p, att_b, att_off = [], [], []
         for att in self.attachments:
             body = names.index(att.body)
-            sel = select_crossings(att, nx, ny, rest, grid)
+            k = self._panel_index("finalize", att.panel)
+            (I, J), (h, w) = offsets[k], self._panels[k].shape.present.shape
+            local = grid[J:J + h, I:I + w]
+            sel = local[local >= 0][select_crossings(att, w, h, rest[local[local >= 0]], local)]
             att_p.extend(sel.tolist())
             att_b.extend([body] * len(sel))
             att_off.extend((rot[body].T @ (rest[sel] - body_pos0[body]).T).T.tolist())
@@ -621,14 +771,26 @@ class ModelBuilder:
         precut = np.zeros(len(kind), dtype=bool)
         for cut in self.cuts:
             if not cut.path_m:
-                precut |= springs_across(cut.start, cut.end, a, b, crossing_i, crossing_j)
+                k = self._panel_index("finalize", cut.panel)
+                (I, J) = offsets[k]
+                precut |= springs_across(cut.start, cut.end, a, b, crossing_i - I, crossing_j - J) & \
+                    (crossing_panel[a] == k)
         precut &= kind != SHEAR_TWIN  # a twin is born with its shear spring; a cut one has none
 
         t = self.tearing
         strain = self.strain
-        uv = self._shape.uv_m[self._shape.present]  # each crossing in the cloth's plane [m]
-        break_strain = self._break_strains(len(kind), 0.5 * (uv[a] + uv[b]))
-        cut_time = self._scissor_times(kind, a, b, uv)
+        break_strain = self._break_strains(len(kind), 0.5 * (uv[a] + uv[b]), crossing_panel[a])
+        cut_time = self._scissor_times(kind, a, b, uv, crossing_panel)
+        if self.seams:  # the stitches come after every spring of the cloth
+            st_a, st_b, st_rest, st_k, st_break = self._stitches(uv, crossing_panel, border, rest)
+            kind = np.concatenate([kind, np.full(st_a.size, STITCH, np.int8)])
+            a, b = np.concatenate([a, st_a]), np.concatenate([b, st_b])
+            rest_len = np.concatenate([rest_len, st_rest])
+            stiff = np.concatenate([stiff, st_k])
+            twin = np.concatenate([twin, np.full(st_a.size, -1, np.int32)])
+            precut = np.concatenate([precut, np.zeros(st_a.size, bool)])
+            break_strain = np.concatenate([break_strain, st_break])
+            cut_time = np.concatenate([cut_time, np.full(st_a.size, np.inf)])
         if c.edge == "hemmed":  # a hem folds the border over: two layers of yarn hold it
             along_hem = ((kind == STRUCT_WEFT) | (kind == STRUCT_WARP)) & hemmed[a] & hemmed[b]
             break_strain[along_hem] *= 2.0
@@ -645,7 +807,7 @@ class ModelBuilder:
             spacing_m=c.spacing_m,
             thickness_m=c.thickness_m,
             gravity_m_s2=np.asarray(self.gravity_m_s2, float),
-            crossing_mass_kg=np.full(n, c.mass_per_crossing_kg),
+            crossing_mass_kg=per_panel(lambda c: c.mass_per_crossing_kg),
             crossing_rest_position_m=rest,
             crossing_weft_on_top=top,
             crossing_weft_springs=cw,
@@ -654,6 +816,8 @@ class ModelBuilder:
             crossing_grid_j=crossing_j,
             crossing_hemmed=hemmed,
             crossing_plane_uv_m=uv,
+            crossing_panel=crossing_panel,
+            panel_names=tuple(self.panel_names),
             spring_kind=kind,
             spring_crossing_a=a,
             spring_crossing_b=b,
@@ -705,6 +869,26 @@ class ModelBuilder:
             refine_band_cells=max(mr.band_cells, split_walk_band(top.reshape(ny, nx), mr.factor)) if mr.factor > 1 and n == nx * ny else mr.band_cells,
             refine_near_bodies=mr.refine_near_bodies,
         )
+
+
+def _panel_rest(c: ClothSpec, uv: np.ndarray) -> np.ndarray:
+    """World rest positions [m] of a panel's crossings from their places in its plane (u, v) [m]: along the
+    plane's axes from origin_m, wrapped around a cylinder of wrap_radius_m (its axis along the second
+    axis, the panel bending towards first axis x second axis), then turned by rotation_deg about origin_m."""
+    a0, a1 = _PLANE_AXES[c.plane]
+    rest = np.zeros((uv.shape[0], 3))
+    if c.wrap_radius_m == 0.0 and not any(c.rotation_deg):
+        rest[:, a0] = uv[:, 0]
+        rest[:, a1] = uv[:, 1]
+        return rest + np.asarray(c.origin_m)
+    e0, e1 = np.eye(3)[a0], np.eye(3)[a1]
+    if c.wrap_radius_m > 0.0:
+        r, theta = c.wrap_radius_m, uv[:, 0] / c.wrap_radius_m
+        local = (r * np.sin(theta))[:, None] * e0 + uv[:, 1:2] * e1 \
+            + (r * (1.0 - np.cos(theta)))[:, None] * np.cross(e0, e1)
+    else:
+        local = uv[:, 0:1] * e0 + uv[:, 1:2] * e1
+    return np.asarray(c.origin_m) + local @ euler_rotation(c.rotation_deg).T
 
 
 def _body_params(body: BodySpec, unit_normal: np.ndarray, mesh_radius_m: float, mesh_arrays: dict,
@@ -791,6 +975,18 @@ def split_walk_band(weft_on_top: np.ndarray, factor: int) -> int:
 _SHAPE_METHOD = {"sphere": "add_sphere", "box": "add_box", "plane": "add_plane", "mesh": "add_mesh"}
 
 
+def _panel_arguments(c: ClothSpec, scene_file: str) -> dict[str, Any]:
+    """add_cloth / add_panel arguments of a [cloth] panel, its files found from the scene file."""
+    from fraytool.scene.panel_shape import resolve
+
+    args = {k: getattr(c, k) for k in _CLOTH if k != "table"}
+    for k in ("mask", "tear_map"):
+        args[k] = str(resolve(args[k], scene_file)) if args[k] else ""
+    args["table"] = [[int(v) for v in row] for row in c.weave_table] if c.weave == "table" else None
+    args.update(dataclasses.asdict(c.springs))
+    return args
+
+
 def build_model(spec: SceneSpec) -> Model:
     """Build the immutable Model of a scene: the ModelBuilder calls that the scene's tables stand for."""
     return scene_builder(spec).finalize()
@@ -801,17 +997,12 @@ def scene_builder(spec: SceneSpec) -> ModelBuilder:
     call finalize()."""
     c = spec.cloth
     builder = ModelBuilder(seed=spec.scene.seed, gravity_m_s2=spec.gravity_m_s2)
-    from fraytool.scene.panel_shape import resolve
-
-    builder.add_cloth(warp_yarns=c.warp_yarns, weft_yarns=c.weft_yarns, spacing_m=c.spacing_m,
-                      thickness_m=c.thickness_m, mass_per_crossing_kg=c.mass_per_crossing_kg, origin_m=c.origin_m,
-                      outline_m=c.outline_m, mask=str(resolve(c.mask, spec.source_file)) if c.mask else "",
-                      mask_size_m=c.mask_size_m, grain_deg=c.grain_deg, edge=c.edge,
-                      tear_map=str(resolve(c.tear_map, spec.source_file)) if c.tear_map else "",
-                      tear_map_strain=c.tear_map_strain,
-                      plane=c.plane, weave=c.weave, twill=c.twill, satin_shafts=c.satin_shafts,
-                      table=[[int(v) for v in row] for row in c.weave_table] if c.weave == "table" else None,
-                      **dataclasses.asdict(c.springs))
+    for k, panel in enumerate(spec.all_panels):
+        args = _panel_arguments(panel, spec.source_file)
+        if k == 0:
+            builder.add_cloth(**args)
+        else:
+            builder.add_panel(args.pop("name"), **args)
     builder.set_strain_limit(**dataclasses.asdict(c.strain))
     builder.set_tearing(**dataclasses.asdict(c.tearing))
     builder.set_self_collision(**dataclasses.asdict(spec.self_collision))
@@ -834,4 +1025,6 @@ def scene_builder(spec: SceneSpec) -> ModelBuilder:
         builder.add_cut(**dataclasses.asdict(cut))
     for line in spec.weak_lines:
         builder.add_weak_line(**dataclasses.asdict(line))
+    for seam in spec.seams:
+        builder.add_seam(**dataclasses.asdict(seam))
     return builder

@@ -59,6 +59,10 @@ class Model:
     crossing_plane_uv_m: np.ndarray
     """Rest place of each crossing in the cloth's plane [m] from origin_m (u along the plane's first axis, v
     its second), where outline_m, weak lines and scissors are given, shape (crossing_count, 2), float64."""
+    crossing_panel: np.ndarray
+    """Panel of each crossing ([[cloth]] in order; docs/panels.md), shape (crossing_count,), int32."""
+    panel_names: tuple[str, ...]
+    """Name of each panel."""
     crossing_hemmed: np.ndarray
     """Crossings on a hemmed border: never split into a mass couple, shape (crossing_count,), bool."""
 

@@ -16,7 +16,7 @@ from typing import Iterator, Optional
 import numpy as np
 
 from fraytool.io.frame_record import FrameRecord
-from fraytool.kinds import STRUCT_WARP, STRUCT_WEFT
+from fraytool.kinds import STITCH, STRUCT_WARP, STRUCT_WEFT
 from fraytool.scene.spec import SceneSpec
 from fraytool.sim.builder import build_model
 from fraytool.sim.model import Model
@@ -75,6 +75,8 @@ class Simulation:
         self.model = model if model is not None else build_model(spec)
         self.state = state if state is not None else self.model.state()
         self.solver = SolverExplicitPBD(self.model)
+        self._stitches = np.flatnonzero(self.model.spring_kind == STITCH)
+        """Seam stitches: `broken_springs` counts the cloth's springs, the seams stage counts these."""
         self.frame = frame
         """Index of the frame the current state belongs to."""
         self.dt_s = spec.time.step_s
@@ -168,7 +170,7 @@ class Simulation:
             "time_s": s.time_s,
             "masses": int(s.particle_active.sum()),
             "springs": int(s.spring_alive.sum()),
-            "broken_springs": int(s.spring_broken.sum()),
+            "broken_springs": int(s.spring_broken.sum() - s.spring_broken[self._stitches].sum()),
             "yarn_level_masses": int(2 * s.crossing_yarn_level.sum()),
             "max_strain": float(strain.max()) if strain.size else 0.0,
             "strain_iterations_max": max(self.shot.strain_iterations_max_before, self.solver.strain_iterations_max),

@@ -1,7 +1,8 @@
 """Spring forces of the base and yarn-level models (docs/method.md §3.2).
 
 Hooke springs f = k (|x_b - x_a| - L) u along the unit vector u from a to b. Shear springs
-(kinds SHEAR and SHEAR_TWIN) act only in compression: no force when longer than rest.
+(kinds SHEAR and SHEAR_TWIN) act only in compression: no force when longer than rest. A seam's
+stitch (STITCH, a thread) acts only in tension: no force when shorter than rest.
 """
 from __future__ import annotations
 
@@ -9,7 +10,7 @@ import math
 
 import numba as nb
 
-from fraytool.kinds import SHEAR, SHEAR_TWIN
+from fraytool.kinds import SHEAR, SHEAR_TWIN, STITCH
 
 
 @nb.njit(cache=True, fastmath=False, inline="always")
@@ -33,6 +34,8 @@ def add_spring_force(s, stiffness_n_per_m, spring_kind, spring_rest_length_m, pa
     stretch = length - rest
     if stretch > 0.0 and shear:
         return  # shear springs resist compression only (§3.2)
+    if stretch < 0.0 and kind == STITCH:
+        return  # a thread goes slack
     f = stiffness_n_per_m * stretch / length
     particle_force_n_inout[a, 0] += f * dx
     particle_force_n_inout[a, 1] += f * dy

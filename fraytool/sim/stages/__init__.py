@@ -24,6 +24,7 @@ from typing import Optional
 
 import numpy as np
 
+from fraytool.kinds import STITCH
 from fraytool.sim.model import Model
 from fraytool.sim.stages.base import (COARSE_VIEWS, HANGING, SLAVED, SLAVED_NEAR_HOT, STAGE_NAMES, STALES_VIEWS,
                                       HookStage, Stage, StepContext, StepCounters)
@@ -110,6 +111,10 @@ def build_stages(model: Model, speed_limit_m_s: float, ctx: StepContext) -> Step
         stages.append(multires.Refinement(model))
     if tearing_stage is not None:
         stages.append(tearing_stage)
+    if (model.spring_kind == STITCH).any():
+        from fraytool.sim.stages.seams import StitchBreaking  # only scenes with seams
+
+        stages.append(StitchBreaking(model))
     stages.append(core.VelocityPostProcess(model, speed_limit_m_s))
     return StepPlan(stages, self_collision)
 

@@ -16,7 +16,7 @@ from fraytool.sim.model import Model
 from fraytool.sim.state import State
 
 STAGE_NAMES = ("forces", "integration", "damping", "contact_before_limit", "strain_limiting", "yarn_contact",
-               "collisions", "self_collision", "refinement", "tearing")
+               "collisions", "self_collision", "refinement", "tearing", "seams")
 """Timing buckets, in step order (the velocity updates all count as "integration")."""
 
 # -- what a stage reads and writes -------------------------------------------------------------
