@@ -1,7 +1,8 @@
 """Shared pytest set-up.
 
-- `--update-goldens`: rewrite the golden images in tests/golden/ instead of comparing with them
-  (tests/test_render_golden.py). A missing golden fails without it; it is never created silently.
+- `--update-goldens` (from the fraytool.testing plugin): rewrite the golden images in tests/golden/
+  instead of comparing with them (tests/test_render_golden.py, tests/test_golden.py). A missing golden
+  fails without it; it is never created silently.
 - `gl_ctx`: the one OpenGL context of the test session, made by fraytool's own factory
   (fraytool.render.context.create_context). This is the only place tests create a context; every
   test that uses it is checked for a clean GL error state afterwards.
@@ -23,16 +24,14 @@ TESTS = Path(__file__).resolve().parent
 GOLDEN_SCENE = TESTS / "scenes" / "golden_small.toml"
 
 
+pytest_plugins = ["fraytool.testing"]
+"""fraytool's golden-test plugin, as a studio's suite uses it: the --update-goldens option and the
+`update_goldens` and `golden` fixtures (docs/golden.md)."""
+
+
 def pytest_addoption(parser):
-    parser.addoption("--update-goldens", action="store_true", default=False,
-                     help="rewrite the golden images in tests/golden/ from the current renderer")
     parser.addoption("--update-figures", action="store_true", default=False,
                      help="rewrite the pinned figures in tests/figures/ from the current simulation")
-
-
-@pytest.fixture(scope="session")
-def update_goldens(request) -> bool:
-    return bool(request.config.getoption("--update-goldens"))
 
 
 @pytest.fixture(scope="session")

@@ -10,7 +10,8 @@ PACKAGE = Path(__file__).resolve().parents[1] / "fraytool"
 LAYER = {
     "__main__": 7,
     "commands": 6,
-    "farm": 5, "export": 5,
+    "farm": 5, "export": 5, "golden": 5,
+    "testing": 6,
     "render": 4, "study": 4,
     "sim": 3,
     "collision": 2, "io": 2,

@@ -172,6 +172,22 @@ def build_parser() -> argparse.ArgumentParser:
     _set_flag(e)
     _threads_flag(e)
 
+    g = sub.add_parser("golden", help="golden-image regression tests of your own scenes: update or check")
+    g.add_argument("action", choices=("update", "check"),
+                   help="update: render the frames and store them as the golden; check: render them again and "
+                        "compare (exit 0 pass, 1 a regression, 2 bad input or a missing golden)")
+    g.add_argument("scenes", nargs="+", metavar="SCENE", help="scene files or shipped scene names")
+    g.add_argument("--dir", required=True, type=Path, help="the golden folder (one sub-folder per scene)")
+    g.add_argument("--frames", metavar="LIST", help="frames, e.g. 0,35,71 (default: the scene's [golden] frames, "
+                   "else the first, middle and last)")
+    g.add_argument("--report", type=Path, metavar="OUT", help="check: write report.html, summary.json and the "
+                   "reference / new / difference images into OUT")
+    g.add_argument("--junit", type=Path, metavar="FILE", help="check: write JUnit XML for CI systems")
+    g.add_argument("--work", type=Path, help="folder for the simulated frames (default outputs/golden/)")
+    _progress_flag(g)
+    _set_flag(g)
+    _threads_flag(g)
+
     ba = sub.add_parser("batch", help="render many shots (scenes, job files, wedges) on Dask distributed")
     ba.add_argument("inputs", nargs="+", metavar="SCENE_OR_JOB", help="scene files, shipped scene names or job files (TOML)")
     ba.add_argument("-o", "--out", type=Path, help="job folder (default outputs/<job name>/)")
@@ -359,7 +375,13 @@ def cmd_export(args) -> int:
     return export_command(args)
 
 
-COMMANDS = {"batch": cmd_batch, "simulate": cmd_simulate, "check": cmd_check, "bench": cmd_bench, "render": cmd_render,
+def cmd_golden(args) -> int:
+    from fraytool.commands.golden import golden_command
+
+    return golden_command(args)
+
+
+COMMANDS = {"golden": cmd_golden, "batch": cmd_batch, "simulate": cmd_simulate, "check": cmd_check, "bench": cmd_bench, "render": cmd_render,
             "study": cmd_study, "export": cmd_export}
 
 

@@ -30,7 +30,7 @@ REQUIRED: Any = _Required()
 @dataclass(frozen=True)
 class Key:
     kind: str
-    """"float", "int", "bool", "str", "vec3", "color", "int2", "float2", "points2", "path", "table2d"."""
+    """"float", "int", "bool", "str", "vec3", "color", "int2", "float2", "points2", "ints", "path", "table2d"."""
     default: Any = REQUIRED
     """Value when the key is not given; REQUIRED if it must be; None for "not given" (optional)."""
     lo: Optional[float] = None
@@ -56,6 +56,7 @@ class Key:
             "int2": "an array of 2 integers",
             "float2": "an array of 2 numbers",
             "points2": "an array of [u, v] arrays of 2 finite numbers, each",
+            "ints": "an array of integers, each",
             "path": "an array of [t, x, y, z] arrays of finite numbers, times from 0 to 1e6 s and increasing, "
                     "positions",
             "table2d": "equal-length rows of the integers 0 and 1 (not true / false)",
@@ -134,6 +135,12 @@ class Key:
             if not all(self.in_range(v) for v in pair):
                 return False, None
             return True, pair
+        if k == "ints":
+            if not _is_seq(value) or not all(isinstance(v, int) and not isinstance(v, bool) for v in value):
+                return False, None
+            if not all(self.in_range(v) for v in value):
+                return False, None
+            return True, tuple(int(v) for v in value)
         if k == "points2":
             if not _is_seq(value):
                 return False, None

@@ -27,6 +27,7 @@ from fraytool.scene.spec import (
     CameraSpec,
     CheckSpec,
     ClothSpec,
+    GoldenSpec,
     OutputSpec,
     RenderSpec,
     SceneInfo,
@@ -390,6 +391,7 @@ def _assemble(values: dict, bodies_raw: list, att_raw: list, cut_raw: list, sour
         render=render,
         output=OutputSpec(**values["output"]),
         checks=CheckSpec(**values["checks"]),
+        golden=GoldenSpec(**values["golden"]),
     )
 
 
@@ -420,7 +422,7 @@ def scene_hash(spec: SceneSpec) -> str:
     """Stable digest of everything that affects the simulation (not camera/render/output), and of the
     solver revision (SIM_REVISION)."""
     d = asdict(spec)
-    for k in ("source", "source_file", "camera", "render", "output", "checks"):
+    for k in ("source", "source_file", "camera", "render", "output", "checks", "golden"):
         d.pop(k)
     d["scene"].pop("description")
     if not d["cuts"]:

@@ -35,6 +35,7 @@ TOP: dict[str, dict[str, Key]] = {
     "render": keys_of(spec.RenderSpec),
     "output": keys_of(spec.OutputSpec),
     "checks": keys_of(spec.CheckSpec),
+    "golden": keys_of(spec.GoldenSpec),
 }
 """Table name (dotted for sub-tables) -> key name -> Key."""
 REQUIRED_TABLES = ("time", "cloth", "cloth.springs")

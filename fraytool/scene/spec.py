@@ -376,6 +376,31 @@ class CheckSpec:
 
 
 @dataclass(frozen=True, kw_only=True)
+class GoldenSpec:
+    """[golden]: the frames `fraytool golden` stores and how closely a check must match them (docs/golden.md).
+    Image thresholds are per-channel differences of the 16-bit sRGB values scaled to [0, 1], as idiff's."""
+
+    frames: tuple[int, ...] = key("ints", (), lo=0, hi=1000000,
+                                  doc="frames to store and check; empty: the first, middle and last")
+    fail: float = key("float", 0.05, lo=0, hi=1, doc="a pixel fails when a channel differs by more than this "
+                      "(idiff -fail)")
+    failpercent: float = key("float", 0.1, lo=0, hi=100, doc="percent of failing pixels that fails the frame "
+                             "(idiff -failpercent)")
+    hardfail: float = key("float", 1.0, lo=0, hi=1, doc="one pixel differing by more than this fails the frame "
+                          "(idiff -hardfail); 1: off")
+    warn: float = key("float", 0.01, lo=0, hi=1, doc="a pixel warns when a channel differs by more than this "
+                      "(idiff -warn)")
+    warnpercent: float = key("float", 0.05, lo=0, hi=100, doc="percent of warning pixels that warns (idiff "
+                             "-warnpercent)")
+    ssim_min: float = key("float", 0.98, lo=-1, hi=1, doc="the frame fails when the SSIM of its luma falls below this")
+    geometry_thickness: float = key("float", 0.25, lo=0, hi=1e6,
+                                    doc="the frame fails when a yarn point moved farther than this many yarn "
+                                        "thicknesses")
+    torn_springs: int = key("int", 0, lo=0, hi=1000000000,
+                            doc="the frame fails when its torn springs differ from the golden's by more than this")
+
+
+@dataclass(frozen=True, kw_only=True)
 class SceneSpec:
     """A whole scene. Its own key, gravity, is the [world] table."""
 
@@ -400,6 +425,7 @@ class SceneSpec:
     render: RenderSpec = field(default_factory=RenderSpec)
     output: OutputSpec = field(default_factory=OutputSpec)
     checks: CheckSpec = field(default_factory=CheckSpec)
+    golden: GoldenSpec = field(default_factory=GoldenSpec)
 
     @property
     def name(self) -> str:

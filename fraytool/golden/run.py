@@ -1,0 +1,95 @@
+"""Update and check one scene's golden (used by `fraytool golden` and by fraytool.testing)."""
+from __future__ import annotations
+
+import shlex
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Optional, Sequence, TextIO
+
+from fraytool.errors import InputError, SceneError
+from fraytool.golden import store
+from fraytool.golden.capture import capture, default_frames
+from fraytool.scene import load_scene
+from fraytool.golden.compare import FrameVerdict, judge
+from fraytool.scene.spec import SceneSpec
+
+
+def parse_frames(text: Optional[str], spec: SceneSpec) -> list[int]:
+    """--frames 0,35,71 (a list; default: the scene's [golden] frames, else first, middle and last)."""
+    if not text:
+        return default_frames(spec)
+    try:
+        frames = sorted({int(f) for f in text.split(",") if f.strip()})
+    except ValueError:
+        raise InputError(f"--frames {text!r}: expected frame numbers separated by commas, e.g. 0,35,71 (golden "
+                         "frames are a list, not a range)") from None
+    bad = [f for f in frames if not 0 <= f < spec.time.frames]
+    if bad or not frames:
+        raise InputError(f"--frames {text!r}: frames must lie in 0..{spec.time.frames - 1} ([time] frames = "
+                         f"{spec.time.frames})")
+    return frames
+
+
+def load_for_golden(scene: str, sets: list[str]) -> SceneSpec:
+    from fraytool.scene.overrides import parse_assignment
+    from fraytool.sim.memory import admission_problems
+
+    spec = load_scene(scene, [parse_assignment(a) for a in sets])
+    problems = admission_problems(spec, force=False)
+    if problems:
+        raise SceneError(problems)
+    return spec
+
+
+def update_command_line(scene: str, golden_dir: Path, sets: list[str]) -> str:
+    """The command that makes a missing golden (quoted for a shell)."""
+    flags = "".join(f" --set {shlex.quote(s)}" for s in sets)
+    return f"fraytool golden update {shlex.quote(scene)} --dir {shlex.quote(str(golden_dir))}{flags}"
+
+
+def work_dir(root: Optional[Path], spec: SceneSpec) -> Path:
+    """Where a golden run's frames are simulated: <root>/<scene>/<scene hash> (default root outputs/golden)."""
+    from fraytool.scene.load import scene_hash
+
+    return Path(root or Path("outputs") / "golden") / spec.name / scene_hash(spec)
+
+
+@dataclass
+class SceneCheck:
+    scene: str
+    golden_dir: Path
+    verdicts: list[FrameVerdict] = field(default_factory=list)
+    images: dict = field(default_factory=dict)
+    """frame -> (golden image, new image), uint16 (H, W, 3)."""
+    differences: list[str] = field(default_factory=list)
+    """Metadata that differs between the golden and this check (version, scene hash, settings, renderer, CPU)."""
+
+
+def update_scene(spec: SceneSpec, golden_dir: Path, frames: Sequence[int], sets: Sequence[str] = (),
+                 work_root: Optional[Path] = None, stream: TextIO = sys.stderr) -> Path:
+    captured = capture(spec, list(frames), work_dir(work_root, spec), stream=stream)
+    return store.write(Path(golden_dir), spec, captured, list(sets))
+
+
+def check_scene(spec: SceneSpec, golden_dir: Path, frames: Optional[Sequence[int]], command: str,
+                sets: Sequence[str] = (), work_root: Optional[Path] = None, stream: TextIO = sys.stderr) -> SceneCheck:
+    """Render the golden's frames (or `frames`, which it must hold) again and judge each against it."""
+    from fraytool.errors import InputError
+
+    meta, golden = store.read(Path(golden_dir), spec, command)
+    chosen = sorted(golden) if not frames else list(frames)
+    missing = [f for f in chosen if f not in golden]
+    if missing:
+        raise InputError(f"{store.scene_dir(golden_dir, spec)}: the golden has no frame "
+                         f"{', '.join(map(str, missing))}: make it with `{command} --frames "
+                         f"{','.join(map(str, chosen))}`")
+    captured = capture(spec, chosen, work_dir(work_root, spec), stream=stream)
+    thickness = float(meta.get("thickness_m", spec.cloth.thickness_m))
+    out = SceneCheck(spec.name, store.scene_dir(golden_dir, spec))
+    for f in captured.frames:
+        new = {"image": f.image, "points": f.points_m, "offsets": f.offsets, "torn_springs": f.torn_springs}
+        out.verdicts.append(judge(f.frame, golden[f.frame], new, spec.golden, thickness))
+        out.images[f.frame] = (golden[f.frame]["image"], f.image)
+    out.differences = store.settings_differences(meta, spec, list(sets), captured.renderer)
+    return out
