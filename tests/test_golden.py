@@ -185,3 +185,24 @@ def test_fraytool_testing_gives_a_studio_a_one_line_test(tmp_path):
     scene.write_text(DRAPE.read_text().replace("[scene]", "[world]\ngravity_m_s2 = [0.0, -7.0, 0.0]\n[scene]"))
     failed = pytest_run()
     assert failed.returncode == 1 and "frame 7: fail: geometry" in failed.stdout, failed.stdout[-2000:]
+
+
+def test_the_farm_checks_many_shots_in_parallel_with_one_report(tmp_path):
+    """fraytool batch --golden-update / --golden-check on a local Dask cluster: two wedge shots, their goldens
+    made in parallel, then checked in parallel: unchanged they pass; with gravity changed both fail, in one
+    report.html and one JUnit file."""
+    common = [DRAPE, "--wedge", "scene.seed=1,2", "-o", tmp_path / "job", "--workers", "2"]
+    made = fraytool("batch", *common, "--golden-update", tmp_path / "g")
+    assert made.returncode == 0, made.stderr
+    assert sorted(p.name for p in (tmp_path / "g").iterdir()) == ["golden_drape_seed-1", "golden_drape_seed-2"]
+    same = fraytool("batch", *common, "--golden-check", tmp_path / "g")
+    assert same.returncode == 0 and "golden check of 2 shot(s): pass" in same.stderr, same.stderr
+    changed = fraytool("batch", *common, "--golden-check", tmp_path / "g", "--set", "world.gravity_m_s2=[0, -7, 0]",
+                       "--junit", tmp_path / "junit.xml")
+    assert changed.returncode == 1, changed.stderr
+    summary = json.loads((tmp_path / "job" / "golden-report" / "summary.json").read_text())
+    assert [s["scene"] for s in summary["scenes"]] == ["golden_drape_seed-1", "golden_drape_seed-2"]
+    assert all(s["frames"][-1]["status"] == "fail" for s in summary["scenes"])
+    assert (tmp_path / "job" / "golden-report" / "report.html").is_file()
+    suite = ET.parse(tmp_path / "junit.xml").getroot()
+    assert suite.get("tests") == "6" and int(suite.get("failures")) >= 2

@@ -61,6 +61,8 @@ def batch_command(args) -> int:
     try:
         print(f"fraytool: batch: {len(job.shots)} shot(s) on {len(client.scheduler_info()['workers'])} worker(s); "
               f"Dask dashboard: {client.dashboard_link}", file=stream)
+        if args.golden_check or args.golden_update:
+            return _golden_batch(job, job_dir, client, args, stream)
         data = run_job(job, job_dir, client, stream, contact_sheets=not args.no_contact_sheet)
     finally:
         client.close()
@@ -73,6 +75,52 @@ def batch_command(args) -> int:
     print(f"fraytool: batch: {len(job.shots) - len(bad)} of {len(job.shots)} shot(s) done; {job_dir / 'job.json'}",
           file=stream)
     return 0 if not bad else 1
+
+
+def _golden_batch(job, job_dir: Path, client, args, stream) -> int:
+    """--golden-check DIR / --golden-update DIR: every valid shot checked (or its golden made) as a task on the
+    cluster, in parallel; one report for all (job_dir/golden-report/: report.html, summary.json; --junit)."""
+    from dask.distributed import as_completed
+
+    from fraytool.golden.compare import FAIL, WARN
+    from fraytool.golden.report import Report
+    from fraytool.golden.run import farm_task
+
+    update = bool(args.golden_update)
+    golden_dir = str(Path(args.golden_update or args.golden_check).absolute())
+    report = Report(None if update else job_dir / "golden-report")
+    work = str(job_dir / "golden-work")
+    futures = {client.submit(farm_task, shot.scene, shot.sets, golden_dir, work, str(job_dir / "golden-report"),
+                             update, key=f"golden-{shot.name}", pure=False): shot
+               for shot in job.shots if shot.error is None}
+    errors = [f"{s.name}: {_reason(s)}" for s in job.shots if s.error is not None]
+    for fut in as_completed(futures):
+        entry = fut.result()
+        shot = futures[fut]
+        if "error" in entry:
+            errors.append(f"{shot.name}: {entry['error']}")
+            continue
+        if update:
+            print(f"fraytool: batch: golden of {entry['scene']} made in {golden_dir}/{entry['scene']}/", file=stream)
+            continue
+        report.scenes.append(entry)
+        states = [f["status"] for f in entry["frames"]]
+        print(f"fraytool: batch: golden {entry['scene']}: " + ", ".join(f"frame {f['frame']} {f['status']}"
+                                                                       for f in entry["frames"]), file=stream)
+        for f in entry["frames"]:
+            for reason in f["reasons"]:
+                if ": fail: " in reason or FAIL not in states:
+                    print(f"fraytool:   {entry['scene']}: {reason}", file=stream)
+    for e in errors:
+        print(f"fraytool: batch: {e}", file=stream)
+    if update:
+        return 1 if errors else 0
+    report.scenes.sort(key=lambda e: e["scene"])
+    report.write(args.junit)
+    status = report.status
+    print(f"fraytool: batch: golden check of {len(report.scenes)} shot(s): {status}; report: "
+          f"{job_dir / 'golden-report' / 'report.html'}" + (" (warnings above)" if status == WARN else ""), file=stream)
+    return 1 if status == FAIL or errors else 0
 
 
 def _checked(job, job_dir: Path, stream):

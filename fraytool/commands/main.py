@@ -210,6 +210,12 @@ def build_parser() -> argparse.ArgumentParser:
                          "before any frame is rendered)")
     ba.add_argument("--chunk-frames", type=_positive_int, help="frames per render task (default 24)")
     ba.add_argument("--no-contact-sheet", action="store_true", help="no contact sheet for wedges")
+    ba.add_argument("--golden-check", type=Path, metavar="DIR", help="instead of rendering: check every shot "
+                    "against its golden in DIR (fraytool golden check, docs/golden.md) in parallel, one report for "
+                    "all in <job folder>/golden-report/; exit 1 on a regression")
+    ba.add_argument("--golden-update", type=Path, metavar="DIR", help="instead of rendering: make every shot's "
+                    "golden in DIR (fraytool golden update), in parallel")
+    ba.add_argument("--junit", type=Path, metavar="FILE", help="with --golden-check: JUnit XML for CI systems")
     _progress_flag(ba)
     _set_flag(ba)
 

@@ -1,6 +1,7 @@
 """Update and check one scene's golden (used by `fraytool golden` and by fraytool.testing)."""
 from __future__ import annotations
 
+import os
 import shlex
 import sys
 from dataclasses import dataclass, field
@@ -93,3 +94,31 @@ def check_scene(spec: SceneSpec, golden_dir: Path, frames: Optional[Sequence[int
         out.images[f.frame] = (golden[f.frame]["image"], f.image)
     out.differences = store.settings_differences(meta, spec, list(sets), captured.renderer)
     return out
+
+
+def farm_task(scene: str, sets: Sequence, golden_dir: str, work_root: Optional[str], report_dir: Optional[str],
+              update: bool) -> dict:
+    """One shot of `fraytool batch --golden-check / --golden-update` on a Dask worker: update the shot's golden,
+    or check it and write its part of the report (images) into report_dir. Returns the report entry
+    ({scene, frames: [{frame, status, figures, reasons, images}], ...}) or {scene, error}."""
+    import json
+
+    from fraytool.errors import FraytoolError
+    from fraytool.golden.report import Report
+    from fraytool.threads import set_up_threads
+
+    set_up_threads(1)
+    text_sets = [f"{k}={json.dumps(v)}" for k, v in sets]
+    try:
+        spec = load_scene(scene, list(sets))
+        if update:
+            update_scene(spec, Path(golden_dir), default_frames(spec), text_sets,
+                         Path(work_root) if work_root else None, stream=open(os.devnull, "w"))
+            return {"scene": spec.name, "updated": True, "frames": []}
+        result = check_scene(spec, Path(golden_dir), None, update_command_line(scene, Path(golden_dir), text_sets),
+                             text_sets, Path(work_root) if work_root else None, stream=open(os.devnull, "w"))
+    except FraytoolError as exc:
+        return {"scene": scene, "error": str(exc).splitlines()[0]}
+    report = Report(Path(report_dir) if report_dir else None)
+    report.add(spec.name, result.golden_dir, result.verdicts, result.images, result.differences, spec.golden.fail)
+    return report.scenes[0]
