@@ -252,3 +252,40 @@ def test_prores_takes_odd_sizes_that_h264_refuses(tmp_path, capsys):
     assert probe(tmp_path / "golden_small_000000-000001.mov")["size"] == (33, 25)
     assert main(["render", str(SCENE), "-o", str(tmp_path), "--resolution", "33x25", "--frames", "0:1"]) == 2
     assert "even width and height" in capsys.readouterr().err
+
+
+def test_a_changed_renderer_or_gl_draws_the_frames_again(tmp_path, capsys, monkeypatch):
+    """The reuse key covers what changes pixels beyond the settings: the renderer's own code and the GL
+    renderer and version that draw. Kept with nothing changed; drawn again when either changes."""
+    import fraytool.render.job as job
+    import fraytool.render.sequence as sequence
+
+    out = tmp_path / "out"
+    args = ["render", str(SCENE), "-o", str(out), *LEVEL_FLAGS, "--png", "--no-mp4"]
+    assert main(args) == 0 and "1 rendered, 0 kept" in capsys.readouterr().err
+    assert main(args) == 0 and "0 rendered, 1 kept" in capsys.readouterr().err
+    real = job.renderer_code_digest
+    monkeypatch.setattr(job, "renderer_code_digest", lambda *a: real(*a) + "-edited")
+    assert main(args) == 0 and "1 rendered, 0 kept" in capsys.readouterr().err   # a renderer module changed
+    monkeypatch.setattr(job, "renderer_code_digest", real)
+    assert main(args) == 0 and "1 rendered, 0 kept" in capsys.readouterr().err   # back: drawn again too
+    monkeypatch.setattr(sequence, "gl_strings", lambda ctx: "llvmpipe (LLVM 99.0, 256 bits); 4.5 (Core Profile) Mesa 99.0")
+    assert main(args) == 0 and "1 rendered, 0 kept" in capsys.readouterr().err   # another Mesa
+
+
+def test_the_renderer_code_digest_follows_its_modules_only(tmp_path):
+    """A copy of the package: editing a module of fraytool.render changes the digest; a simulation module
+    does not."""
+    import shutil
+
+    from fraytool.render.job import renderer_code_digest
+
+    package = Path(__file__).resolve().parents[1] / "fraytool"
+    copy = tmp_path / "fraytool"
+    shutil.copytree(package, copy, ignore=shutil.ignore_patterns("__pycache__", "*.nbi", "*.nbc"))
+    before = renderer_code_digest(copy)
+    assert before == renderer_code_digest(package)
+    (copy / "sim" / "model.py").write_text((copy / "sim" / "model.py").read_text() + "\n# a comment\n")
+    assert renderer_code_digest(copy) == before
+    (copy / "render" / "tube.py").write_text((copy / "render" / "tube.py").read_text() + "\n# a comment\n")
+    assert renderer_code_digest(copy) != before

@@ -293,3 +293,19 @@ def test_panels_draw_in_their_own_colours_and_live_stitches_as_threads():
     state.spring_alive[st[:3]] = False  # three stitches broken: three threads fewer
     fewer = yarn_pieces(topo, state.particle_position_m, state.crossing_yarn_level, state.spring_alive)
     assert (fewer.yarn == -1).sum() == 5
+
+
+def test_the_studies_variants_of_panel_scenes_build():
+    """fraytool study edits the first panel (damping per step, tearing off): the panels follow it, and the
+    tearing-off variant drops the scissors (they cut in the tearing stage)."""
+    import dataclasses as dc
+
+    from fraytool.scene import load_scene
+    from fraytool.study.accuracy import without_tearing
+
+    seams = load_scene("seam_rip")
+    edited = dc.replace(seams, cloth=dc.replace(seams.cloth, springs=dc.replace(seams.cloth.springs, damping=0.01)))
+    assert build_model(edited).damping == 0.01
+    perforated = without_tearing(load_scene("perforated_tear"))
+    model = build_model(perforated)
+    assert not model.tearing and not np.isfinite(model.spring_cut_time_s).any()

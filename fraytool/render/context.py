@@ -43,6 +43,12 @@ def create_context() -> moderngl.Context:
     return ctx
 
 
+def gl_strings(ctx: moderngl.Context) -> str:
+    """GL_RENDERER and GL_VERSION on one line (part of the render reuse key: fraytool.render.job)."""
+    info = ctx.info
+    return f"{info.get('GL_RENDERER', '?')}; {info.get('GL_VERSION', '?')}"
+
+
 def describe(ctx: moderngl.Context) -> str:
     """Two lines naming the renderer and the GL version (for `fraytool render -v`)."""
     info = ctx.info

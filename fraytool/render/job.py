@@ -12,9 +12,11 @@ PASS (PASS_SUFFIX) is "" for the yarns (beauty), "_wireframe" for --wireframe on
 --wireframe beside, so no pass or range ever overwrites another's files.
 
 `digest()` names the pixels: it hashes the simulation (scene_hash), camera, render settings, size,
-samples, wireframe mode, alpha, the colour target and PNG bit depth, the shader sources and
-RENDER_REVISION. A PNG or EXR carries the digest of the job that drew it; a resumed render keeps only
-files with its own digest.
+samples, wireframe mode, alpha, the colour target and PNG bit depth, the shader sources, the renderer's
+own code (every module of fraytool.render and the grid, kinds and color helpers it draws with:
+`renderer_code_digest`), the GL renderer and version strings of the context that draws (another Mesa
+draws other pixels) and RENDER_REVISION. A PNG or EXR carries the digest of the job that drew it; a
+resumed render keeps only files with its own digest.
 """
 from __future__ import annotations
 
@@ -42,7 +44,24 @@ PASS_SUFFIX = {"off": "", "only": "_wireframe", "beside": "_beside"}
 """File-name suffix of each render pass (the --wireframe mode)."""
 
 RENDER_REVISION = 3
-"""Bump when a change in the Python side of the renderer changes pixels (shader edits count by themselves)."""
+"""A hand-kept revision of the renderer; its code and shaders are hashed by themselves (renderer_code_digest)."""
+
+RENDERER_MODULES = ("render", "grid.py", "kinds.py", "meshes.py")
+"""What the renderer's pixels are computed by, under the fraytool package: the render package and the
+leaf modules it draws with."""
+
+
+def renderer_code_digest(package_dir: Path | None = None) -> str:
+    """SHA-256 over the renderer's Python sources (RENDERER_MODULES, by relative path and bytes): a changed
+    renderer never keeps frames an older one drew. `package_dir`: the fraytool package (default: this one)."""
+    root = Path(package_dir) if package_dir else Path(__file__).resolve().parents[1]
+    h = hashlib.sha256()
+    for name in RENDERER_MODULES:
+        p = root / name
+        files = sorted(p.rglob("*.py")) if p.is_dir() else [p]
+        for f in files:
+            h.update(str(f.relative_to(root)).encode() + b"\0" + f.read_bytes() + b"\0")
+    return h.hexdigest()
 
 
 @dataclass(frozen=True)
@@ -109,8 +128,9 @@ class RenderJob:
     def exr_path(self, frame: int) -> Path:
         return self.exr_dir / f"frame_{frame:06d}.exr"
 
-    def digest(self, effective_samples: int | None = None) -> str:
-        """Digest of the pixels; `effective_samples` is the MSAA count after clamping to the context."""
+    def digest(self, effective_samples: int | None = None, gl: str = "") -> str:
+        """Digest of the pixels; `effective_samples` is the MSAA count after clamping to the context, `gl` the
+        context's GL_RENDERER and GL_VERSION (fraytool.render.context.gl_strings)."""
         shaders = hashlib.sha256()
         for p in sorted(shader_dir().glob("*.*")):
             if p.suffix in (".vert", ".frag", ".geom", ".glsl"):
@@ -124,6 +144,8 @@ class RenderJob:
             "effective_samples": effective_samples,
             "revision": RENDER_REVISION,
             "shaders": shaders.hexdigest(),
+            "renderer_code": renderer_code_digest(),
+            "gl": gl,
         }
         colors = [(p.warp_color, p.weft_color) for p in self.spec.all_panels]
         if len(colors) > 1 or colors[0] != (None, None):  # panels' own colours (none: the digest as before)

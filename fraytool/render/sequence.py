@@ -23,6 +23,7 @@ from fraytool.io.frame_record import sweep_temp_files
 from fraytool.io.frame_store import FrameStore
 from fraytool.progress import Progress
 from fraytool.render.color import encode_premultiplied_linear
+from fraytool.render.context import gl_strings
 from fraytool.render.encode import PNG_SETTINGS_KEY, VideoWriter, png_settings, read_png, write_png
 from fraytool.render.exr import exr_settings, read_exr_rgba, write_exr
 from fraytool.render.geometry import GeometryBuilder, YarnStyle
@@ -154,7 +155,7 @@ def render_job(job: RenderJob, ctx: moderngl.Context, store: FrameStore, stream:
     W, H = job.size
     renderer = Renderer(ctx, job.size, job.samples, job.spec.render, job.spec.camera, topology, job.wireframe,
                         alpha=job.alpha, target=job.target, depth=job.exr, panels_spec=job.spec.all_panels)
-    digest = job.digest(renderer.samples)
+    digest = job.digest(renderer.samples, gl_strings(ctx))
     builder = GeometryBuilder(topology, YarnStyle.from_spec(job.spec.render, topology), renderer.camera, H)
     want_yarns = job.wireframe != "only"
     want_lines = job.wireframe != "off"

@@ -1002,6 +1002,8 @@ def scene_builder(spec: SceneSpec) -> ModelBuilder:
         if k == 0:
             builder.add_cloth(**args)
         else:
+            # what the panels share is the first panel's (a spec edited in code, as the studies do, edits it there)
+            args.update(spacing_m=c.spacing_m, thickness_m=c.thickness_m, damping=c.springs.damping)
             builder.add_panel(args.pop("name"), **args)
     builder.set_strain_limit(**dataclasses.asdict(c.strain))
     builder.set_tearing(**dataclasses.asdict(c.tearing))

@@ -131,8 +131,12 @@ class StudyResult:
 # --- scene variants ---------------------------------------------------------------------------
 
 def without_tearing(spec: SceneSpec) -> SceneSpec:
-    """Tearing off (break limits at infinity) so that trajectories can converge."""
-    return dc.replace(spec, cloth=dc.replace(spec.cloth, tearing=dc.replace(spec.cloth.tearing, enabled=False)))
+    """Tearing off (break limits at infinity) so that trajectories can converge; without scissors either
+    ([[cuts]] path_m: they cut in the tearing stage). Snips made before the shot stay."""
+    off = dc.replace(spec.cloth.tearing, enabled=False)
+    return dc.replace(spec, cloth=dc.replace(spec.cloth, tearing=off),
+                      panels=tuple(dc.replace(p, tearing=off) for p in spec.panels),
+                      cuts=tuple(c for c in spec.cuts if not c.path_m))
 
 
 def with_strain(spec: SceneSpec, iterations: int, tolerance: Optional[float] = None) -> SceneSpec:
