@@ -119,6 +119,9 @@ def test_killed_worker_is_retried_and_outputs_match_single_process_renders(scene
         different = [name for name in farm if farm[name] != alone[name]]
         assert not different, different
     assert (out / "small_contact_sheet.mp4").is_file()
+    stills = sorted(p.name for p in out.glob("small_contact_sheet_*.png"))  # first, middle and last frame
+    frames = sorted(int(p.stem.rsplit("_", 1)[1]) for p in out.glob("small_contact_sheet_*.png"))
+    assert len(stills) == 3 and frames[0] == 0 and frames[-1] == len(list((out / shots[0].name / "png").glob("*.png"))) - 1
 
 
 def test_bad_shot_is_reported_others_finish_rerun_does_nothing(scene, tmp_path, capsys, monkeypatch):
@@ -399,3 +402,25 @@ def test_a_dashed_wedge_range_points_at_the_dotted_one():
     with pytest.raises(InputError, match=r"scene\.seed=1\.\.3"):
         parse_wedge("scene.seed=1-3")
     assert parse_wedge("scene.name=1-3") == ("scene.name", ["1-3"])
+
+
+def test_a_contact_sheet_has_readable_labels_and_no_empty_tile():
+    """Three shots on a 2 x 2 grid: the third is centred in the last row on the grey ground (no black tile
+    where a fourth would be), and each label is at least 5 % of the tile high."""
+    import numpy as np
+    from PIL import ImageDraw, Image
+
+    from fraytool.farm.contact_sheet import SHEET_BACKGROUND, compose, label_font, tile_grid
+
+    tw, th = 320, 180
+    images = [np.full((th, tw, 3), v, np.uint8) for v in (200, 150, 100)]
+    grid = tile_grid(3)
+    assert grid == (2, 2)
+    sheet = compose(images, ["seed=1", "seed=2", "seed=3"], (tw, th), grid)
+    assert sheet.shape == (2 * th, 2 * tw, 3)
+    last = sheet[th + th // 2]  # a line through the last row, below the label
+    assert (last[tw // 2 + 10: tw + tw // 2 - 10] == 100).all()        # the third shot, centred
+    assert (last[: tw // 2 - 1] == SHEET_BACKGROUND).all() and (last[-(tw // 2 - 1):] == SHEET_BACKGROUND).all()
+    assert not (sheet == 0).all(axis=-1)[th:, :].all(axis=0).any()    # no black column in the last row
+    box = ImageDraw.Draw(Image.new("RGB", (10, 10))).textbbox((0, 0), "seed=3", font=label_font(th))
+    assert box[3] - box[1] >= 0.05 * th

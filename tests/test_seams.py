@@ -309,3 +309,16 @@ def test_the_studies_variants_of_panel_scenes_build():
     perforated = without_tearing(load_scene("perforated_tear"))
     model = build_model(perforated)
     assert not model.tearing and not np.isfinite(model.spring_cut_time_s).any()
+
+
+def test_the_shipped_seams_start_at_rest():
+    """seam_rip's panels lie one spacing apart: every stitch joins two crossings straight across, at its rest
+    length (a stitch paired with a diagonal neighbour would start 41 % stretched and break at once)."""
+    from fraytool.scene import load_scene
+
+    model = build_model(load_scene("seam_rip"))
+    st = np.flatnonzero(model.spring_kind == STITCH)
+    x = model.crossing_rest_position_m
+    gap = np.linalg.norm(x[model.spring_crossing_b[st]] - x[model.spring_crossing_a[st]], axis=1)
+    np.testing.assert_allclose(gap, model.spring_rest_length_m[st], rtol=1e-12)
+    np.testing.assert_allclose(x[model.spring_crossing_a[st], 2], x[model.spring_crossing_b[st], 2])

@@ -56,9 +56,9 @@ def machine() -> str:
 
 
 def capture(spec: SceneSpec, frames: Sequence[int], work_dir: Path, stream: TextIO = sys.stderr,
-            progress: Optional[bool] = False) -> Capture:
+            progress: Optional[bool] = None) -> Capture:
     """Simulate `spec` into work_dir (resuming frames already there) up to the last frame asked, and draw
-    `frames` with one renderer."""
+    `frames` with one renderer. `progress`: None follows --progress (a bar on a terminal, quiet otherwise)."""
     from fraytool.render.color import encode_premultiplied_linear
     from fraytool.render.context import create_context
     from fraytool.render.geometry import GeometryBuilder, YarnStyle

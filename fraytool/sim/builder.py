@@ -691,12 +691,18 @@ class ModelBuilder:
             (pa, a0, a1), (pb, b0, b1) = ends
             count = max(1, int(round(float(np.linalg.norm(a1 - a0)) / seam.stitch_spacing_m)))
             f = np.arange(count + 1) / count
-            fb = 1.0 - f if seam.reverse else f
-            pairs = []
-            for p, pts in ((pa, a0 + f[:, None] * (a1 - a0)), (pb, b0 + fb[:, None] * (b1 - b0))):
+
+            def nearest(p, pts):
                 candidates = np.flatnonzero(border & (crossing_panel == p))
                 d = np.linalg.norm(uv[candidates][None, :, :] - pts[:, None, :], axis=2)
-                pairs.append(candidates[d.argmin(axis=1)])
+                return candidates[d.argmin(axis=1)]
+
+            on_a = nearest(pa, a0 + f[:, None] * (a1 - a0))
+            # panel b's end is found from where a's crossing actually lies along segment a (its projection), so
+            # a point midway between two crossings (a tie) cannot pair a crossing with b's diagonal neighbour
+            along = np.clip(((uv[on_a] - a0) @ (a1 - a0)) / float((a1 - a0) @ (a1 - a0)), 0.0, 1.0)
+            fb = 1.0 - along if seam.reverse else along
+            pairs = [on_a, nearest(pb, b0 + fb[:, None] * (b1 - b0))]
             pair = np.unique(np.stack(pairs, axis=1), axis=0)
             pair = pair[pair[:, 0] != pair[:, 1]]
             out_a.append(pair[:, 0])
