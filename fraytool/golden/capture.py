@@ -60,7 +60,7 @@ def capture(spec: SceneSpec, frames: Sequence[int], work_dir: Path, stream: Text
     """Simulate `spec` into work_dir (resuming frames already there) up to the last frame asked, and draw
     `frames` with one renderer. `progress`: None follows --progress (a bar on a terminal, quiet otherwise)."""
     from fraytool.render.color import encode_premultiplied_linear
-    from fraytool.render.context import create_context
+    from fraytool.render.context import create_context, gl_strings
     from fraytool.render.geometry import GeometryBuilder, YarnStyle
     from fraytool.render.renderer import Renderer
     from fraytool.render.yarns import yarn_pieces
@@ -79,8 +79,7 @@ def capture(spec: SceneSpec, frames: Sequence[int], work_dir: Path, stream: Text
     out = Capture()
     ctx = create_context()
     try:
-        info = ctx.info
-        out.renderer = f"{info.get('GL_RENDERER', '?')}; {info.get('GL_VERSION', '?')}"
+        out.renderer = gl_strings(ctx)
         renderer = Renderer(ctx, tuple(spec.render.resolution), spec.render.samples, spec.render, spec.camera,
                             topology, target="float", panels_spec=spec.all_panels)
         builder = GeometryBuilder(topology, YarnStyle.from_spec(spec.render, topology), renderer.camera,

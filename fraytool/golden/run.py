@@ -109,14 +109,15 @@ def farm_task(scene: str, sets: Sequence, golden_dir: str, work_root: Optional[s
 
     set_up_threads(1)
     text_sets = [f"{k}={json.dumps(v)}" for k, v in sets]
+    work = Path(work_root) if work_root else None
     try:
         spec = load_scene(scene, list(sets))
-        if update:
-            update_scene(spec, Path(golden_dir), default_frames(spec), text_sets,
-                         Path(work_root) if work_root else None, stream=open(os.devnull, "w"))
-            return {"scene": spec.name, "updated": True, "frames": []}
-        result = check_scene(spec, Path(golden_dir), None, update_command_line(scene, Path(golden_dir), text_sets),
-                             text_sets, Path(work_root) if work_root else None, stream=open(os.devnull, "w"))
+        with open(os.devnull, "w") as quiet:  # a worker has no terminal: no progress
+            if update:
+                update_scene(spec, Path(golden_dir), default_frames(spec), text_sets, work, stream=quiet)
+                return {"scene": spec.name, "updated": True, "frames": []}
+            result = check_scene(spec, Path(golden_dir), None,
+                                 update_command_line(scene, Path(golden_dir), text_sets), text_sets, work, stream=quiet)
     except FraytoolError as exc:
         return {"scene": scene, "error": str(exc).splitlines()[0]}
     report = Report(Path(report_dir) if report_dir else None)

@@ -199,13 +199,18 @@ def panel_shape(cloth, scene_file: str = "") -> PanelShape:
     return PanelShape(present[sl].copy(), uv[sl].copy(), outline, (float(u0), float(v0), float(u1), float(v1)))
 
 
-def shape_problems(cloth, scene_file: str = "") -> list:
-    """The shape's problems as (key, value, allowed) lines: [] when panel_shape(cloth) works."""
+def _problems(make, cloth, scene_file: str) -> list:
+    """The (key, value, allowed) problems `make(cloth, scene_file)` raises: [] when it works."""
     try:
-        panel_shape(cloth, scene_file)
+        make(cloth, scene_file)
     except PanelShapeError as exc:
         return exc.problems
     return []
+
+
+def shape_problems(cloth, scene_file: str = "") -> list:
+    """The shape's problems: [] when panel_shape(cloth) works."""
+    return _problems(panel_shape, cloth, scene_file)
 
 
 def grid_size(cloth, scene_file: str = "") -> Optional[tuple[int, int]]:
@@ -238,11 +243,8 @@ def tear_map_image(cloth, scene_file: str = "") -> np.ndarray:
 
 
 def tear_map_problems(cloth, scene_file: str = "") -> list:
-    try:
-        tear_map_image(cloth, scene_file)
-    except PanelShapeError as exc:
-        return exc.problems
-    return []
+    """The tear map's problems: [] when tear_map_image(cloth) works."""
+    return _problems(tear_map_image, cloth, scene_file)
 
 
 def sample_map(image: np.ndarray, extent_uv_m, uv_m: np.ndarray) -> np.ndarray:
