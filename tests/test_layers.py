@@ -11,7 +11,7 @@ LAYER = {
     "__main__": 7,
     "commands": 6,
     "farm": 5, "export": 5, "golden": 5,
-    "testing": 6,
+    "testing": 6, "api": 7,
     "render": 4, "study": 4,
     "sim": 3,
     "collision": 2, "io": 2,

@@ -11,11 +11,10 @@ from pathlib import Path
 from typing import Optional, TextIO
 
 from fraytool.commands.render import ensure_frames
-from fraytool.errors import SceneError
+from fraytool.commands.target import load_target
 from fraytool.io.lock import OutputLock
 from fraytool.progress import Progress
 from fraytool.render.options import FrameRange, parse_frame_range
-from fraytool.scene import load_scene
 
 
 def export_command(args, stream: Optional[TextIO] = None) -> int:
@@ -24,23 +23,17 @@ def export_command(args, stream: Optional[TextIO] = None) -> int:
 
     require_usd()
     usd_path = check_usd_path(args.usd)
-    from fraytool.scene.overrides import parse_assignment
-
-    spec = load_scene(args.scene, [parse_assignment(a) for a in getattr(args, "sets", None) or ()])
-    from fraytool.sim.memory import admission_problems
-
-    problems = admission_problems(spec, force=bool(getattr(args, "force", False)))
-    if problems:
-        raise SceneError(problems)
+    target = load_target(args.scene, getattr(args, "sets", None) or (), force=bool(getattr(args, "force", False)))
+    spec = target.spec
     if getattr(args, "frames", None):
         frames = parse_frame_range(args.frames, spec.time.frames)
     else:
         frames = FrameRange(0, spec.time.frames, 1)
     from fraytool.sim.run import default_out_dir
 
-    out = Path(args.out) if getattr(args, "out", None) else default_out_dir(spec)
+    out = Path(args.out) if getattr(args, "out", None) else target.out_dir or default_out_dir(spec)
     with OutputLock(out, "export", wait_stream=stream):
-        store = ensure_frames(spec, out, frames.end, stream)
+        store = ensure_frames(spec, out, frames.end, stream, target.model)
         topology = store.load_topology()
         bar = Progress(len(frames), spec.name, stream=stream, stage="export")
         try:

@@ -10,21 +10,25 @@ import sys
 from pathlib import Path
 from typing import Optional, TextIO
 
-from fraytool.errors import RunError, SceneError
+from fraytool.commands.target import load_target
+from fraytool.errors import RunError
 from fraytool.io.frame_store import FrameStore
 from fraytool.io.lock import OutputLock
 from fraytool.render.job import build_job
-from fraytool.scene import SceneSpec, load_scene, scene_hash
+from fraytool.scene import SceneSpec
+from fraytool.sim.model import Model
 
 
-def ensure_frames(spec: SceneSpec, out_dir: Path, needed: int, stream: TextIO = sys.stderr) -> FrameStore:
-    """Frame records 0..needed-1 in out_dir/frames: reuse them if the manifest's scene hash matches
+def ensure_frames(spec: SceneSpec, out_dir: Path, needed: int, stream: TextIO = sys.stderr,
+                  model: Optional[Model] = None) -> FrameStore:
+    """Frame records 0..needed-1 in out_dir/frames: reuse them if the manifest's digest matches
     and frames 0..needed-1 verify (checksums), continue or repair a matching run (resume: the
-    damaged files are named on `stream`), else simulate afresh."""
-    from fraytool.sim.run import simulate_to_disk
+    damaged files are named on `stream`), else simulate afresh. `model`: a Model built or edited in
+    Python to simulate instead of the scene's (fraytool.sim.run.simulate_to_disk)."""
+    from fraytool.sim.run import shot_hash, simulate_to_disk
 
     store = FrameStore(out_dir)
-    digest = scene_hash(spec)
+    digest = shot_hash(spec, model)
     if store.matches(digest) or (store.manifest() is None and store.dir.is_dir()):
         done = store.frames_complete()
         survey = store.survey(digest, frames=min(done, needed) if store.manifest() else None)
@@ -34,10 +38,10 @@ def ensure_frames(spec: SceneSpec, out_dir: Path, needed: int, stream: TextIO = 
             if survey.clean:
                 print(f"fraytool: continuing the simulation in {store.dir} from frame {done} to {needed}",
                       file=stream)
-            simulate_to_disk(spec, out_dir, frames=needed, resume=True, stream=stream)
+            simulate_to_disk(spec, out_dir, frames=needed, resume=True, stream=stream, model=model)
             return store
     print(f"fraytool: simulating {needed} frames into {store.dir}", file=stream)
-    simulate_to_disk(spec, out_dir, frames=needed, stream=stream)
+    simulate_to_disk(spec, out_dir, frames=needed, stream=stream, model=model)
     return store
 
 
@@ -69,17 +73,12 @@ def render_command(args, stream: Optional[TextIO] = None) -> int:
 
 def _render(args, stream: Optional[TextIO]) -> int:
     stream = stream or sys.stderr
-    from fraytool.scene.overrides import parse_assignment
-
-    spec = load_scene(args.scene, [parse_assignment(a) for a in getattr(args, "sets", None) or ()])
-    from fraytool.sim.memory import admission_problems
-
-    problems = admission_problems(spec, force=bool(getattr(args, "force", False)))
-    if problems:
-        raise SceneError(problems)
+    target = load_target(args.scene, getattr(args, "sets", None) or (), force=bool(getattr(args, "force", False)))
+    spec = target.spec
     from fraytool.sim.run import default_out_dir
 
-    job = build_job(spec, args, Path(args.out) if getattr(args, "out", None) else default_out_dir(spec))
+    out_dir = Path(args.out) if getattr(args, "out", None) else target.out_dir or default_out_dir(spec)
+    job = build_job(spec, args, out_dir)
     if job.exr:
         try:
             import OpenEXR  # noqa: F401  (a dependency of fraytool; missing only in a broken installation)
@@ -102,7 +101,7 @@ def _render(args, stream: Optional[TextIO]) -> int:
         with OutputLock(job.out_dir, "render", wait_stream=stream):
             if job.spec.camera.fit:
                 # the fit covers the whole shot, so farm shards of one scene agree on the camera
-                store = ensure_frames(job.spec, job.out_dir, job.spec.time.frames, stream)
+                store = ensure_frames(job.spec, job.out_dir, job.spec.time.frames, stream, target.model)
                 from fraytool.render.fit import fitted_job
 
                 job = fitted_job(job, store)
@@ -110,7 +109,7 @@ def _render(args, stream: Optional[TextIO]) -> int:
                 print(f"fraytool: --fit: camera at {_fmt(cam.position_m)} looking at {_fmt(cam.target_m)}",
                       file=stream)
             else:
-                store = ensure_frames(job.spec, job.out_dir, job.frames.end, stream)
+                store = ensure_frames(job.spec, job.out_dir, job.frames.end, stream, target.model)
             result = render_job(job, ctx, store, stream=stream)
     finally:
         ctx.release()

@@ -12,7 +12,7 @@ What a step changes (positions, alive flags, spring end points after a split) li
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, fields
+from dataclasses import MISSING, dataclass, field, fields
 import numpy as np
 
 from fraytool.kinds import SHEAR_TWIN
@@ -272,4 +272,52 @@ class Model:
                 out[f.name] = v
             elif isinstance(v, (int, float, bool)):
                 out[f.name] = np.asarray(v)
+            elif isinstance(v, tuple) and all(isinstance(x, np.ndarray) for x in v):  # one array per body
+                out[f"{f.name}.count"] = np.asarray(len(v))
+                out.update({f"{f.name}.{k}": x for k, x in enumerate(v)})
+            elif isinstance(v, tuple):  # names (panels, bodies)
+                out[f.name] = np.asarray(v, dtype=str).reshape(len(v))
         return out
+
+    def digest(self) -> str:
+        """SHA-256 over every array of `arrays()` (name, dtype, shape, bytes), in name order: two Models
+        with one break strain apart have different digests."""
+        import hashlib
+
+        h = hashlib.sha256()
+        for name, v in sorted(self.arrays().items()):
+            v = np.ascontiguousarray(v)
+            h.update(f"{name}:{v.dtype.str}:{v.shape}".encode())
+            h.update(v.tobytes())
+        return h.hexdigest()
+
+    @classmethod
+    def from_arrays(cls, data) -> "Model":
+        """The Model whose `arrays()` are `data` (a frames folder's topology): a shot simulated from a Model
+        built or edited in Python resumes, renders and exports without its scene file. Raises ValueError
+        naming the fields a topology written before names were saved lacks."""
+        import typing
+
+        hints = typing.get_type_hints(cls)
+        keys = set(data) | {k.rsplit(".", 1)[0] for k in data if k.endswith(".count")}
+        missing = [f.name for f in fields(cls) if f.name not in keys and f.default is MISSING
+                   and f.default_factory is MISSING]
+        if missing:
+            raise ValueError(f"the saved model lacks {', '.join(missing)} (written by an older fraytool): "
+                             "simulate it again from its scene")
+        args = {}
+        for f in fields(cls):
+            if f"{f.name}.count" in data:  # one array per body
+                count = int(np.asarray(data[f"{f.name}.count"]))
+                args[f.name] = tuple(np.array(data[f"{f.name}.{k}"]) for k in range(count))
+                continue
+            if f.name not in data:
+                continue
+            v, hint = data[f.name], hints[f.name]
+            if hint is np.ndarray:
+                args[f.name] = np.array(v)
+            elif hint in (int, float, bool):
+                args[f.name] = hint(np.asarray(v).item())
+            else:
+                args[f.name] = tuple(str(x) for x in np.asarray(v).reshape(-1))
+        return cls(**args)

@@ -5,17 +5,20 @@ gives the same frames, bit for bit, as an uninterrupted run.
 """
 from __future__ import annotations
 
+import hashlib
 import json
 import sys
 import time
 from pathlib import Path
 from typing import Optional
 
+import numpy as np
 from fraytool.errors import OutputError, SceneError
 from fraytool.io.frame_store import FrameStore
 from fraytool.io.lock import OutputLock
 from fraytool.progress import Progress
 from fraytool.scene.load import scene_hash
+from fraytool.scene.spec_io import spec_to_json
 from fraytool.scene.spec import SceneSpec
 from fraytool.sim.builder import build_model
 from fraytool.io.failure import write_failure
@@ -46,9 +49,34 @@ def check_step(spec: SceneSpec, model: Model, stream=None) -> float:
     return bound
 
 
+SCENE_RECORD = "scene_json"
+"""Topology entry holding the SceneSpec as JSON (fraytool.scene.spec_io): a frames folder renders, exports
+and resumes without its scene file."""
+
+
+def shot_hash(spec: SceneSpec, model: Optional[Model] = None) -> str:
+    """The digest naming a shot's frames: the scene's (scene_hash), or with a Model built or edited in
+    Python, the scene's and the Model's arrays' together (an edited break strain is another shot)."""
+    digest = scene_hash(spec)
+    if model is None:
+        return digest
+    return hashlib.sha256(f"{digest}:{model.digest()}".encode()).hexdigest()[:16]
+
+
+def shot_topology(spec: SceneSpec, model: Model) -> dict:
+    """What a frames folder's topology.npz holds: the Model's arrays and the scene as JSON."""
+    return {**model.arrays(), SCENE_RECORD: np.asarray(spec_to_json(spec))}
+
+
 def simulate_to_disk(spec: SceneSpec, out_dir: Path, frames: Optional[int] = None, resume: bool = False,
-                     progress: Optional[bool] = None, stream=None) -> dict:
+                     progress: Optional[bool] = None, stream=None, model: Optional[Model] = None) -> dict:
     """Simulate `frames` frames (default: the scene's) into out_dir/frames; returns the summary.
+
+    `model`: a Model built or edited in Python (ModelBuilder, or build_model then an edit) to simulate
+    instead of the scene's own; `spec` still gives the time step, frames, camera and render settings. Its
+    arrays are saved with the frames (topology.npz, with the scene), so `fraytool render OUT` and
+    `fraytool export OUT` (or fraytool.api) render and export it, and a resume continues it, without a
+    scene file.
 
     The output folder is held (OutputLock) for the whole run, and temp files of dead writers in it
     are swept. With `resume`, the store is surveyed first: missing, truncated, corrupted or foreign
@@ -59,7 +87,7 @@ def simulate_to_disk(spec: SceneSpec, out_dir: Path, frames: Optional[int] = Non
         store = FrameStore(out_dir)
         for p in store.sweep_temp_files():
             print(f"fraytool: removed {p} (a temp file of a write that was killed)", file=stream)
-        return _simulate_locked(spec, store, frames, resume, progress, stream)
+        return _simulate_locked(spec, store, frames, resume, progress, stream, model)
 
 
 def _store_info(spec: SceneSpec, model: Model, total: int) -> dict:
@@ -69,7 +97,7 @@ def _store_info(spec: SceneSpec, model: Model, total: int) -> dict:
 
 
 def _resume_point(spec: SceneSpec, model: Model, store: FrameStore, digest: str, total: int,
-                  stream) -> Optional[tuple[Simulation, int]]:
+                  stream, topology: dict) -> Optional[tuple[Simulation, int]]:
     """(simulation to continue, first frame whose record must be written) after surveying the store,
     or None when nothing there can be reused (a fresh start)."""
     m = store.manifest()
@@ -87,7 +115,7 @@ def _resume_point(spec: SceneSpec, model: Model, store: FrameStore, digest: str,
     for line in survey.problems:
         print(f"fraytool: {line}", file=stream)
     good = survey.good_frames
-    store.reopen(digest, _store_info(spec, model, total), good, model.arrays(), not survey.topology_ok)
+    store.reopen(digest, _store_info(spec, model, total), good, topology, not survey.topology_ok)
     if good > 0 and survey.resumable_from_checkpoint():
         frame, arrays = store.load_checkpoint()
         sim = Simulation(spec, model=model, state=State.from_arrays(arrays), frame=frame)
@@ -101,19 +129,20 @@ def _resume_point(spec: SceneSpec, model: Model, store: FrameStore, digest: str,
 
 
 def _simulate_locked(spec: SceneSpec, store: FrameStore, frames: Optional[int], resume: bool,
-                     progress: Optional[bool], stream) -> dict:
+                     progress: Optional[bool], stream, given: Optional[Model] = None) -> dict:
     total = spec.time.frames if frames is None else frames
-    model = build_model(spec)
+    model = build_model(spec) if given is None else given
     check_step(spec, model, stream)
-    digest = scene_hash(spec)
-    point = _resume_point(spec, model, store, digest, total, stream) if resume else None
+    digest = shot_hash(spec, given)
+    topology = shot_topology(spec, model)
+    point = _resume_point(spec, model, store, digest, total, stream, topology) if resume else None
     if point is not None:
         sim, first_write = point
         store.clear_failure()  # a failure recorded by an earlier attempt no longer describes this run
         if sim.frame == 0 and first_write == 0:
             store.write_frame(sim.record(), sim.checkpoint_arrays())
     else:
-        store.start(model.arrays(), digest, _store_info(spec, model, total))
+        store.start(topology, digest, _store_info(spec, model, total))
         sim, first_write = Simulation(spec, model=model), 1
         try:
             store.write_frame(sim.record(), sim.checkpoint_arrays())
@@ -181,3 +210,39 @@ def _unstable_run(sim: Simulation, store: FrameStore, exc: SimulationUnstable) -
     path = write_failure(store.dir, diag, last_good.arrays() if last_good is not None else None)
     store.update_manifest(unstable=json.loads(path.read_text()))
     return SimulationUnstable(unstable_message(diag, str(path)), diag)
+
+
+def is_shot_folder(path: str | Path) -> bool:
+    """True when `path` is an output folder holding simulated frames (OUT/frames/topology.npz)."""
+    p = Path(path)
+    return p.is_dir() and (p / "frames" / "topology.npz").is_file()
+
+
+def load_shot(out_dir: str | Path) -> tuple[SceneSpec, Optional[Model], str]:
+    """(scene, model, digest) of a simulated shot from its frames folder alone.
+
+    The model is None when the frames are the scene's own (their digest is the scene's: a resume
+    rebuilds it from the scene); else the Model the frames were simulated from (built or edited in
+    Python), read back from topology.npz. Raises OutputError naming what is missing or damaged."""
+    from fraytool.scene.spec_io import spec_from_json
+
+    store = FrameStore(Path(out_dir))
+    manifest = store.manifest()
+    if manifest is None:
+        raise OutputError(f"{store.dir}: no intact manifest.json: not a frames folder fraytool wrote "
+                          f"({store.manifest_problem()})")
+    topology = store.load_topology()
+    if SCENE_RECORD not in topology:
+        raise OutputError(f"{store.dir / 'topology.npz'}: holds no scene record (simulated by an older fraytool): "
+                          "render or export it from its scene file instead")
+    try:
+        spec = spec_from_json(str(topology.pop(SCENE_RECORD)))
+    except ValueError as exc:
+        raise OutputError(f"{store.dir / 'topology.npz'}: its scene record does not read back: {exc}") from None
+    digest = manifest["scene_hash"]
+    if digest == scene_hash(spec):
+        return spec, None, digest
+    try:
+        return spec, Model.from_arrays(topology), digest
+    except (ValueError, KeyError, TypeError) as exc:
+        raise OutputError(f"{store.dir / 'topology.npz'}: the saved model does not read back: {exc}") from None

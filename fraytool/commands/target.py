@@ -1,0 +1,45 @@
+"""What `render`, `export` and `bench --render` act on: a scene file (or a shipped scene's name), or the
+output folder of a simulated shot, which holds its scene and Model (fraytool.sim.run.load_shot), as a shot
+simulated from a Model built in Python does."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Optional, Sequence
+
+from fraytool.errors import InputError, SceneError
+from fraytool.scene import SceneSpec
+from fraytool.sim.model import Model
+
+
+@dataclass(frozen=True)
+class Target:
+    spec: SceneSpec
+    model: Optional[Model] = None
+    """The Model to simulate instead of the scene's (a saved shot's); None: the scene's own."""
+    out_dir: Optional[Path] = None
+    """The shot's folder when the target is one (the default output folder)."""
+    digest: Optional[str] = None
+    """The frames' digest when the target is a shot folder."""
+
+
+def load_target(name: str, sets: Sequence[str] = (), force: bool = False) -> Target:
+    """The scene file `name` with its --set overrides (refused, exit 2, when the machine lacks the memory
+    unless `force`), or the shot in the output folder `name`."""
+    from fraytool.sim.run import is_shot_folder, load_shot
+
+    if is_shot_folder(name):
+        if sets:
+            raise InputError(f"{name}: --set changes a scene file's keys; this is a simulated shot's folder, whose "
+                             "scene is fixed: render its scene file with --set instead, or re-simulate in Python")
+        spec, model, digest = load_shot(name)
+        return Target(spec, model, Path(name), digest)
+    from fraytool.scene import load_scene
+    from fraytool.scene.overrides import parse_assignment
+    from fraytool.sim.memory import admission_problems
+
+    spec = load_scene(name, [parse_assignment(a) for a in sets])
+    problems = admission_problems(spec, force=force)
+    if problems:
+        raise SceneError(problems)
+    return Target(spec)
