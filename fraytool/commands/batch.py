@@ -1,7 +1,8 @@
-"""`fraytool batch SCENE_OR_JOB... [-o DIR] [--workers N | --scheduler ADDR] [--set K=V] [--wedge K=V1,V2]`:
-many shots on Dask distributed (fraytool.farm, docs/farm.md). Exit 0 when every shot is done, 1 when
-any failed or was invalid (job.json says which and why), 2 for bad flags or job files, or when no
-shot can run at all (checked before a cluster starts)."""
+"""`fraytool batch SCENE_OR_JOB... [-o DIR] [--workers N | --scheduler ADDR] [--connect-timeout S] [--set K=V]
+[--wedge K=V1,V2]`: many shots on Dask distributed (fraytool.farm, docs/farm.md). Exit 0 when every shot
+is done, 1 when any failed or was invalid (job.json says which and why) or no worker connected within
+--connect-timeout, 2 for bad flags or job files, or when no shot can run at all (checked before a
+cluster starts)."""
 from __future__ import annotations
 
 import os
@@ -14,6 +15,7 @@ from fraytool.errors import InputError, RunError
 
 def batch_command(args) -> int:
     from fraytool.farm.runner import local_client, remote_client, run_job
+    from fraytool.farm.watch import FarmWatch
     from fraytool.farm.shots import Job, RenderOptions, check_job_name, check_render_options, expand, load_job, parse_wedge, unique_names
     from fraytool.render.options import parse_resolution
     from fraytool.scene.overrides import parse_assignment
@@ -58,13 +60,17 @@ def batch_command(args) -> int:
     else:
         workers = args.workers or max(1, os.cpu_count() or 1)
         client, cluster = local_client(workers, stream)
+    watch = None
     try:
         print(f"fraytool: batch: {len(job.shots)} shot(s) on {len(client.scheduler_info()['workers'])} worker(s); "
               f"Dask dashboard: {client.dashboard_link}", file=stream)
+        watch = FarmWatch(client, stream, connect_timeout_s=args.connect_timeout, local=cluster is not None)
         if args.golden_check or args.golden_update:
-            return _golden_batch(job, job_dir, client, args, stream)
-        data = run_job(job, job_dir, client, stream, contact_sheets=not args.no_contact_sheet)
+            return _golden_batch(job, job_dir, client, args, stream, watch)
+        data = run_job(job, job_dir, client, stream, contact_sheets=not args.no_contact_sheet, watch=watch)
     finally:
+        if watch is not None:
+            watch.close()
         client.close()
         if cluster is not None:
             cluster.close()
@@ -77,11 +83,11 @@ def batch_command(args) -> int:
     return 0 if not bad else 1
 
 
-def _golden_batch(job, job_dir: Path, client, args, stream) -> int:
+def _golden_batch(job, job_dir: Path, client, args, stream, watch) -> int:
     """--golden-check DIR / --golden-update DIR: every valid shot checked (or its golden made) as a task on the
-    cluster, in parallel; one report for all (job_dir/golden-report/: report.html, summary.json; --junit)."""
-    from dask.distributed import as_completed
-
+    cluster, in parallel; one report for all (job_dir/golden-report/: report.html, summary.json; --junit).
+    `watch` (farm.watch.FarmWatch) says lost workers, retries and a cluster without workers."""
+    from fraytool.farm.tasks import run_attempt
     from fraytool.golden.compare import FAIL, WARN
     from fraytool.golden.report import Report
     from fraytool.golden.run import farm_task
@@ -90,12 +96,14 @@ def _golden_batch(job, job_dir: Path, client, args, stream) -> int:
     golden_dir = str(Path(args.golden_update or args.golden_check).absolute())
     report = Report(None if update else job_dir / "golden-report")
     work = str(job_dir / "golden-work")
-    futures = {client.submit(farm_task, shot.scene, shot.sets, golden_dir, work, str(job_dir / "golden-report"),
-                             update, key=f"golden-{shot.name}", pure=False): shot
+    futures = {client.submit(run_attempt, f"golden-{shot.name}", farm_task, shot.scene, shot.sets, golden_dir, work,
+                             str(job_dir / "golden-report"), update, key=f"golden-{shot.name}", pure=False): shot
                for shot in job.shots if shot.error is None}
+    watch.labels.update({f"golden-{s.name}": f"{s.name} golden {'update' if update else 'check'}" for s in job.shots})
     errors = [f"{s.name}: {_reason(s)}" for s in job.shots if s.error is not None]
-    for fut in as_completed(futures):
+    for fut in watch.completed(futures):
         entry = fut.result()
+        watch.finished(fut.key, result=entry)  # takes out run_attempt's "attempt" entry
         shot = futures[fut]
         if "error" in entry:
             errors.append(f"{shot.name}: {entry['error']}")

@@ -70,6 +70,26 @@ def _positive_int(text: str) -> int:
     return v
 
 
+MAX_WAIT_S = 7 * 24 * 3600.0
+"""Largest --connect-timeout: a week (a longer wait is better said as no timeout)."""
+
+
+def _positive_seconds(text: str) -> float:
+    """A positive, finite number of seconds, at most MAX_WAIT_S."""
+    import math
+
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive number of seconds, got {text!r}") from None
+    if not math.isfinite(v) or v <= 0:
+        raise argparse.ArgumentTypeError(f"expected a positive number of seconds, got {text!r}")
+    if v > MAX_WAIT_S:
+        raise argparse.ArgumentTypeError(f"expected at most {MAX_WAIT_S:.0f} seconds (a week; leave the option out "
+                                         f"to wait for workers as long as it takes), got {text!r}")
+    return v
+
+
 def _set_flag(p: argparse.ArgumentParser) -> None:
     p.add_argument("--set", dest="sets", action="append", default=[], metavar="KEY=VALUE",
                    help="override a scene key, validated like the file: e.g. --set scene.seed=3, "
@@ -193,6 +213,10 @@ def build_parser() -> argparse.ArgumentParser:
     ba.add_argument("-o", "--out", type=Path, help="job folder (default outputs/<job name>/)")
     ba.add_argument("--workers", type=_positive_int, help="local worker processes (default: one per core)")
     ba.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="use a running Dask scheduler instead")
+    ba.add_argument("--connect-timeout", type=_positive_seconds, metavar="SECONDS",
+                    help="while no worker is connected (none yet, or all lost), give up after SECONDS: exit 1, "
+                         "job.json and the outputs so far kept (default: wait as long as it takes, saying so "
+                         "every 30 s)")
     ba.add_argument("--wedge", dest="wedges", action="append", default=[], metavar="KEY=V1,V2,...",
                     help="one shot per value (ranges: A..B, A..B:STEP), plus a contact sheet (repeatable)")
     ba.add_argument("--frames", metavar="START:END[:STEP]", help="frame range of every shot")

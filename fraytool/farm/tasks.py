@@ -19,6 +19,52 @@ def _where() -> str:
     return f"{socket.gethostname()}:{os.getpid()}"
 
 
+ATTEMPT_TOPIC = "fraytool-farm-attempt"
+"""The Dask event topic on which a farm task tells the client that an attempt started or raised
+(farm/watch.py listens): the client sees every attempt, also those the scheduler retries on its own
+and those whose worker dies."""
+
+
+def one_line(exc: BaseException) -> str:
+    """An exception as one line: its type and the first line of its message (at most 300 characters)."""
+    text = str(exc).strip().splitlines()
+    return f"{type(exc).__name__}: {text[0][:300]}" if text else type(exc).__name__
+
+
+def _dask_worker():
+    """The Dask worker running this task, or None when the task runs in-process (tests, a debugger)."""
+    from distributed import get_worker
+
+    try:
+        return get_worker()
+    except ValueError:
+        return None
+
+
+def _tell(worker, message: dict) -> None:
+    """Send one attempt event to the client (nothing to tell outside a worker)."""
+    if worker is not None:
+        worker.log_event(ATTEMPT_TOPIC, message)
+
+
+def run_attempt(key: str, work, *args) -> dict:
+    """Run `work(*args)` as one attempt of the farm task `key`: the client is told when it starts (on
+    which worker) and, if it raises, the error, before the exception goes on to the scheduler (which
+    may retry it). Returns work's result dict with an "attempt" entry: worker, process, start, end
+    (epoch seconds) - the runner takes it out into job.json's attempts."""
+    worker = _dask_worker()
+    address = worker.address if worker is not None else "in-process"
+    start = time.time()
+    _tell(worker, {"key": key, "event": "start", "time": start, "worker": address, "process": _where()})
+    try:
+        result = work(*args)
+    except Exception as exc:
+        _tell(worker, {"key": key, "event": "error", "time": time.time(), "worker": address, "error": one_line(exc)})
+        raise
+    attempt = {"worker": address, "process": _where(), "start": start, "end": time.time()}
+    return {**result, "attempt": attempt}
+
+
 def task_info(t0: float) -> dict:
     """Seconds since t0 and the worker (host:pid), for job.json."""
     return {"seconds": time.time() - t0, "worker": _where()}
