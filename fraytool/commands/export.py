@@ -2,7 +2,8 @@
 yarns and bodies as USD (fraytool.export.usd).
 
 Order of work, so that mistakes fail fast: the USD library and every flag (InputError, exit 2) -> make
-sure the frame records exist (as `fraytool render` does) -> write the file.
+sure the frame records exist (as `fraytool render` does; the whole shot when [camera] fit = true) -> fit
+the camera if asked -> write the file.
 """
 from __future__ import annotations
 
@@ -10,8 +11,9 @@ import sys
 from pathlib import Path
 from typing import Optional, TextIO
 
-from fraytool.commands.render import ensure_frames
+from fraytool.commands.render import _fmt, ensure_frames
 from fraytool.commands.target import load_target
+from fraytool.errors import InputError
 from fraytool.io.lock import OutputLock
 from fraytool.progress import Progress
 from fraytool.render.options import FrameRange, parse_frame_range
@@ -25,6 +27,7 @@ def export_command(args, stream: Optional[TextIO] = None) -> int:
     usd_path = check_usd_path(args.usd)
     target = load_target(args.scene, getattr(args, "sets", None) or (), force=bool(getattr(args, "force", False)))
     spec = target.spec
+    _check_camera(spec)
     if getattr(args, "frames", None):
         frames = parse_frame_range(args.frames, spec.time.frames)
     else:
@@ -33,13 +36,50 @@ def export_command(args, stream: Optional[TextIO] = None) -> int:
 
     out = Path(args.out) if getattr(args, "out", None) else target.out_dir or default_out_dir(spec)
     with OutputLock(out, "export", wait_stream=stream):
-        store = ensure_frames(spec, out, frames.end, stream, target.model)
+        needed = _frames_needed(spec, frames)
+        store = ensure_frames(spec, out, needed, stream, target.model, target.digest)
+        if spec.camera.fit:
+            spec = _with_fitted_camera(spec, store, stream)
         topology = store.load_topology()
         bar = Progress(len(frames), spec.name, stream=stream, stage="export")
         try:
-            records = (store.load_frame(f) for f in frames.frames())
-            path = write_usd(usd_path, spec, topology, records, on_frame=bar.update)
+            from fraytool.export.velocities import FrameSource
+
+            source = FrameSource(range(needed), store.load_frame)
+            records = (source.get(f) for f in frames.frames())
+            path = write_usd(usd_path, spec, topology, records, on_frame=bar.update, frames=source)
         finally:
             bar.close()
     print(f"fraytool: exported {len(frames)} frames to {path}", file=stream)
     return 0
+
+
+def _frames_needed(spec, frames: FrameRange) -> int:
+    """How many frame records (0 .. n-1) the export reads: the whole shot for a fitted camera (as
+    `fraytool render --fit` frames it), else the exported range and the frame after it, which the
+    velocities of the last exported frame difference with (fraytool.export.velocities)."""
+    if spec.camera.fit:
+        return spec.time.frames
+    return min(frames.end + 1, spec.time.frames)
+
+
+def _with_fitted_camera(spec, store, stream: TextIO):
+    """The scene with the camera `fraytool render` uses for [camera] fit = true (fraytool.render.fit)."""
+    import dataclasses
+
+    from fraytool.render.fit import fitted_camera
+
+    camera = fitted_camera(spec, store)
+    print(f"fraytool: fit: camera at {_fmt(camera.position_m)} looking at {_fmt(camera.target_m)}", file=stream)
+    return dataclasses.replace(spec, camera=camera)
+
+
+def _check_camera(spec) -> None:
+    """InputError (exit 2) before any simulating when the USD camera cannot be made (the renderer's
+    Camera: an up vector along the view direction)."""
+    from fraytool.render.camera import Camera
+
+    try:
+        Camera(spec.camera)
+    except InputError as exc:
+        raise InputError(f"{spec.source}: [camera]: {exc}") from None

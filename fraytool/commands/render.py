@@ -20,15 +20,16 @@ from fraytool.sim.model import Model
 
 
 def ensure_frames(spec: SceneSpec, out_dir: Path, needed: int, stream: TextIO = sys.stderr,
-                  model: Optional[Model] = None) -> FrameStore:
+                  model: Optional[Model] = None, digest: Optional[str] = None) -> FrameStore:
     """Frame records 0..needed-1 in out_dir/frames: reuse them if the manifest's digest matches
     and frames 0..needed-1 verify (checksums), continue or repair a matching run (resume: the
     damaged files are named on `stream`), else simulate afresh. `model`: a Model built or edited in
-    Python to simulate instead of the scene's (fraytool.sim.run.simulate_to_disk)."""
+    Python to simulate instead of the scene's (fraytool.sim.run.simulate_to_disk); `digest`: the frames'
+    hash of a shot read back from its folder (default: shot_hash(spec, model))."""
     from fraytool.sim.run import shot_hash, simulate_to_disk
 
     store = FrameStore(out_dir)
-    digest = shot_hash(spec, model)
+    digest = digest or shot_hash(spec, model)
     if store.matches(digest) or (store.manifest() is None and store.dir.is_dir()):
         done = store.frames_complete()
         survey = store.survey(digest, frames=min(done, needed) if store.manifest() else None)
@@ -38,10 +39,10 @@ def ensure_frames(spec: SceneSpec, out_dir: Path, needed: int, stream: TextIO = 
             if survey.clean:
                 print(f"fraytool: continuing the simulation in {store.dir} from frame {done} to {needed}",
                       file=stream)
-            simulate_to_disk(spec, out_dir, frames=needed, resume=True, stream=stream, model=model)
+            simulate_to_disk(spec, out_dir, frames=needed, resume=True, stream=stream, model=model, digest=digest)
             return store
     print(f"fraytool: simulating {needed} frames into {store.dir}", file=stream)
-    simulate_to_disk(spec, out_dir, frames=needed, stream=stream, model=model)
+    simulate_to_disk(spec, out_dir, frames=needed, stream=stream, model=model, digest=digest)
     return store
 
 
@@ -101,7 +102,8 @@ def _render(args, stream: Optional[TextIO]) -> int:
         with OutputLock(job.out_dir, "render", wait_stream=stream):
             if job.spec.camera.fit:
                 # the fit covers the whole shot, so farm shards of one scene agree on the camera
-                store = ensure_frames(job.spec, job.out_dir, job.spec.time.frames, stream, target.model)
+                store = ensure_frames(spec, job.out_dir, job.spec.time.frames, stream, target.model,
+                                      target.digest)
                 from fraytool.render.fit import fitted_job
 
                 job = fitted_job(job, store)
@@ -109,7 +111,7 @@ def _render(args, stream: Optional[TextIO]) -> int:
                 print(f"fraytool: --fit: camera at {_fmt(cam.position_m)} looking at {_fmt(cam.target_m)}",
                       file=stream)
             else:
-                store = ensure_frames(job.spec, job.out_dir, job.frames.end, stream, target.model)
+                store = ensure_frames(spec, job.out_dir, job.frames.end, stream, target.model, target.digest)
             result = render_job(job, ctx, store, stream=stream)
     finally:
         ctx.release()

@@ -16,7 +16,7 @@ from fraytool.sim.model import Model
 class Target:
     spec: SceneSpec
     model: Optional[Model] = None
-    """The Model to simulate instead of the scene's (a saved shot's); None: the scene's own."""
+    """The Model to simulate instead of the scene's (a saved shot's); None: the scene file's own."""
     out_dir: Optional[Path] = None
     """The shot's folder when the target is one (the default output folder)."""
     digest: Optional[str] = None

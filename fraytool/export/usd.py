@@ -1,11 +1,13 @@
-"""USD export (`fraytool export SCENE --usd OUT.usd`): the yarns and bodies of a shot, a time sample per frame.
+"""USD export (`fraytool export SCENE --usd OUT.usd`): the yarns, bodies and camera of a shot, a time
+sample per frame.
 
 Stage layout (the default prim is named after the scene, made a valid USD identifier):
 
     /<scene>                 Xform
+    /<scene>/Camera          Camera: the renderer's view (fraytool.export.usd_camera), static
     /<scene>/Yarns/Weft      BasisCurves: every weft piece of the frame
     /<scene>/Yarns/Warp      BasisCurves: every warp piece
-    /<scene>/Bodies/<name>   Sphere (radius), Cube (size 2, scaled by the half extents) or Plane
+    /<scene>/Bodies/<name>   Sphere (radius), Cube (size 2, scaled by the half extents), Plane or Mesh
 
 Yarns: `type` cubic, `basis` catmullRom, `wrap` pinned (the curve runs through its first and last
 point too). The points are the centre-line points the renderer's splines pass through
@@ -13,19 +15,26 @@ point too). The points are the centre-line points the renderer's splines pass th
 per unbroken piece, so `curveVertexCounts` changes as the cloth tears and is time-sampled with the
 points. USD's catmullRom is the uniform spline and the renderer's the centripetal one: both pass
 through the same points. Per vertex: `widths`, the drawn yarn diameter (2 x [render] yarn_radius_m,
-by default the cloth thickness), and `primvars:displayOpacity`, the renderer's fade towards broken ends
-(1 elsewhere). Constant `primvars:displayColor`: [render] weft_color / warp_color, decoded from sRGB
-to linear (as USD renderers expect). Per curve (uniform) `primvars:fraytool:yarn`: the yarn index
-(j of a weft, i of a warp).
+by default the cloth thickness), `velocities` (fraytool.export.velocities) and
+`primvars:displayOpacity`, the renderer's fade towards broken ends (1 elsewhere). Constant
+`primvars:displayColor`: [render] weft_color / warp_color, decoded from sRGB to linear (as USD
+renderers expect). Per curve (uniform) `primvars:fraytool:yarn`: the yarn index (j of a weft, i of a
+warp).
 
 Bodies: xformOps translate (double3) and orient (quatf) sampled per frame from the frame record, plus
 a constant scale for boxes; planes are squares of 20 x the cloth's size, their normal along the
-plane's own axis. displayColor: [render] body_color, linear.
+plane's own axis. displayColor: [render] body_color, linear. Constant primvars `fraytool:velocity`
+(of the body's origin) and `fraytool:angularVelocity` (world axes, rad/s); a mesh's `velocities` are
+its points' own, in the body's frame (fraytool.export.velocities).
+
+Velocities are per second of the stage's timeline (time code / timeCodesPerSecond): the simulated
+velocity times frame_time x fps (a factor of 1 unless the shot plays in slow or fast motion).
 
 Stage: metersPerUnit 1, upAxis Y or Z (whichever of the two the scene camera's up leans to; the
 shipped scenes have Y), timeCodesPerSecond = framesPerSecond = [time] fps, a time code per scene
-frame (frame k at time code k), start and end time codes the first and last exported frame. The
-file is written to a hidden temp file beside OUT and renamed when complete.
+frame (frame k at time code k), start and end time codes the first and last exported frame;
+customLayerData: the fraytool version, scene name and hash, and the frame time [s]. The file is
+written to a hidden temp file beside OUT and renamed when complete.
 """
 from __future__ import annotations
 
@@ -37,6 +46,10 @@ import numpy as np
 
 from fraytool import __version__
 from fraytool.errors import InputError, RunError
+from fraytool.export.rotation import quaternion_wxyz
+from fraytool.export.usd_camera import define_camera
+from fraytool.export.velocities import (FrameSource, Stencil, body_velocities, mesh_vertex_velocities,
+                                        yarn_point_velocities)
 from fraytool.io.frame_record import FrameRecord
 from fraytool.kinds import SHAPE_BOX, SHAPE_MESH, SHAPE_PLANE, SHAPE_SPHERE
 from fraytool.meshes import MeshTable
@@ -51,6 +64,8 @@ from fraytool.scene.spec import SceneSpec
 USD_SUFFIXES = (".usd", ".usda", ".usdc")
 """File name endings USD picks its format by: .usd and .usdc binary (crate), .usda text."""
 INSTALL_HINT = 'pip install "fraytool[usd]"'
+CAMERA_NAME = "Camera"
+"""The scene camera's prim, under the default prim."""
 PLANE_SCALE = 20.0
 """A plane body is drawn as a square this many times the cloth's size."""
 
@@ -88,26 +103,6 @@ def up_axis(camera_up) -> str:
     return "Y" if up[1] >= up[2] else "Z"
 
 
-def quaternion_wxyz(rotation: np.ndarray) -> np.ndarray:
-    """Unit quaternion (w, x, y, z) of a rotation matrix R (x_world = R x_local), by Shepperd's method."""
-    R = np.asarray(rotation, dtype=np.float64)
-    t = np.trace(R)
-    if t > 0.0:
-        s = 2.0 * np.sqrt(t + 1.0)
-        q = [0.25 * s, (R[2, 1] - R[1, 2]) / s, (R[0, 2] - R[2, 0]) / s, (R[1, 0] - R[0, 1]) / s]
-    elif R[0, 0] > R[1, 1] and R[0, 0] > R[2, 2]:
-        s = 2.0 * np.sqrt(1.0 + R[0, 0] - R[1, 1] - R[2, 2])
-        q = [(R[2, 1] - R[1, 2]) / s, 0.25 * s, (R[0, 1] + R[1, 0]) / s, (R[0, 2] + R[2, 0]) / s]
-    elif R[1, 1] > R[2, 2]:
-        s = 2.0 * np.sqrt(1.0 + R[1, 1] - R[0, 0] - R[2, 2])
-        q = [(R[0, 2] - R[2, 0]) / s, (R[0, 1] + R[1, 0]) / s, 0.25 * s, (R[1, 2] + R[2, 1]) / s]
-    else:
-        s = 2.0 * np.sqrt(1.0 + R[2, 2] - R[0, 0] - R[1, 1])
-        q = [(R[1, 0] - R[0, 1]) / s, (R[0, 2] + R[2, 0]) / s, (R[1, 2] + R[2, 1]) / s, 0.25 * s]
-    q = np.asarray(q)
-    return q / np.linalg.norm(q)
-
-
 class _YarnPrim:
     """One BasisCurves prim (all weft or all warp pieces) and its time-sampled attributes."""
 
@@ -128,8 +123,11 @@ class _YarnPrim:
         self.yarn = UsdGeom.PrimvarsAPI(c).CreatePrimvar("fraytool:yarn", Sdf.ValueTypeNames.IntArray,
                                                          UsdGeom.Tokens.uniform)
         self.extent = c.CreateExtentAttr()
+        self.velocities = c.CreateVelocitiesAttr()
 
-    def set(self, time: float, points: np.ndarray, offsets: np.ndarray, opacity: np.ndarray, yarn: np.ndarray) -> None:
+    def set(self, time: float, points: np.ndarray, offsets: np.ndarray, opacity: np.ndarray, yarn: np.ndarray,
+            velocities: Optional[np.ndarray]) -> None:
+        """The pieces of one frame at time code `time`; `velocities` per point [m/s], None: unknown."""
         from pxr import Vt
 
         p = np.ascontiguousarray(points, dtype=np.float32).reshape(-1, 3)
@@ -138,26 +136,72 @@ class _YarnPrim:
         self.widths.Set(Vt.FloatArray.FromNumpy(np.full(len(p), self.width_m, np.float32)), time)
         self.opacity.Set(Vt.FloatArray.FromNumpy(np.ascontiguousarray(opacity, dtype=np.float32)), time)
         self.yarn.Set(Vt.IntArray.FromNumpy(np.ascontiguousarray(yarn, dtype=np.int32)), time)
+        if velocities is not None:
+            self.velocities.Set(_vec3f_array(velocities), time)
         if len(p):
             half = 0.5 * self.width_m
             lo, hi = p.min(axis=0) - half, p.max(axis=0) + half
             self.extent.Set(Vt.Vec3fArray.FromNumpy(np.stack([lo, hi]).astype(np.float32)), time)
 
 
-def _pieces_of(curves, kind: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """(points, offsets, opacity, yarn) of the pieces of one kind."""
+def _pieces_of(curves, kind: int, velocities: Optional[np.ndarray]) -> tuple:
+    """(points, offsets, opacity, yarn, velocities or None) of the pieces of one kind; `velocities` are
+    per point of `curves` (None: unknown)."""
     sel = np.nonzero(curves.kind == kind)[0]
     counts = np.diff(curves.offsets)[sel]
     starts = curves.offsets[:-1][sel]
     idx = np.repeat(starts - np.concatenate([[0], np.cumsum(counts)[:-1]]), counts) + np.arange(counts.sum())
     offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
-    return curves.points[idx], offsets, curves.opacity[idx], curves.yarn[sel]
+    return (curves.points[idx], offsets, curves.opacity[idx], curves.yarn[sel],
+            None if velocities is None else velocities[idx])
+
+
+class _BodyPrim:
+    """One body's prim: its time-sampled xformOps, its velocity primvars and, for a mesh, its points'
+    velocities (and points, when the mesh is animated)."""
+
+    def __init__(self, prim, extra: np.ndarray, mesh: Optional[int], meshes: MeshTable):
+        from pxr import Sdf, UsdGeom
+
+        self.extra = extra
+        self.mesh = mesh
+        self.meshes = meshes
+        self.translate = prim.AddTranslateOp(UsdGeom.XformOp.PrecisionDouble)
+        self.orient = prim.AddOrientOp(UsdGeom.XformOp.PrecisionFloat)
+        primvars = UsdGeom.PrimvarsAPI(prim)
+        self.velocity = primvars.CreatePrimvar("fraytool:velocity", Sdf.ValueTypeNames.Vector3f,
+                                               UsdGeom.Tokens.constant)
+        self.angular_velocity = primvars.CreatePrimvar("fraytool:angularVelocity", Sdf.ValueTypeNames.Vector3f,
+                                                       UsdGeom.Tokens.constant)
+        is_mesh = mesh is not None
+        self.points = prim.GetPointsAttr() if is_mesh and meshes.animated(mesh) else None
+        self.point_velocities = prim.CreateVelocitiesAttr() if is_mesh else None
+        if is_mesh and self.points is None:  # a rigid mesh: its points never move in its own frame
+            self.point_velocities.Set(_vec3f_array(np.zeros((meshes.vertex_count(mesh), 3))))
+
+    def set(self, time: float, record: FrameRecord, b: int, stencil: Stencil,
+            motion: Optional[tuple[np.ndarray, np.ndarray]]) -> None:
+        """Body b of `record` at time code `time`; `motion`: every body's (linear, angular) velocity
+        (fraytool.export.velocities.body_velocities over `stencil`), None when unknown."""
+        from pxr import Gf
+
+        self.translate.Set(Gf.Vec3d(*map(float, record.body_position_m[b])), time)
+        w, x, y, z = quaternion_wxyz(np.asarray(record.body_rotation[b], np.float64) @ self.extra)
+        self.orient.Set(Gf.Quatf(float(w), float(x), float(y), float(z)), time)
+        if self.points is not None:  # an animated mesh's points, time-sampled at each frame
+            self.points.Set(_vec3f_array(self.meshes.vertices_at(self.mesh, float(record.time_s))), time)
+        if motion is None:
+            return
+        linear, angular = motion
+        self.velocity.Set(Gf.Vec3f(*map(float, linear[b])), time)
+        self.angular_velocity.Set(Gf.Vec3f(*map(float, angular[b])), time)
+        if self.points is not None:
+            self.point_velocities.Set(_vec3f_array(mesh_vertex_velocities(self.meshes, self.mesh, stencil)), time)
 
 
 def _define_bodies(stage, root: str, spec: SceneSpec, topology: Mapping[str, np.ndarray]) -> list:
-    """One prim per body with its xformOps; returns (translate op, orient op, extra rotation, points of an
-    animated mesh: (its points attribute, its mesh index) or None) per body (None for a body that cannot
-    be drawn). A mesh body is a UsdGeom.Mesh of its triangles in the body's frame."""
+    """One prim per body; returns a _BodyPrim per body (None for a body that cannot be drawn). A mesh
+    body is a UsdGeom.Mesh of its triangles in the body's frame."""
     from pxr import Gf, Tf, UsdGeom
 
     shapes = np.asarray(topology.get("body_shape", np.zeros(0, np.int8)))
@@ -170,7 +214,7 @@ def _define_bodies(stage, root: str, spec: SceneSpec, topology: Mapping[str, np.
     colour = [Gf.Vec3f(*map(float, srgb_to_linear(spec.render.body_color)))]
     UsdGeom.Xform.Define(stage, f"{root}/Bodies")
     used: set[str] = set()
-    ops = []
+    bodies = []
     meshes = MeshTable(topology)
     mesh_of_body = {int(body): m for m, body in enumerate(meshes.body)}
     for b, shape in enumerate(shapes):
@@ -179,7 +223,7 @@ def _define_bodies(stage, root: str, spec: SceneSpec, topology: Mapping[str, np.
             name += "_"
         used.add(name)
         path = f"{root}/Bodies/{name}"
-        extra = np.eye(3)
+        extra, mesh = np.eye(3), None
         if shape == SHAPE_SPHERE:
             prim = UsdGeom.Sphere.Define(stage, path)
             prim.CreateRadiusAttr(float(radius[b]))
@@ -194,24 +238,22 @@ def _define_bodies(stage, root: str, spec: SceneSpec, topology: Mapping[str, np.
             prim.CreateDoubleSidedAttr(True)
             extra = rotation_from_y(normal[b])  # the plane's +y axis onto its normal (in the body's frame)
         elif shape == SHAPE_MESH and b in mesh_of_body:
-            m = mesh_of_body[b]
+            mesh = mesh_of_body[b]
             prim = UsdGeom.Mesh.Define(stage, path)
-            tri = meshes.local_triangles(m)
+            tri = meshes.local_triangles(mesh)
             prim.CreateFaceVertexCountsAttr(np.full(tri.shape[0], 3, np.int32).tolist())
             prim.CreateFaceVertexIndicesAttr(tri.ravel().tolist())
             prim.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
-            points = prim.CreatePointsAttr(_vec3f_array(meshes.key_vertices(m, 0)))
-            animated = (points, m) if meshes.animated(m) else None
+            prim.CreatePointsAttr(_vec3f_array(meshes.key_vertices(mesh, 0)))
         else:
-            ops.append(None)
+            bodies.append(None)
             continue
         prim.CreateDisplayColorPrimvar(UsdGeom.Tokens.constant).Set(colour)
-        translate = prim.AddTranslateOp(UsdGeom.XformOp.PrecisionDouble)
-        orient = prim.AddOrientOp(UsdGeom.XformOp.PrecisionFloat)
+        body = _BodyPrim(prim, extra, mesh, meshes)
         if shape == SHAPE_BOX:
             prim.AddScaleOp(UsdGeom.XformOp.PrecisionFloat).Set(Gf.Vec3f(*map(float, half[b])))
-        ops.append((translate, orient, extra, animated if shape == SHAPE_MESH else None))
-    return ops
+        bodies.append(body)
+    return bodies
 
 
 def _vec3f_array(points: np.ndarray):
@@ -220,56 +262,78 @@ def _vec3f_array(points: np.ndarray):
     return Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(points, dtype=np.float32).reshape(-1, 3))
 
 
-def write_usd(path: Path, spec: SceneSpec, topology: Mapping[str, np.ndarray], records: Iterable[FrameRecord],
-              on_frame: Optional[Callable[[int], None]] = None) -> Path:
-    """Write the frame records (in time order) as a USD stage at `path` (see the module docstring);
-    `on_frame(n)` is called after each of them (n = records done). Returns the path."""
-    from pxr import Gf, Tf, Usd, UsdGeom
+def frame_time_s(spec: SceneSpec) -> float:
+    """Simulated seconds between two frames (step_s x steps_per_frame)."""
+    return float(spec.time.step_s) * int(spec.time.steps_per_frame)
 
-    path = check_usd_path(path)
+
+def _new_stage(spec: SceneSpec):
+    """An in-memory stage with the module docstring's metadata and the default prim; returns (stage, root
+    path)."""
+    from pxr import Tf, Usd, UsdGeom
+
     stage = Usd.Stage.CreateInMemory()
     UsdGeom.SetStageMetersPerUnit(stage, 1.0)
     UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y if up_axis(spec.camera.up) == "Y" else UsdGeom.Tokens.z)
     fps = float(spec.time.fps)
     stage.SetTimeCodesPerSecond(fps)
     stage.SetFramesPerSecond(fps)
-    root_name = Tf.MakeValidIdentifier(spec.name)
-    root = f"/{root_name}"
+    root = f"/{Tf.MakeValidIdentifier(spec.name)}"
     stage.SetDefaultPrim(UsdGeom.Xform.Define(stage, root).GetPrim())
     stage.GetRootLayer().customLayerData = {"fraytool:version": __version__, "fraytool:scene_hash": scene_hash(spec),
-                                            "fraytool:scene": spec.name}
+                                            "fraytool:scene": spec.name, "fraytool:frame_time_s": frame_time_s(spec)}
+    return stage, root
+
+
+def write_usd(path: Path, spec: SceneSpec, topology: Mapping[str, np.ndarray], records: Iterable[FrameRecord],
+              on_frame: Optional[Callable[[int], None]] = None, frames: Optional[FrameSource] = None) -> Path:
+    """Write the frame records (in time order) as a USD stage at `path` (see the module docstring);
+    `on_frame(n)` is called after each of them (n = records done). `frames`: every frame record the
+    velocities may difference with (fraytool.export.velocities; default: `records` themselves).
+    Returns the path."""
+    from pxr import UsdGeom
+
+    path = check_usd_path(path)
+    if frames is None:
+        records = list(records)
+        frames = FrameSource.of_records(records)
+    stage, root = _new_stage(spec)
+    define_camera(stage, f"{root}/{CAMERA_NAME}", spec.camera, spec.render.resolution)
     style = YarnStyle.from_spec(spec.render, topology)
     UsdGeom.Scope.Define(stage, f"{root}/Yarns")
     width = 2.0 * style.radius_m
     prims = {WEFT: _YarnPrim(stage, f"{root}/Yarns/Weft", spec.render.weft_color, width),
              WARP: _YarnPrim(stage, f"{root}/Yarns/Warp", spec.render.warp_color, width)}
     bodies = _define_bodies(stage, root, spec, topology)
-    meshes = MeshTable(topology)
+    time_codes_per_second = stage.GetTimeCodesPerSecond()
 
     first = last = None
     for n, record in enumerate(records, start=1):
         t = float(record.frame)
         first = t if first is None else first
         last = t
+        stencil = Stencil.around(record, frames, time_codes_per_second)
         curves = yarn_curves(topology, record, style)
+        velocities = yarn_point_velocities(topology, stencil) if stencil.has_motion else None
         for kind, prim in prims.items():
-            prim.set(t, *_pieces_of(curves, kind))
+            prim.set(t, *_pieces_of(curves, kind, velocities))
+        motion = body_velocities(stencil) if stencil.has_motion else None
         for b, body in enumerate(bodies):
-            if body is None:
-                continue
-            translate, orient, extra, animated = body
-            translate.Set(Gf.Vec3d(*map(float, record.body_position_m[b])), t)
-            if animated is not None:  # an animated mesh's points, time-sampled at each frame
-                points, m = animated
-                points.Set(_vec3f_array(meshes.vertices_at(m, float(record.time_s))), t)
-            w, x, y, z = quaternion_wxyz(np.asarray(record.body_rotation[b], np.float64) @ extra)
-            orient.Set(Gf.Quatf(float(w), float(x), float(y), float(z)), t)
+            if body is not None:
+                body.set(t, record, b, stencil, motion)
         if on_frame is not None:
             on_frame(n)
     if first is None:
         raise ValueError("no frames to export")
     stage.SetStartTimeCode(first)
     stage.SetEndTimeCode(last)
+    _save(stage, path)
+    return path
+
+
+def _save(stage, path: Path) -> None:
+    """Export the stage to a hidden temp file beside `path`, fsync it and rename it to `path`."""
+    from pxr import Tf
 
     remove_stale_partials(path)
     tmp = partial_path(path)
@@ -291,4 +355,3 @@ def write_usd(path: Path, spec: SceneSpec, topology: Mapping[str, np.ndarray], r
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
-    return path

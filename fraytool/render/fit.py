@@ -66,12 +66,16 @@ def fit_camera(camera: CameraSpec, points: np.ndarray, aspect: float, margin: fl
                                target_m=tuple(float(x) for x in target), fit=False)
 
 
-def fitted_job(job, store):
-    """The render job with its camera fitted to every frame record of the scene in `store` (a
-    FrameStore holding the whole shot): the same camera for every frame range of the scene, so farm
-    chunks and `fraytool render` agree."""
+def fitted_camera(spec, store) -> CameraSpec:
+    """The scene's camera fitted to every frame record of the scene in `store` (a FrameStore holding the
+    whole shot) at the aspect of its [render] resolution: one camera for the whole shot."""
     topology = store.load_topology()
-    records = (store.load_frame(f) for f in range(job.spec.time.frames))
-    w, h = job.spec.render.resolution
-    camera = fit_camera(job.spec.camera, shot_points(topology, records), w / h)
-    return dataclasses.replace(job, spec=dataclasses.replace(job.spec, camera=camera))
+    records = (store.load_frame(f) for f in range(spec.time.frames))
+    w, h = spec.render.resolution
+    return fit_camera(spec.camera, shot_points(topology, records), w / h)
+
+
+def fitted_job(job, store):
+    """The render job with its camera fitted to the whole shot (`fitted_camera`): the same camera for
+    every frame range of the scene, so farm chunks and `fraytool render` agree."""
+    return dataclasses.replace(job, spec=dataclasses.replace(job.spec, camera=fitted_camera(job.spec, store)))

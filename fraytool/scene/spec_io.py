@@ -1,8 +1,10 @@
 """A SceneSpec as JSON and back: what a frames folder keeps of the scene (`frames/scene.json`), so that a
 render, an export or a resume of a shot needs no scene file (a model built in Python has none).
 
-The JSON is `dataclasses.asdict` of the spec; reading it back rebuilds each dataclass from its field types
-(tuples stay tuples, optional tables stay None), so `spec_from_json(spec_to_json(s)) == s`.
+The JSON is `dataclasses.asdict` of the spec without where it was read from (`source`, `source_file`: one
+scene gives the same record from any path, so two runs of it write the same topology); reading it back
+rebuilds each dataclass from its field types (tuples stay tuples, optional tables stay None), so
+`spec_from_json(spec_to_json(s)) == replace(s, source="", source_file="")`.
 """
 from __future__ import annotations
 
@@ -21,15 +23,17 @@ SPEC_JSON_VERSION = 1
 
 def spec_to_json(spec: SceneSpec) -> str:
     """The spec as JSON text (keys sorted, one stable text for one spec)."""
+    spec = dataclasses.replace(spec, source="", source_file="")
     return json.dumps({"version": SPEC_JSON_VERSION, "spec": dataclasses.asdict(spec)}, sort_keys=True, indent=1)
 
 
-def spec_from_json(text: str) -> SceneSpec:
-    """The SceneSpec written by spec_to_json. Raises ValueError naming what does not fit."""
+def spec_from_json(text: str, source: str = "") -> SceneSpec:
+    """The SceneSpec written by spec_to_json, with `source` (what messages name it by). Raises ValueError
+    naming what does not fit."""
     data = json.loads(text)
     if not isinstance(data, dict) or data.get("version") != SPEC_JSON_VERSION or "spec" not in data:
         raise ValueError(f"not a fraytool scene record of version {SPEC_JSON_VERSION}")
-    return _build(SceneSpec, data["spec"], "spec")
+    return dataclasses.replace(_build(SceneSpec, data["spec"], "spec"), source=source)
 
 
 @lru_cache(maxsize=None)

@@ -69,14 +69,16 @@ def shot_topology(spec: SceneSpec, model: Model) -> dict:
 
 
 def simulate_to_disk(spec: SceneSpec, out_dir: Path, frames: Optional[int] = None, resume: bool = False,
-                     progress: Optional[bool] = None, stream=None, model: Optional[Model] = None) -> dict:
+                     progress: Optional[bool] = None, stream=None, model: Optional[Model] = None,
+                     digest: Optional[str] = None) -> dict:
     """Simulate `frames` frames (default: the scene's) into out_dir/frames; returns the summary.
 
     `model`: a Model built or edited in Python (ModelBuilder, or build_model then an edit) to simulate
     instead of the scene's own; `spec` still gives the time step, frames, camera and render settings. Its
     arrays are saved with the frames (topology.npz, with the scene), so `fraytool render OUT` and
     `fraytool export OUT` (or fraytool.api) render and export it, and a resume continues it, without a
-    scene file.
+    scene file. `digest`: the frames' hash when continuing a shot read back from its folder (load_shot);
+    default shot_hash(spec, model).
 
     The output folder is held (OutputLock) for the whole run, and temp files of dead writers in it
     are swept. With `resume`, the store is surveyed first: missing, truncated, corrupted or foreign
@@ -87,7 +89,7 @@ def simulate_to_disk(spec: SceneSpec, out_dir: Path, frames: Optional[int] = Non
         store = FrameStore(out_dir)
         for p in store.sweep_temp_files():
             print(f"fraytool: removed {p} (a temp file of a write that was killed)", file=stream)
-        return _simulate_locked(spec, store, frames, resume, progress, stream, model)
+        return _simulate_locked(spec, store, frames, resume, progress, stream, model, digest)
 
 
 def _store_info(spec: SceneSpec, model: Model, total: int) -> dict:
@@ -129,11 +131,12 @@ def _resume_point(spec: SceneSpec, model: Model, store: FrameStore, digest: str,
 
 
 def _simulate_locked(spec: SceneSpec, store: FrameStore, frames: Optional[int], resume: bool,
-                     progress: Optional[bool], stream, given: Optional[Model] = None) -> dict:
+                     progress: Optional[bool], stream, given: Optional[Model] = None,
+                     digest: Optional[str] = None) -> dict:
     total = spec.time.frames if frames is None else frames
     model = build_model(spec) if given is None else given
     check_step(spec, model, stream)
-    digest = shot_hash(spec, given)
+    digest = digest or shot_hash(spec, given)
     topology = shot_topology(spec, model)
     point = _resume_point(spec, model, store, digest, total, stream, topology) if resume else None
     if point is not None:
@@ -218,12 +221,10 @@ def is_shot_folder(path: str | Path) -> bool:
     return p.is_dir() and (p / "frames" / "topology.npz").is_file()
 
 
-def load_shot(out_dir: str | Path) -> tuple[SceneSpec, Optional[Model], str]:
-    """(scene, model, digest) of a simulated shot from its frames folder alone.
-
-    The model is None when the frames are the scene's own (their digest is the scene's: a resume
-    rebuilds it from the scene); else the Model the frames were simulated from (built or edited in
-    Python), read back from topology.npz. Raises OutputError naming what is missing or damaged."""
+def load_shot(out_dir: str | Path) -> tuple[SceneSpec, Model, str]:
+    """(scene, model, digest) of a simulated shot from its frames folder alone: the scene and the Model
+    the frames were simulated from (a scene's own, or one built or edited in Python), and the frames'
+    hash, to continue them with. Raises OutputError naming what is missing or damaged."""
     from fraytool.scene.spec_io import spec_from_json
 
     store = FrameStore(Path(out_dir))
@@ -232,17 +233,16 @@ def load_shot(out_dir: str | Path) -> tuple[SceneSpec, Optional[Model], str]:
         raise OutputError(f"{store.dir}: no intact manifest.json: not a frames folder fraytool wrote "
                           f"({store.manifest_problem()})")
     topology = store.load_topology()
+    where = store.dir / "topology.npz"
     if SCENE_RECORD not in topology:
-        raise OutputError(f"{store.dir / 'topology.npz'}: holds no scene record (simulated by an older fraytool): "
+        raise OutputError(f"{where}: holds no scene record (simulated by an older fraytool): "
                           "render or export it from its scene file instead")
     try:
-        spec = spec_from_json(str(topology.pop(SCENE_RECORD)))
+        spec = spec_from_json(str(topology.pop(SCENE_RECORD)), source=str(where))
     except ValueError as exc:
-        raise OutputError(f"{store.dir / 'topology.npz'}: its scene record does not read back: {exc}") from None
-    digest = manifest["scene_hash"]
-    if digest == scene_hash(spec):
-        return spec, None, digest
+        raise OutputError(f"{where}: its scene record does not read back: {exc}") from None
     try:
-        return spec, Model.from_arrays(topology), digest
+        model = Model.from_arrays(topology)
     except (ValueError, KeyError, TypeError) as exc:
-        raise OutputError(f"{store.dir / 'topology.npz'}: the saved model does not read back: {exc}") from None
+        raise OutputError(f"{where}: the saved model does not read back: {exc}") from None
+    return spec, model, manifest["scene_hash"]
