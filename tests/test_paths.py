@@ -278,3 +278,28 @@ def test_a_turning_mesh_carries_the_cloth_round_and_keeps_it_out():
     disk_turn = 180.0 * steps * dt_s
     assert abs(turned - disk_turn) < 0.15 * disk_turn
     assert x[:, 1].min() > 0.005  # on the disk, not in it
+
+
+def test_a_checkpoint_from_before_turning_bodies_loads_with_the_rest_orientation():
+    """A checkpoint without body_rotation (written before bodies could turn) gets the model's orientation at
+    rest and no angular velocity; without the model's orientation it is refused, never guessed."""
+    from fraytool.sim.state import State
+
+    sim = _sim(BALL_ROTATED)
+    arrays = {k: v for k, v in sim.state.arrays().items()
+              if k not in ("body_rotation", "body_angular_velocity_rad_s")}
+    loaded = State.from_arrays(arrays, sim.model.body_rotation)
+    np.testing.assert_allclose(loaded.body_rotation[0], _rot_y(math.radians(30.0)), atol=1e-15)
+    np.testing.assert_array_equal(loaded.body_angular_velocity_rad_s, np.zeros((1, 3)))
+    with pytest.raises(KeyError):
+        State.from_arrays(arrays)
+
+
+BALL_ROTATED = """
+[[bodies]]
+name = "ball"
+shape = "sphere"
+radius_m = 0.01
+position_m = [0.0, 0.3, 0.0]
+rotation_deg = [0.0, 30.0, 0.0]
+"""
