@@ -22,3 +22,5 @@ SHAPE_SPHERE, SHAPE_BOX, SHAPE_PLANE, SHAPE_MESH = 0, 1, 2, 3
 SHAPE_NAMES = ("sphere", "box", "plane", "mesh")
 MOTION_STATIC, MOTION_KINEMATIC, MOTION_DYNAMIC = 0, 1, 2
 MOTION_NAMES = ("static", "kinematic", "dynamic")
+INTERPOLATION_NAMES = ("linear", "catmull_rom")
+"""How a kinematic body's path and orientation keys are interpolated (fraytool.sim.paths)."""

@@ -19,6 +19,9 @@ def _with(old: str, new: str) -> str:
     return GOOD.replace(old, new)
 
 
+_KINEMATIC = GOOD + '\n[[bodies]]\nname = "b"\nshape = "box"\nhalf_extents_m = [0.01, 0.01, 0.01]\nmotion = "kinematic"\n'
+"""A kinematic box: keys of paths that turn go after it."""
+
 CASES = {
     "unknown key": (GOOD.replace("[cloth]\n", "[cloth]\nwarp_yarn = 3\n"), ["[cloth] warp_yarn = 3", "unknown key", "warp_yarns"]),
     "unknown table": (GOOD + "\n[clothes]\nx = 1\n", ["[clothes]", "unknown table"]),
@@ -52,6 +55,28 @@ CASES = {
     "key nested too deeply": (GOOD + "\n" + ".".join(["a"] * 20000) + " = 1\n", ["nested 20000 levels deep"]),
     "path far away": (GOOD + '\n[[bodies]]\nname = "b"\nshape = "sphere"\nradius_m = 0.01\nmotion = "kinematic"\n'
                       'path = [[0.0, 0.0, 0.0, 0.0], [0.01, 1e300, 0.2, 0.0]]\n', ["[bodies.0] path", "positions"]),
+    "orientation keys out of order": (_KINEMATIC + 'path_rotation_deg = [[0.1, 0.0, 0.0, 0.0], [0.05, 0.0, 90.0, 0.0]]\n',
+                                      ["[bodies.0] path_rotation_deg", "times from 0 to 1e6 s and increasing"]),
+    "zero quaternion": (_KINEMATIC + 'path_quaternion = [[0.0, 1.0, 0.0, 0.0, 0.0], [0.1, 0.0, 0.0, 0.0, 0.0]]\n',
+                        ["[bodies.0] path_quaternion", "quaternions (w, x, y, z) not all zero"]),
+    "quaternion key of 4 numbers": (_KINEMATIC + 'path_quaternion = [[0.0, 1.0, 0.0, 0.0]]\n',
+                                    ["[bodies.0] path_quaternion", "[t, w, x, y, z]"]),
+    "euler and quaternion keys": (_KINEMATIC + 'path_rotation_deg = [[0.0, 0.0, 0.0, 0.0]]\n'
+                                  'path_quaternion = [[0.0, 1.0, 0.0, 0.0, 0.0]]\n',
+                                  ["[bodies.0] path_quaternion", "give path_rotation_deg (Euler angles) or "
+                                   "path_quaternion, not both"]),
+    "orientation keys on a static body": (_KINEMATIC.replace('motion = "kinematic"\n', "")
+                                          + 'path_rotation_deg = [[0.0, 0.0, 0.0, 0.0]]\n',
+                                          ["[bodies.0] path_rotation_deg", 'need motion = "kinematic"']),
+    "orientation keys with rotation_deg": (_KINEMATIC + 'rotation_deg = [0.0, 30.0, 0.0]\n'
+                                           'path_rotation_deg = [[0.0, 0.0, 0.0, 0.0]]\n',
+                                           ["[bodies.0] rotation_deg = [0.0, 30.0, 0.0]", "key it there"]),
+    "catmull_rom on one key": (_KINEMATIC + 'interpolation = "catmull_rom"\npath = [[0.0, 0.0, 0.1, 0.0]]\n',
+                               ["[bodies.0] path = [[0.0, 0.0, 0.1, 0.0]]", 'at least 2 keys with interpolation']),
+    "catmull_rom without keys": (_KINEMATIC + 'interpolation = "catmull_rom"\n',
+                                 ['[bodies.0] interpolation = "catmull_rom"', "is for path and orientation keys"]),
+    "unknown interpolation": (_KINEMATIC + 'interpolation = "cubic"\n',
+                              ['[bodies.0] interpolation = "cubic"', '"linear", "catmull_rom"']),
     "radius on a plane": (GOOD + '\n[[bodies]]\nname = "floor"\nshape = "plane"\nradius_m = 0.02\n',
                           ["[bodies.0] radius_m = 0.02", "is for spheres; a plane does not use it"]),
     "half extents on a sphere": (GOOD + '\n[[bodies]]\nname = "b"\nshape = "sphere"\nradius_m = 0.01\n'

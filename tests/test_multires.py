@@ -489,7 +489,7 @@ def test_a_slaved_crossing_in_a_body_ends_exactly_on_its_surface():
     point = lay.crossing_weight[s] @ x[lay.crossing_node[s]]
     plane_at = point + (margin + 2e-4) * normal  # the point 0.2 mm inside (margin included)
     bodies = BodiesIn(np.array([SHAPE_PLANE], np.int8), normal[None, :].copy(), np.eye(3)[None], np.zeros(1),
-                      np.ones(1, bool), np.zeros(1, bool), plane_at[None, :], np.zeros((1, 3)))
+                      np.ones(1, bool), np.zeros(1, bool), plane_at[None, :], np.zeros((1, 3)), np.zeros((1, 3)))
     before = x.copy()
     hits = collide_slaved(cells, bodies, margin, 1e-4, state.particle_inv_mass, before.copy(), x, np.zeros(3),
                           np.zeros(model.crossing_count, np.uint8))

@@ -224,7 +224,8 @@ def test_rigid_contact_kernel_allocates_nothing_and_matches_the_per_body_project
     inv = np.ones(4000)
     mass = np.ones(4000)
     impulse = np.zeros((3, 3))
-    bodies = BodiesIn(shape, params, rotation, friction, collide, dynamic, position, np.zeros((3, 3)))
+    bodies = BodiesIn(shape, params, rotation, friction, collide, dynamic, position, np.zeros((3, 3)),
+                      np.zeros((3, 3)))
     args = (bodies, 0.001, 1e-3, inv, mass, prev)
     collide_rigid(*all_slots(len(x)), *args, x.copy(), impulse)  # compile
     reference = x.copy()

@@ -30,7 +30,8 @@ REQUIRED: Any = _Required()
 @dataclass(frozen=True)
 class Key:
     kind: str
-    """"float", "int", "bool", "str", "vec3", "color", "int2", "float2", "points2", "ints", "path", "table2d"."""
+    """"float", "int", "bool", "str", "vec3", "color", "int2", "float2", "points2", "ints", "path", "path_deg",
+    "path_quat", "table2d"."""
     default: Any = REQUIRED
     """Value when the key is not given; REQUIRED if it must be; None for "not given" (optional)."""
     lo: Optional[float] = None
@@ -59,6 +60,10 @@ class Key:
             "ints": "an array of integers, each",
             "path": "an array of [t, x, y, z] arrays of finite numbers, times from 0 to 1e6 s and increasing, "
                     "positions",
+            "path_deg": "an array of [t, rx, ry, rz] arrays of finite numbers, times from 0 to 1e6 s and "
+                        "increasing, angles [degrees]",
+            "path_quat": "an array of [t, w, x, y, z] arrays of finite numbers, times from 0 to 1e6 s and "
+                         "increasing, quaternions (w, x, y, z) not all zero",
             "table2d": "equal-length rows of the integers 0 and 1 (not true / false)",
         }[self.kind]
         bounds = []
@@ -152,21 +157,8 @@ class Key:
                 if not all(self.in_range(v) for v in points[-1]):
                     return False, None
             return True, tuple(points)
-        if k == "path":
-            if not _is_seq(value):
-                return False, None
-            rows = []
-            for row in value:
-                if not _is_seq(row) or len(row) != 4 or not all(_is_number(v) for v in row):
-                    return False, None
-                rows.append(tuple(float(v) for v in row))
-                if not all(math.isfinite(v) for v in rows[-1]) or rows[-1][0] > PATH_MAX_TIME_S \
-                        or any(abs(v) > self.hi for v in rows[-1][1:] if self.hi is not None):
-                    return False, None
-            times = [r[0] for r in rows]
-            if any(b <= a for a, b in zip(times, times[1:])) or any(t < 0 for t in times):
-                return False, None
-            return True, tuple(rows)
+        if k in PATH_WIDTHS:
+            return self._convert_path(value)
         if k == "table2d":
             if not _is_seq(value) or not value:
                 return False, None
@@ -180,6 +172,26 @@ class Key:
                     return False, None
             return True, [[int(v) for v in row] for row in value]
         raise AssertionError(k)
+
+    def _convert_path(self, value: Any) -> tuple[bool, Any]:
+        """Keys [t, value...] of a path kind (PATH_WIDTHS): finite, times in [0, PATH_MAX_TIME_S] and strictly
+        increasing, values within hi, a quaternion not zero."""
+        if not _is_seq(value):
+            return False, None
+        rows = []
+        for row in value:
+            if not _is_seq(row) or len(row) != PATH_WIDTHS[self.kind] or not all(_is_number(v) for v in row):
+                return False, None
+            rows.append(tuple(float(v) for v in row))
+            if not all(math.isfinite(v) for v in rows[-1]) or rows[-1][0] > PATH_MAX_TIME_S \
+                    or any(abs(v) > self.hi for v in rows[-1][1:] if self.hi is not None):
+                return False, None
+            if self.kind == "path_quat" and not any(rows[-1][1:]):
+                return False, None
+        times = [r[0] for r in rows]
+        if any(b <= a for a, b in zip(times, times[1:])) or any(t < 0 for t in times):
+            return False, None
+        return True, tuple(rows)
 
 
 def key(kind: str, default: Any = REQUIRED, *, lo: Optional[float] = None, hi: Optional[float] = None,
@@ -199,6 +211,8 @@ def keys_of(cls: type) -> dict[str, Key]:
 
 PATH_MAX_TIME_S = 1.0e6
 """Latest keyframe time of a path [s]."""
+PATH_WIDTHS = {"path": 4, "path_deg": 4, "path_quat": 5}
+"""Numbers per key of each path kind: the time, then a position, Euler angles or a quaternion."""
 
 SHOW_MAX_CHARS = 80
 """Longest value echoed in a message; longer ones are cut, with their size (a 1,000,000-item array

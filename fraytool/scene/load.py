@@ -452,6 +452,9 @@ def scene_hash(spec: SceneSpec) -> str:
     d["time"].pop("fps")
     d["time"].pop("stability")
     for body, raw in zip(spec.bodies, d["bodies"]):
+        for k, default in _BODY_KEY_DEFAULTS.items():  # bodies that do not turn keep the digest they had before
+            if raw[k] == default:
+                raw.pop(k)
         if body.shape != "mesh":  # bodies of other kinds keep the digest they had before meshes existed
             for k in ("file", "prim", "scale", "frame_time_s"):
                 raw.pop(k)
@@ -466,6 +469,9 @@ _PANEL_KEY_DEFAULTS = {k: schema.TOP["cloth"][k].default for k in
                        ("outline_m", "mask", "mask_size_m", "grain_deg", "edge", "tear_map", "tear_map_strain",
                         "rotation_deg", "wrap_radius_m")}
 """[cloth] keys of shaped panels, left out of the digest at their defaults."""
+_BODY_KEY_DEFAULTS = {k: schema.TOP["bodies"][k].default for k in
+                      ("path_rotation_deg", "path_quaternion", "interpolation")}
+"""[[bodies]] keys of turning and smooth paths, left out of the digest at their defaults."""
 
 
 def _file_digest(path: Path) -> str:

@@ -126,6 +126,7 @@ def body_problems(b: BodySpec) -> list[Problem]:
                             f"is for meshes; a {b.shape} does not use it"))
     if b.path and b.motion != "kinematic":
         out.append(("path", "[...]", 'a path needs motion = "kinematic"'))
+    out.extend(orientation_key_problems(b))
     # a size key of another shape would be silently ignored: say so instead
     if b.shape != "sphere" and b.radius_m > 0:
         out.append(("radius_m", b.radius_m, f'is for spheres; a {b.shape} does not use it'
@@ -134,6 +135,30 @@ def body_problems(b: BodySpec) -> list[Problem]:
         out.append(("half_extents_m", list(b.half_extents_m), f"is for boxes; a {b.shape} does not use it"))
     if b.shape != "plane" and tuple(b.normal) != (0.0, 1.0, 0.0):
         out.append(("normal", list(b.normal), f"is for planes; a {b.shape} does not use it (turn it with rotation_deg)"))
+    return out
+
+
+def orientation_key_problems(b: BodySpec) -> list[Problem]:
+    """[[bodies]]: orientation keys (path_rotation_deg or path_quaternion, not both) turn a kinematic body
+    instead of its fixed rotation_deg; interpolation = "catmull_rom" runs through 2 keys or more."""
+    out: list[Problem] = []
+    given = [k for k in ("path_rotation_deg", "path_quaternion") if getattr(b, k)]
+    if len(given) == 2:
+        out.append(("path_quaternion", "[...]", "give path_rotation_deg (Euler angles) or path_quaternion, not both"))
+    if given and b.motion != "kinematic":
+        out.append((given[0], "[...]", 'orientation keys need motion = "kinematic"'))
+    if given and any(b.rotation_deg):
+        out.append(("rotation_deg", list(b.rotation_deg), f"is the fixed orientation; {given[0]} sets the "
+                                                          "orientation: key it there"))
+    if b.interpolation == "catmull_rom":
+        keyed = [k for k in ("path", "path_rotation_deg", "path_quaternion") if getattr(b, k)]
+        if not keyed:
+            out.append(("interpolation", b.interpolation, "is for path and orientation keys (path_rotation_deg "
+                                                          "or path_quaternion): give some"))
+        for k in keyed:
+            if len(getattr(b, k)) < 2:
+                out.append((k, [list(r) for r in getattr(b, k)], 'needs at least 2 keys with interpolation = '
+                                                                  '"catmull_rom"'))
     return out
 
 

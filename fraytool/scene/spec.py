@@ -14,7 +14,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Optional
 
-from fraytool.kinds import MOTION_NAMES, SHAPE_NAMES
+from fraytool.kinds import INTERPOLATION_NAMES, MOTION_NAMES, SHAPE_NAMES
 from fraytool.scene.keys import key
 
 Vec3 = tuple[float, float, float]
@@ -22,6 +22,8 @@ Vec3 = tuple[float, float, float]
 WORLD_M = 1.0e4
 """Largest coordinate of a position key [m]: 10 km, far beyond any cloth shot, and small enough that
 positions keep sub-micrometre precision in float64 and stay finite in the float32 frame records."""
+PATH_MAX_DEG = 1.0e5
+"""Largest angle of an orientation key [degrees]: hundreds of turns."""
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -205,7 +207,18 @@ class BodySpec:
     velocity_m_s: Vec3 = key("vec3", (0.0, 0.0, 0.0), lo=-1e4, hi=1e4,
                              doc="kinematic: constant velocity; dynamic: initial velocity [m/s]")
     path: tuple[tuple[float, float, float, float], ...] = key(
-        "path", (), lo=-WORLD_M, hi=WORLD_M, doc="kinematic keyframes (t [s], x, y, z [m]), linearly interpolated; held after the last")
+        "path", (), lo=-WORLD_M, hi=WORLD_M, doc="kinematic keyframes (t [s], x, y, z [m]), interpolated by "
+        "`interpolation`; held before the first and after the last")
+    path_rotation_deg: tuple[tuple[float, float, float, float], ...] = key(
+        "path_deg", (), lo=-PATH_MAX_DEG, hi=PATH_MAX_DEG,
+        doc="kinematic orientation keys (t [s], rx, ry, rz [degrees]), x, y, z Euler angles as rotation_deg; "
+            "each segment turns the short way (below 180 degrees); held before the first and after the last")
+    path_quaternion: tuple[tuple[float, float, float, float, float], ...] = key(
+        "path_quat", (), doc="kinematic orientation keys (t [s], w, x, y, z), quaternions (normalised), "
+                             "instead of path_rotation_deg")
+    interpolation: str = key("str", "linear", choices=INTERPOLATION_NAMES,
+                             doc="between the keys of path and of the orientation keys: linear (slerp for "
+                                 "orientations) or catmull_rom (a smooth curve through the keys)")
     mass_kg: float = key("float", 1.0, lo=0, lo_open=True, hi=1e6, doc="mass of a dynamic body [kg]")
     gravity: bool = key("bool", True, doc="a dynamic body feels gravity")
     friction: float = key("float", 0.3, lo=0, hi=10, doc="friction coefficient of the cloth against this body")

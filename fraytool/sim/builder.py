@@ -52,6 +52,7 @@ from fraytool.scene.spec import (
 from fraytool.scene.panel_shape import (PanelShapeError, crossing_fraction_along, distance_to_polyline, panel_shape,
                                        sample_map, tear_map_image)
 from fraytool.sim.model import Model
+from fraytool.sim.paths import orientation_keys, quat_to_matrix
 
 Vec3 = tuple[float, float, float]
 
@@ -402,6 +403,9 @@ class ModelBuilder:
                    motion: str = _BODY["motion"].default,
                    velocity_m_s: Sequence[float] = _BODY["velocity_m_s"].default,
                    path: Sequence[Sequence[float]] = _BODY["path"].default,
+                   path_rotation_deg: Sequence[Sequence[float]] = _BODY["path_rotation_deg"].default,
+                   path_quaternion: Sequence[Sequence[float]] = _BODY["path_quaternion"].default,
+                   interpolation: str = _BODY["interpolation"].default,
                    mass_kg: float = _BODY["mass_kg"].default,
                    gravity: bool = _BODY["gravity"].default,
                    friction: float = _BODY["friction"].default,
@@ -417,6 +421,9 @@ class ModelBuilder:
                 motion: str = _BODY["motion"].default,
                 velocity_m_s: Sequence[float] = _BODY["velocity_m_s"].default,
                 path: Sequence[Sequence[float]] = _BODY["path"].default,
+                path_rotation_deg: Sequence[Sequence[float]] = _BODY["path_rotation_deg"].default,
+                path_quaternion: Sequence[Sequence[float]] = _BODY["path_quaternion"].default,
+                interpolation: str = _BODY["interpolation"].default,
                 mass_kg: float = _BODY["mass_kg"].default,
                 gravity: bool = _BODY["gravity"].default,
                 friction: float = _BODY["friction"].default,
@@ -432,6 +439,9 @@ class ModelBuilder:
                   motion: str = _BODY["motion"].default,
                   velocity_m_s: Sequence[float] = _BODY["velocity_m_s"].default,
                   path: Sequence[Sequence[float]] = _BODY["path"].default,
+                  path_rotation_deg: Sequence[Sequence[float]] = _BODY["path_rotation_deg"].default,
+                  path_quaternion: Sequence[Sequence[float]] = _BODY["path_quaternion"].default,
+                  interpolation: str = _BODY["interpolation"].default,
                   friction: float = _BODY["friction"].default,
                   collide: bool = _BODY["collide"].default,
                   start_s: float = _BODY["start_s"].default) -> int:
@@ -450,6 +460,9 @@ class ModelBuilder:
                  motion: str = _BODY["motion"].default,
                  velocity_m_s: Sequence[float] = _BODY["velocity_m_s"].default,
                  path: Sequence[Sequence[float]] = _BODY["path"].default,
+                 path_rotation_deg: Sequence[Sequence[float]] = _BODY["path_rotation_deg"].default,
+                 path_quaternion: Sequence[Sequence[float]] = _BODY["path_quaternion"].default,
+                 interpolation: str = _BODY["interpolation"].default,
                  friction: float = _BODY["friction"].default,
                  collide: bool = _BODY["collide"].default,
                  start_s: float = _BODY["start_s"].default) -> int:
@@ -749,7 +762,9 @@ class ModelBuilder:
 
         bodies = self.bodies
         names = tuple(bd.name for bd in bodies)
-        rot = np.array([euler_rotation(bd.rotation_deg) for bd in bodies]).reshape(-1, 3, 3)
+        turning = [_orientation_keys(bd) for bd in bodies]
+        rot = np.array([euler_rotation(bd.rotation_deg) if not len(keys) else quat_to_matrix(keys[0, 1:])
+                        for bd, keys in zip(bodies, turning)]).reshape(-1, 3, 3)
         normals = np.array([_unit(bd.normal) for bd in bodies]).reshape(-1, 3)
         body_pos0 = np.array([bd.position_m for bd in bodies], float).reshape(-1, 3)
         for k, bd in enumerate(bodies):
@@ -852,6 +867,8 @@ class ModelBuilder:
             body_initial_position_m=body_pos0,
             body_initial_velocity_m_s=np.array([bd.velocity_m_s for bd in bodies], float).reshape(-1, 3),
             body_path=tuple(np.asarray(bd.path, float).reshape(-1, 4) for bd in bodies),
+            body_orientation_path=tuple(turning),
+            body_interpolation=tuple(bd.interpolation for bd in bodies),
             **mesh_arrays,
             strain_limit=strain.limit,
             strain_max_iterations=strain.max_iterations,
@@ -895,6 +912,16 @@ def _panel_rest(c: ClothSpec, uv: np.ndarray) -> np.ndarray:
     else:
         local = uv[:, 0:1] * e0 + uv[:, 1:2] * e1
     return np.asarray(c.origin_m) + local @ euler_rotation(c.rotation_deg).T
+
+
+def _orientation_keys(body: BodySpec) -> np.ndarray:
+    """A body's orientation keys (t, w, x, y, z), unit and sign-consistent (fraytool.sim.paths), shape (K, 5);
+    (0, 5) for a body that does not turn."""
+    if body.path_rotation_deg:
+        return orientation_keys(body.path_rotation_deg, euler_deg=True)
+    if body.path_quaternion:
+        return orientation_keys(body.path_quaternion, euler_deg=False)
+    return np.zeros((0, 5))
 
 
 def _body_params(body: BodySpec, unit_normal: np.ndarray, mesh_radius_m: float, mesh_arrays: dict,

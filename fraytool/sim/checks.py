@@ -15,7 +15,7 @@ def _attachment_error(sim: Simulation) -> float:
     m, s = sim.model, sim.state
     if m.attachment_count == 0:
         return 0.0
-    target = s.body_position_m[m.attachment_body] + np.einsum("kij,kj->ki", m.body_rotation[m.attachment_body],
+    target = s.body_position_m[m.attachment_body] + np.einsum("kij,kj->ki", s.body_rotation[m.attachment_body],
                                                                m.attachment_offset_m)
     return float(np.abs(s.particle_position_m[m.attachment_particle] - target).max())
 

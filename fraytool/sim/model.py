@@ -110,7 +110,8 @@ class Model:
     """Parameters by kind, shape (body_count, 3), float64: sphere (radius [m], 0, 0), box half extents [m],
     plane unit normal in the body frame (fraytool.sim.kernels.bodies)."""
     body_rotation: np.ndarray
-    """Fixed orientation (body to world), shape (body_count, 3, 3)."""
+    """Orientation at rest (body to world), shape (body_count, 3, 3): rotation_deg, or a kinematic
+    body's first orientation key; State.body_rotation is the current one."""
     body_mass_kg: np.ndarray
     """Dynamic body mass [kg], shape (body_count,)."""
     body_gravity: np.ndarray
@@ -161,6 +162,11 @@ class Model:
     refine_band_cells: int = 2
     """Coarse cells refined around a cell past refine_strain (and around a moving body)."""
     refine_near_bodies: bool = True
+    body_orientation_path: tuple[np.ndarray, ...] = ()
+    """Per body: kinematic orientation keys (t, w, x, y, z), unit and sign-consistent quaternions, shape
+    (K, 5); empty for none (fraytool.sim.paths). Empty tuple: no body has any."""
+    body_interpolation: tuple[str, ...] = ()
+    """Per body: "linear" or "catmull_rom", for its path and orientation keys (fraytool.sim.paths)."""
     mesh_body: np.ndarray = field(default_factory=lambda: _empty_mesh("mesh_body"))
     """Triangle-mesh bodies (fraytool.meshes, docs/meshes.md): body index of each mesh, shape (M,)."""
     mesh_closed: np.ndarray = field(default_factory=lambda: _empty_mesh("mesh_closed"))
@@ -252,6 +258,8 @@ class Model:
             spring_rest_length_m=self.spring_rest_length_m.copy(),
             body_position_m=self.body_initial_position_m.copy(),
             body_velocity_m_s=np.zeros((self.body_count, 3)),
+            body_rotation=self.body_rotation.copy(),
+            body_angular_velocity_rad_s=np.zeros((self.body_count, 3)),
             coarse_cell_refined=refined,
         )
         if self.coarse_factor > 1:

@@ -24,5 +24,5 @@ def frame_record(model: Model, state: State, frame: int) -> FrameRecord:
         spring_particle_b=state.spring_particle_b.copy(),
         spring_alive=state.spring_alive.copy(),
         body_position_m=state.body_position_m.astype(np.float32),
-        body_rotation=model.body_rotation.astype(np.float32),
+        body_rotation=state.body_rotation.astype(np.float32),
     )

@@ -120,7 +120,8 @@ def _resume_point(spec: SceneSpec, model: Model, store: FrameStore, digest: str,
     store.reopen(digest, _store_info(spec, model, total), good, topology, not survey.topology_ok)
     if good > 0 and survey.resumable_from_checkpoint():
         frame, arrays = store.load_checkpoint()
-        sim = Simulation(spec, model=model, state=State.from_arrays(arrays), frame=frame)
+        sim = Simulation(spec, model=model, state=State.from_arrays(arrays, model.body_rotation),
+                         frame=frame)
         sim.restore_shot(arrays)
         return sim, frame + 1
     if survey.problems:
@@ -205,7 +206,7 @@ def _unstable_run(sim: Simulation, store: FrameStore, exc: SimulationUnstable) -
     manifest, and return the error to raise (one line for the user; exit code 1). The frames on disk
     stay those of the complete, finite frames before the failure."""
     try:
-        start = State.from_arrays(store.load_checkpoint()[1])
+        start = State.from_arrays(store.load_checkpoint()[1], sim.model.body_rotation)
     except (OSError, KeyError, ValueError, OutputError):
         start = None
     diag, last_good = explain_failure(sim.solver, start, sim.dt_s, exc.diagnostic)

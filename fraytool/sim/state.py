@@ -62,6 +62,12 @@ class State:
     """Shape (body_count, 3), float64."""
     body_velocity_m_s: np.ndarray
     """Shape (body_count, 3), float64."""
+    body_rotation: np.ndarray
+    """Current orientation (body to world), shape (body_count, 3, 3), float64: the model's at rest, turned
+    by a kinematic body's orientation keys (fraytool.sim.rigid)."""
+    body_angular_velocity_rad_s: np.ndarray
+    """World-frame angular velocity over the last step [rad/s], shape (body_count, 3), float64; zero for a
+    body that does not turn."""
     coarse_cell_refined: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
     """Multi-resolution model ([cloth.multires] factor > 1): the coarse cells refined to yarn resolution
     so far, shape (cell_count,), bool (fraytool.sim.multires); empty at yarn resolution everywhere."""
@@ -82,13 +88,24 @@ class State:
         return {f.name: np.asarray(getattr(self, f.name)) for f in fields(self) if f.name != "topology_epoch"}
 
     @staticmethod
-    def from_arrays(data) -> "State":
+    def from_arrays(data, rest_rotation=None) -> "State":
+        """The State of `arrays()`. A checkpoint from before turning bodies has no body_rotation: the
+        bodies' orientations at rest (Model.body_rotation) are given as `rest_rotation` (required then),
+        their angular velocity is zero."""
         kw = {}
         for f in fields(State):
             if f.name == "topology_epoch":
                 continue  # not saved: a new one
             if f.name == "coarse_cell_refined" and f.name not in data:
                 continue  # a checkpoint from before the multi-resolution model: the default (empty)
+            if f.name == "body_rotation" and f.name not in data:
+                if rest_rotation is None:
+                    raise KeyError("body_rotation (a checkpoint from before turning bodies needs rest_rotation)")
+                kw[f.name] = np.array(rest_rotation, dtype=np.float64)
+                continue
+            if f.name == "body_angular_velocity_rad_s" and f.name not in data:
+                kw[f.name] = np.zeros((np.asarray(data["body_position_m"]).shape[0], 3))
+                continue
             v = np.asarray(data[f.name])
             if f.name == "time_s":
                 kw[f.name] = float(v)

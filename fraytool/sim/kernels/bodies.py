@@ -23,12 +23,13 @@ import numpy as np
 BodiesIn = namedtuple("BodiesIn", [
     "shape",          # (B,) int8, SHAPE_*
     "params",         # (B, 3) float64, by kind (module docstring)
-    "rotation",       # (B, 3, 3) body to world
+    "rotation",       # (B, 3, 3) body to world, State
     "friction",       # (B,) Coulomb coefficient against the cloth
     "collide",        # (B,) bool: the cloth collides with the body
     "dynamic",        # (B,) bool: the body takes the cloth's impulse
     "position_m",     # (B, 3) State
     "velocity_m_s",   # (B, 3) State
+    "angular_velocity_rad_s",  # (B, 3) State: world frame, over the step
 ])
 BodiesIn.__doc__ = "Read-only body arrays of the contact kernels (Model and State references)."
 
@@ -37,9 +38,9 @@ def bodies_in(model, state, collide: Optional[np.ndarray] = None) -> BodiesIn:
     """The `bodies_in` group of `model` and `state` (`collide` replaces the model's mask when given)."""
     from fraytool.kinds import MOTION_DYNAMIC
 
-    return BodiesIn(model.body_shape, model.body_params, model.body_rotation, model.body_friction,
+    return BodiesIn(model.body_shape, model.body_params, state.body_rotation, model.body_friction,
                     model.body_collide if collide is None else collide, model.body_motion == MOTION_DYNAMIC,
-                    state.body_position_m, state.body_velocity_m_s)
+                    state.body_position_m, state.body_velocity_m_s, state.body_angular_velocity_rad_s)
 
 
 def legacy_body_arrays(shape: np.ndarray, params: np.ndarray) -> dict[str, np.ndarray]:

@@ -3,6 +3,9 @@
 
 Everything is done in the body's frame, l = R^T (x - c), where a static or rigidly moving mesh stands
 still; an animated mesh's vertices move linearly over the step from `vertex_start_m` to `vertex_end_m`.
+A start-of-step position goes to the body's frame at the step's start, l0 = R0^T (x0 - c0), with R0 =
+exp(-dt [omega]x) R the orientation before the step's turn (Rodrigues; R0 = R for a body that does not
+turn, fraytool.sim.paths).
 
 Masses (`collide_meshes`): a mass moves over the step from l0 (start-of-step position, body frame at
 the step's start) to l1. Continuous test: the path crosses triangle j when its signed distances to j's
@@ -264,11 +267,36 @@ def _resolve_point(m, meshes_in, l0, l1, margin_m, reach_m, stack_out):
         bw0, bw1, bw2
 
 
+@nb.njit(cache=True, inline="always")
+def _turned(rot, rot0, row, l):
+    """Component `row` of (R - R0) l: a body-frame point's move by the body's turn over the step."""
+    return (rot[row, 0] - rot0[row, 0]) * l[0] + (rot[row, 1] - rot0[row, 1]) * l[1] + (rot[row, 2] - rot0[row, 2]) * l[2]
+
+
+@nb.njit(cache=True)
+def start_rotation(rot, omega, dt_s):
+    """R0 = exp(-dt [omega]x) R: the orientation at the step's start of a body at orientation R at its end,
+    which turned at angular velocity omega (world frame) over the step. Rodrigues' formula
+    exp(theta [k]x) = I + sin theta [k]x + (1 - cos theta) [k]x^2; a body that does not turn gets R."""
+    theta = dt_s * math.sqrt(omega[0] * omega[0] + omega[1] * omega[1] + omega[2] * omega[2])
+    if theta == 0.0:
+        return rot.copy()
+    kx = -dt_s * omega[0] / theta
+    ky = -dt_s * omega[1] / theta
+    kz = -dt_s * omega[2] / theta
+    s, c = math.sin(theta), 1.0 - math.cos(theta)
+    turn = np.array([[1.0 - c * (ky * ky + kz * kz), -s * kz + c * kx * ky, s * ky + c * kx * kz],
+                     [s * kz + c * kx * ky, 1.0 - c * (kx * kx + kz * kz), -s * kx + c * ky * kz],
+                     [-s * ky + c * kx * kz, s * kx + c * ky * kz, 1.0 - c * (kx * kx + ky * ky)]])
+    return turn @ rot
+
+
 @nb.njit(cache=True)
 def _mesh_range(particles, lo, hi, m, frame, meshes_in, margin_m, particles_in, particle_position_m_inout, stack_out):
     """Particles particles[lo:hi] against mesh m; `frame` = (rotation (3, 3), centre at the step's end (3),
-    centre at its start (3), friction). Returns the number of masses in contact."""
-    rot, c1, c0, friction = frame
+    centre at its start (3), friction, rotation at the step's start (3, 3)). Returns the number of masses in
+    contact."""
+    rot, c1, c0, friction, rot0 = frame
     particle_inv_mass, prev_position_m = particles_in
     box = meshes_in.tri_box
     root = meshes_in.tri_node_start[m]
@@ -285,8 +313,8 @@ def _mesh_range(particles, lo, hi, m, frame, meshes_in, margin_m, particles_in, 
         for a in range(3):
             l1[a] = rot[0, a] * (particle_position_m_inout[p, 0] - c1[0]) + rot[1, a] * (
                 particle_position_m_inout[p, 1] - c1[1]) + rot[2, a] * (particle_position_m_inout[p, 2] - c1[2])
-            l0[a] = rot[0, a] * (prev_position_m[p, 0] - c0[0]) + rot[1, a] * (prev_position_m[p, 1] - c0[1]) \
-                + rot[2, a] * (prev_position_m[p, 2] - c0[2])
+            l0[a] = rot0[0, a] * (prev_position_m[p, 0] - c0[0]) + rot0[1, a] * (prev_position_m[p, 1] - c0[1]) \
+                + rot0[2, a] * (prev_position_m[p, 2] - c0[2])
         if not _overlaps(box, root, min(l0[0], l1[0]) - pad, min(l0[1], l1[1]) - pad, min(l0[2], l1[2]) - pad,
                          max(l0[0], l1[0]) + pad, max(l0[1], l1[1]) + pad, max(l0[2], l1[2]) + pad):
             continue
@@ -305,7 +333,8 @@ def _mesh_range(particles, lo, hi, m, frame, meshes_in, margin_m, particles_in, 
         if not touched:
             continue
         hits += 1
-        # the touched surface point's move over the step, in the body frame (animation), then the world
+        # the touched surface point's move over the step, in the body frame (animation) s, then the world:
+        # c1 + R l1 - (c0 + R0 (l1 - s)) = c1 - c0 + R0 s + (R - R0) l1 (the last term zero without a turn)
         ia, ib, ic = tris[tri, 0], tris[tri, 1], tris[tri, 2]
         sx = w0 * (vb[ia, 0] - va[ia, 0]) + w1 * (vb[ib, 0] - va[ib, 0]) + w2 * (vb[ic, 0] - va[ic, 0])
         sy = w0 * (vb[ia, 1] - va[ia, 1]) + w1 * (vb[ib, 1] - va[ib, 1]) + w2 * (vb[ic, 1] - va[ic, 1])
@@ -316,9 +345,9 @@ def _mesh_range(particles, lo, hi, m, frame, meshes_in, margin_m, particles_in, 
         gx = rot[0, 0] * nx + rot[0, 1] * ny + rot[0, 2] * nz
         gy = rot[1, 0] * nx + rot[1, 1] * ny + rot[1, 2] * nz
         gz = rot[2, 0] * nx + rot[2, 1] * ny + rot[2, 2] * nz
-        mvx = c1[0] - c0[0] + rot[0, 0] * sx + rot[0, 1] * sy + rot[0, 2] * sz
-        mvy = c1[1] - c0[1] + rot[1, 0] * sx + rot[1, 1] * sy + rot[1, 2] * sz
-        mvz = c1[2] - c0[2] + rot[2, 0] * sx + rot[2, 1] * sy + rot[2, 2] * sz
+        mvx = c1[0] - c0[0] + rot0[0, 0] * sx + rot0[0, 1] * sy + rot0[0, 2] * sz + _turned(rot, rot0, 0, l1)
+        mvy = c1[1] - c0[1] + rot0[1, 0] * sx + rot0[1, 1] * sy + rot0[1, 2] * sz + _turned(rot, rot0, 1, l1)
+        mvz = c1[2] - c0[2] + rot0[2, 0] * sx + rot0[2, 1] * sy + rot0[2, 2] * sz + _turned(rot, rot0, 2, l1)
         # Coulomb friction on the displacement relative to the touched surface point
         rx = px - prev_position_m[p, 0] - mvx
         ry = py - prev_position_m[p, 1] - mvy
@@ -351,7 +380,8 @@ def collide_meshes(
             continue
         c1 = bodies_in.position_m[k].copy()
         c0 = c1 - dt_s * bodies_in.velocity_m_s[k]
-        frame = (bodies_in.rotation[k], c1, c0, bodies_in.friction[k])
+        frame = (bodies_in.rotation[k], c1, c0, bodies_in.friction[k],
+                 start_rotation(bodies_in.rotation[k], bodies_in.angular_velocity_rad_s[k], dt_s))
         hits = 0
         for u in nb.prange(unit_bounds.shape[0] - 1):
             stack = np.empty(STACK, np.int64)
@@ -558,6 +588,7 @@ def collide_mesh_segments(
             sharp = meshes_in.edge_range[meshes_in.edge_node_start[m], 1] > meshes_in.edge_range[meshes_in.edge_node_start[m], 0]
             closed = meshes_in.closed[m]
             rot = bodies_in.rotation[k]
+            rot0 = start_rotation(rot, bodies_in.angular_velocity_rad_s[k], dt_s)
             c1 = bodies_in.position_m[k].copy()
             c0 = c1 - dt_s * bodies_in.velocity_m_s[k]
             box = meshes_in.tri_box
@@ -572,8 +603,8 @@ def collide_mesh_segments(
                     for a in range(3):
                         end[end_, a] = rot[0, a] * (particle_position_m_inout[p, 0] - c1[0]) + rot[1, a] * (
                             particle_position_m_inout[p, 1] - c1[1]) + rot[2, a] * (particle_position_m_inout[p, 2] - c1[2])
-                        start[end_, a] = rot[0, a] * (prev_position_m[p, 0] - c0[0]) + rot[1, a] * (
-                            prev_position_m[p, 1] - c0[1]) + rot[2, a] * (prev_position_m[p, 2] - c0[2])
+                        start[end_, a] = rot0[0, a] * (prev_position_m[p, 0] - c0[0]) + rot0[1, a] * (
+                            prev_position_m[p, 1] - c0[1]) + rot0[2, a] * (prev_position_m[p, 2] - c0[2])
                 if not _overlaps(box, root, min(start[0, 0], start[1, 0], end[0, 0], end[1, 0]) - pad,
                                  min(start[0, 1], start[1, 1], end[0, 1], end[1, 1]) - pad,
                                  min(start[0, 2], start[1, 2], end[0, 2], end[1, 2]) - pad,

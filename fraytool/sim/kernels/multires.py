@@ -277,13 +277,19 @@ def _collide_slaved_one(s, k, crossing_node, crossing_weight, bodies_in, margin_
         norm += w * w * particle_inv_mass[crossing_node[s, q]]
     if norm <= 0.0:
         return 0  # every node held by a body
-    # the point's correction: out along the normal, then friction on its move over the step
+    # the point's correction: out along the normal, then friction on its move relative to the body's
+    # surface point over the step, dt (v + omega x r), r from the body's centre (rigid_contact)
     cx = -dist * nx
     cy = -dist * ny
     cz = -dist * nz
-    rx = point_inout[0] + cx - dt_s * body_velocity_m_s[k, 0]
-    ry = point_inout[1] + cy - dt_s * body_velocity_m_s[k, 1]
-    rz = point_inout[2] + cz - dt_s * body_velocity_m_s[k, 2]
+    wx, wy, wz = (dt_s * bodies_in.angular_velocity_rad_s[k, 0], dt_s * bodies_in.angular_velocity_rad_s[k, 1],
+                  dt_s * bodies_in.angular_velocity_rad_s[k, 2])
+    ex = point_inout[0] + cx - bodies_in.position_m[k, 0]
+    ey = point_inout[1] + cy - bodies_in.position_m[k, 1]
+    ez = point_inout[2] + cz - bodies_in.position_m[k, 2]
+    rx = point_inout[0] + cx - dt_s * body_velocity_m_s[k, 0] - (wy * ez - wz * ey)
+    ry = point_inout[1] + cy - dt_s * body_velocity_m_s[k, 1] - (wz * ex - wx * ez)
+    rz = point_inout[2] + cz - dt_s * body_velocity_m_s[k, 2] - (wx * ey - wy * ex)
     for q in range(4):
         w = crossing_weight[s, q]
         node = crossing_node[s, q]

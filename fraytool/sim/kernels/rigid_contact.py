@@ -8,7 +8,8 @@ A particle closer than `margin` (half the cloth thickness) to a body's surface i
 along the surface normal n by the penetration depth d. Friction acts on the tangential
 displacement relative to the body over the step, Δt (position-based Coulomb friction, Macklin
 et al. 2014 "Unified Particle Physics" §6.1): static when |Δt| < μ d (Δt removed), else kinetic
-(Δt reduced by μ d). Only masses are tested; a spring may dip into a body between its masses,
+(Δt reduced by μ d). The body's surface point moves over the step by dt (v + ω × r), r from the body's
+centre at the step's end to the contact (a turning kinematic body, fraytool.sim.paths; ω = 0 otherwise). Only masses are tested; a spring may dip into a body between its masses,
 which the paper found acceptable. For dynamic bodies the impulse m Δx / dt given to each particle
 is summed per body so the caller can apply the equal and opposite impulse (two-way coupling).
 """
@@ -144,9 +145,10 @@ def _contact_range(particles, lo, hi, k, frame, dynamic, dt_s, bodies_in, margin
     """Particles particles[lo:hi] against body k: each one in contact is moved out with friction, and for a
     dynamic body its impulse m dx / dt is added to body_impulse_out[k] in index order. `frame` holds the
     body's constants of the call (collide_rigid): (plane, sphere, world normal x, y, z of a plane, centre
-    x, y, z, squared reach, the body's move over the step x, y, z, friction); `particles_in` the particles'
-    (inverse mass, mass, start-of-step position). Returns the number of contacts."""
-    plane, sphere, pnx, pny, pnz, cx, cy, cz, reach2, step_x, step_y, step_z, friction = frame
+    x, y, z, squared reach, the body's move over the step x, y, z, friction, its turn over the step
+    dt omega x, y, z); `particles_in` the particles' (inverse mass, mass, start-of-step position). Returns
+    the number of contacts."""
+    plane, sphere, pnx, pny, pnz, cx, cy, cz, reach2, step_x, step_y, step_z, friction, turn_x, turn_y, turn_z = frame
     particle_inv_mass, particle_mass_kg, prev_position_m = particles_in
     hits = 0
     for i in range(lo, hi):
@@ -183,10 +185,11 @@ def _contact_range(particles, lo, hi, k, frame, dynamic, dt_s, bodies_in, margin
         py = x1 - d * ny
         pz = x2 - d * nz
         hits += 1
-        # friction on the displacement relative to the body over the step
-        rx = px - prev_position_m[p, 0] - step_x
-        ry = py - prev_position_m[p, 1] - step_y
-        rz = pz - prev_position_m[p, 2] - step_z
+        # friction on the displacement relative to the body's surface point over the step: its move
+        # dt v, then its turn dt omega x r (exactly zero for a body that does not turn)
+        rx = px - prev_position_m[p, 0] - step_x - (turn_y * (pz - cz) - turn_z * (py - cy))
+        ry = py - prev_position_m[p, 1] - step_y - (turn_z * (px - cx) - turn_x * (pz - cz))
+        rz = pz - prev_position_m[p, 2] - step_z - (turn_x * (py - cy) - turn_y * (px - cx))
         px, py, pz = coulomb_friction(px, py, pz, rx, ry, rz, nx, ny, nz, friction * (-d))
         particle_position_m_inout[p, 0] = px
         particle_position_m_inout[p, 1] = py
@@ -234,11 +237,12 @@ def collide_rigid(
         pnx = rotation[0, 0] * normal[0] + rotation[0, 1] * normal[1] + rotation[0, 2] * normal[2]
         pny = rotation[1, 0] * normal[0] + rotation[1, 1] * normal[1] + rotation[1, 2] * normal[2]
         pnz = rotation[2, 0] * normal[0] + rotation[2, 1] * normal[1] + rotation[2, 2] * normal[2]
-        position, velocity = bodies_in.position_m, bodies_in.velocity_m_s
+        position, velocity, omega = bodies_in.position_m, bodies_in.velocity_m_s, bodies_in.angular_velocity_rad_s
         frame = (shape == SHAPE_PLANE, shape == SHAPE_SPHERE, pnx, pny, pnz, position[k, 0], position[k, 1],
                  position[k, 2], reach * reach,
                  dt_s * velocity[k, 0], dt_s * velocity[k, 1], dt_s * velocity[k, 2],  # the body's move over the step
-                 bodies_in.friction[k])
+                 bodies_in.friction[k],
+                 dt_s * omega[k, 0], dt_s * omega[k, 1], dt_s * omega[k, 2])  # and its turn
         if bodies_in.dynamic[k]:
             contacts += _contact_range(particles, 0, particles.shape[0], k, frame, True, dt_s, bodies_in, margin_m,
                                        particles_in, particle_position_m_inout, body_impulse_out)

@@ -187,7 +187,7 @@ class Attachments(_NoSummary):
     def run(self, state: State, ctx: StepContext, dt_s: float) -> None:
         m = self.model
         apply_attachments(m.attachment_particle, m.attachment_body, m.attachment_offset_m, state.body_position_m,
-                          m.body_rotation, state.particle_position_m)
+                          state.body_rotation, state.particle_position_m)
 
 
 class StrainLimiting(_NoSummary):
