@@ -75,9 +75,5 @@ def _parse(argv: list[str]):
 
 def _out_dir(args) -> Path:
     from fraytool.commands.target import load_target
-    from fraytool.sim.run import default_out_dir
 
-    if args.out:
-        return Path(args.out)
-    target = load_target(args.scene, args.sets or ())
-    return target.out_dir or default_out_dir(target.spec)
+    return load_target(args.scene, args.sets or ()).output_dir(args.out)

@@ -140,6 +140,8 @@ def test_a_folder_refuses_set_and_an_old_folder_is_named(tmp_path):
     simulate_to_disk(spec, out, progress=False)
     r = _cli("render", out, "--set", "scene.seed=2")
     assert r.returncode == 2 and "whose scene is fixed" in r.stderr
+    r = _cli("export", tmp_path, "--usd", tmp_path / "x.usda")  # a folder, but no frames in it
+    assert r.returncode == 2 and "a folder without simulated frames" in r.stderr
     # a folder written before the scene record existed: rewrite its topology without it
     store = FrameStore(out)
     topo = store.load_topology()

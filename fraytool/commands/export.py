@@ -8,7 +8,6 @@ the camera if asked -> write the file.
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 from typing import Optional, TextIO
 
 from fraytool.commands.render import _fmt, ensure_frames
@@ -32,9 +31,7 @@ def export_command(args, stream: Optional[TextIO] = None) -> int:
         frames = parse_frame_range(args.frames, spec.time.frames)
     else:
         frames = FrameRange(0, spec.time.frames, 1)
-    from fraytool.sim.run import default_out_dir
-
-    out = Path(args.out) if getattr(args, "out", None) else target.out_dir or default_out_dir(spec)
+    out = target.output_dir(getattr(args, "out", None))
     with OutputLock(out, "export", wait_stream=stream):
         needed = _frames_needed(spec, frames)
         store = ensure_frames(spec, out, needed, stream, target.model, target.digest)

@@ -145,7 +145,8 @@ def build_parser() -> argparse.ArgumentParser:
     _threads_flag(b)
 
     r = sub.add_parser("render", help="simulate (or reuse frames) and render PNG / EXR / MP4 / ProRes")
-    r.add_argument("scene", help="scene file (TOML), or the name of a shipped scene (e.g. fig7_square_grab)")
+    r.add_argument("scene", help="scene file (TOML), the name of a shipped scene (e.g. fig7_square_grab), or "
+                   "the output folder of a simulated shot (its scene and Model are saved there)")
     r.add_argument("-o", "--out", type=Path, help="output folder (default outputs/<scene name>/)")
     r.add_argument("--frames", metavar="START:END[:STEP]", help="frame range to render (END exclusive)")
     r.add_argument("--resolution", metavar="WxH", help="image size, e.g. 1280x720 (even numbers for H.264)")
@@ -179,7 +180,8 @@ def build_parser() -> argparse.ArgumentParser:
     _threads_flag(r)
 
     e = sub.add_parser("export", help="simulate (or reuse frames) and write the yarns and bodies as USD")
-    e.add_argument("scene", help="scene file (TOML), or the name of a shipped scene (e.g. fig7_square_grab)")
+    e.add_argument("scene", help="scene file (TOML), the name of a shipped scene (e.g. fig7_square_grab), or "
+                   "the output folder of a simulated shot (its scene and Model are saved there)")
     e.add_argument("--usd", required=True, type=Path, metavar="OUT.usd",
                    help="USD file to write (.usd or .usdc binary, .usda text): yarns as BasisCurves (cubic "
                         "Catmull-Rom through the yarn centre lines, widths, weft/warp displayColor, the fade of "

@@ -76,10 +76,7 @@ def _render(args, stream: Optional[TextIO]) -> int:
     stream = stream or sys.stderr
     target = load_target(args.scene, getattr(args, "sets", None) or (), force=bool(getattr(args, "force", False)))
     spec = target.spec
-    from fraytool.sim.run import default_out_dir
-
-    out_dir = Path(args.out) if getattr(args, "out", None) else target.out_dir or default_out_dir(spec)
-    job = build_job(spec, args, out_dir)
+    job = build_job(spec, args, target.output_dir(getattr(args, "out", None)))
     if job.exr:
         try:
             import OpenEXR  # noqa: F401  (a dependency of fraytool; missing only in a broken installation)

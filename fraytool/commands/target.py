@@ -22,6 +22,12 @@ class Target:
     digest: Optional[str] = None
     """The frames' digest when the target is a shot folder."""
 
+    def output_dir(self, out: Optional[str | Path]) -> Path:
+        """Where the command writes: `-o OUT` if given, else the shot's own folder, else outputs/<name>/."""
+        from fraytool.sim.run import default_out_dir
+
+        return Path(out) if out else self.out_dir or default_out_dir(self.spec)
+
 
 def load_target(name: str, sets: Sequence[str] = (), force: bool = False) -> Target:
     """The scene file `name` with its --set overrides (refused, exit 2, when the machine lacks the memory
@@ -34,6 +40,9 @@ def load_target(name: str, sets: Sequence[str] = (), force: bool = False) -> Tar
                              "scene is fixed: render its scene file with --set instead, or re-simulate in Python")
         spec, model, digest = load_shot(name)
         return Target(spec, model, Path(name), digest)
+    if Path(name).is_dir():
+        raise InputError(f"{name}: a folder without simulated frames (no frames/topology.npz): give a scene file, "
+                         "a shipped scene's name, or the output folder of a simulated shot")
     from fraytool.scene import load_scene
     from fraytool.scene.overrides import parse_assignment
     from fraytool.sim.memory import admission_problems
