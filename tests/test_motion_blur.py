@@ -240,3 +240,49 @@ def _args(**kw) -> SimpleNamespace:
                 fov=None, frames=None, motion_blur=None, motion_samples=None)
     base.update(kw)
     return SimpleNamespace(**base)
+
+
+def test_the_python_api_renders_with_motion_blur(ball, tmp_path):
+    from fraytool import api
+
+    scene, _ = ball
+    out = api.render(scene, out_dir=tmp_path / "api", frames="1:2", png=True, video=False, motion_blur=0.5,
+                     motion_samples=SAMPLES, options=("--alpha",))
+    streak = SPEED_M_S * 0.5 * FRAME_S * PIXELS_PER_M
+    assert extent_px(centre_row(png(out, 1)), 0.5 / SAMPLES) == pytest.approx(
+        2 * RADIUS_M * PIXELS_PER_M + streak, abs=1.0)
+
+
+def test_the_farm_renders_the_same_blurred_frames_as_render(ball, tmp_path):
+    """A batch shot with motion blur (its tasks run in-process, as a worker runs them): the simulation
+    task also runs the frame after the range, and the chunk's PNG is byte for byte `fraytool render`'s."""
+    from fraytool.errors import InputError
+    from fraytool.farm import tasks
+    from fraytool.farm.shots import RenderOptions, expand, load_job
+
+    scene, _ = ball
+    (shot,) = expand(str(scene), [], [], RenderOptions(frames="0:2", motion_blur=0.5, motion_samples=4))
+    (sharp,) = expand(str(scene), [], [], RenderOptions(frames="0:2"))
+    out = tmp_path / "shot"
+    assert (tasks.frames_to_simulate(shot, out), tasks.frames_to_simulate(sharp, out)) == (3, 2)
+    tasks.simulate_task(shot, str(out), tasks.frames_to_simulate(shot, out))
+    tasks.render_chunk_task(shot, str(out), 0, 2, 1)
+    ref = tmp_path / "ref"
+    render(scene, ref, "--frames", "0:2", "--motion-blur", "0.5", "--motion-samples", "4")
+    for k in range(2):
+        name = f"frame_{k:06d}.png"
+        assert (out / "png" / name).read_bytes() == (ref / "png" / name).read_bytes(), name
+    job = tmp_path / "job.toml"
+    job.write_text(f'[render]\nmotion_blur = 0.25\nmotion_samples = 6\n[[shots]]\nscene = "{scene}"\n')
+    (loaded,) = load_job(job).shots
+    assert (loaded.render.motion_blur, loaded.render.motion_samples) == (0.25, 6)
+    for bad, needle in (("motion_blur = 2", "motion_blur = 2: a number from 0 to 1"),
+                        ("motion_samples = 1", "motion_samples = 1: an integer from 2 to 64")):
+        job.write_text(f'[render]\n{bad}\n[[shots]]\nscene = "{scene}"\n')
+        with pytest.raises(InputError, match=needle):
+            load_job(job)
+
+
+def test_bad_batch_motion_blur_flags_exit_2(capsys):
+    assert main(["batch", "drape", "--motion-blur", "3"]) == 2
+    assert "--motion-blur '3': expected a number from 0 to 1" in capsys.readouterr().err

@@ -240,6 +240,10 @@ def build_parser() -> argparse.ArgumentParser:
     ba.add_argument("--fit", action="store_true",
                     help="frame every shot's cloth over its whole shot (as in render; the shot is simulated "
                          "before any frame is rendered)")
+    ba.add_argument("--motion-blur", metavar="SHUTTER", help="motion blur of every shot (as in render): the "
+                    "shutter, a fraction of a frame from 0 (off) to 1")
+    ba.add_argument("--motion-samples", metavar="N", help="sub-frames per blurred frame of every shot (as in "
+                    "render), 2 to 64 (default 8)")
     ba.add_argument("--chunk-frames", type=_positive_int, help="frames per render task (default 24)")
     ba.add_argument("--no-contact-sheet", action="store_true", help="no contact sheet for wedges")
     ba.add_argument("--golden-check", type=Path, metavar="DIR", help="instead of rendering: check every shot "
