@@ -12,7 +12,7 @@ PASS (PASS_SUFFIX) is "" for the yarns (beauty), "_wireframe" for --wireframe on
 --wireframe beside, so no pass or range ever overwrites another's files.
 
 `digest()` names the pixels: it hashes the simulation (scene_hash), camera, render settings, size,
-samples, wireframe mode, alpha, the colour target and PNG bit depth, the shader sources, the renderer's
+samples, wireframe mode, alpha, the colour target and PNG bit depth, the motion blur (when on), the shader sources, the renderer's
 own code (every module of fraytool.render and the grid, kinds and color helpers it draws with:
 `renderer_code_digest`), the GL renderer and version strings of the context that draws (another Mesa
 draws other pixels) and RENDER_REVISION. A PNG or EXR carries the digest of the job that drew it; a
