@@ -35,14 +35,18 @@ def simulate(spec: SceneSpec, out_dir: str | Path, *, model: Optional[Model] = N
 
 
 def render(target: str | Path, *, out_dir: Optional[str | Path] = None, frames: Optional[str] = None,
-           png: bool = False, video: bool = True, exr: bool = False, options: Sequence[str] = ()) -> Path:
+           png: bool = False, video: bool = True, exr: bool = False, motion_blur: float = 0.0,
+           motion_samples: Optional[int] = None, options: Sequence[str] = ()) -> Path:
     """Render a shot folder (or a scene file or shipped scene's name) as `fraytool render` does; returns the
-    output folder. `frames` is a range "START:END[:STEP]"; `options` are more of the command's flags, e.g.
+    output folder. `frames` is a range "START:END[:STEP]"; `motion_blur` and `motion_samples` are
+    --motion-blur and --motion-samples (0: no blur); `options` are more of the command's flags, e.g.
     ("--resolution", "640x360", "--alpha")."""
     from fraytool.commands.render import render_command
 
     argv = ["render", str(target)] + _common(out_dir, frames) + (["--png"] if png else []) \
-        + ([] if video else ["--no-mp4"]) + (["--exr"] if exr else []) + list(options)
+        + ([] if video else ["--no-mp4"]) + (["--exr"] if exr else []) \
+        + (["--motion-blur", str(motion_blur)] if motion_blur else []) \
+        + (["--motion-samples", str(motion_samples)] if motion_samples is not None else []) + list(options)
     args = _parse(argv)
     render_command(args)
     return _out_dir(args)

@@ -166,6 +166,12 @@ def build_parser() -> argparse.ArgumentParser:
                    "the background, ProRes keeps the alpha")
     r.add_argument("--wireframe", choices=("off", "only", "beside"), nargs="?", const="beside", default="off",
                    help="springs as lines, base model purple, yarn level blue (Fig. 8); default 'beside'")
+    r.add_argument("--motion-blur", metavar="SHUTTER",
+                   help="motion blur: the fraction of a frame the shutter is open, from 0 (off, the default) to 1, "
+                        "e.g. 0.5; yarns and bodies are drawn at --motion-samples times from the frame to the "
+                        "shutter's close, interpolated between frame records, and averaged in linear light")
+    r.add_argument("--motion-samples", metavar="N",
+                   help="sub-frames drawn per frame with --motion-blur, 2 to 64 (default 8); each costs a draw")
     r.add_argument("--camera-position", metavar="X,Y,Z", help="override [camera] position_m")
     r.add_argument("--camera-target", metavar="X,Y,Z", help="override [camera] target_m")
     r.add_argument("--fov", type=float, help="override [camera] fov_deg")
@@ -234,6 +240,10 @@ def build_parser() -> argparse.ArgumentParser:
     ba.add_argument("--fit", action="store_true",
                     help="frame every shot's cloth over its whole shot (as in render; the shot is simulated "
                          "before any frame is rendered)")
+    ba.add_argument("--motion-blur", metavar="SHUTTER", help="motion blur of every shot (as in render): the "
+                    "shutter, a fraction of a frame from 0 (off) to 1")
+    ba.add_argument("--motion-samples", metavar="N", help="sub-frames per blurred frame of every shot (as in "
+                    "render), 2 to 64 (default 8)")
     ba.add_argument("--chunk-frames", type=_positive_int, help="frames per render task (default 24)")
     ba.add_argument("--no-contact-sheet", action="store_true", help="no contact sheet for wedges")
     ba.add_argument("--golden-check", type=Path, metavar="DIR", help="instead of rendering: check every shot "

@@ -46,6 +46,17 @@ def ensure_frames(spec: SceneSpec, out_dir: Path, needed: int, stream: TextIO = 
     return store
 
 
+def frames_needed(job) -> int:
+    """Frame records (0 .. n-1) a render of `job` reads: up to the end of its range, and with motion blur
+    the record after it too, which the last frame's sub-frames are interpolated towards (none past the
+    scene's end: fraytool.render.motion_blur)."""
+    if job.motion_blur is None:
+        return job.frames.end
+    from fraytool.render.motion_blur import records_needed
+
+    return records_needed(job.frames.end, job.spec.time.frames)
+
+
 def _fmt(v) -> str:
     return "(" + ", ".join(f"{x:.4f}" for x in v) + ")"
 
@@ -108,7 +119,7 @@ def _render(args, stream: Optional[TextIO]) -> int:
                 print(f"fraytool: --fit: camera at {_fmt(cam.position_m)} looking at {_fmt(cam.target_m)}",
                       file=stream)
             else:
-                store = ensure_frames(spec, job.out_dir, job.frames.end, stream, target.model, target.digest)
+                store = ensure_frames(spec, job.out_dir, frames_needed(job), stream, target.model, target.digest)
             result = render_job(job, ctx, store, stream=stream)
     finally:
         ctx.release()

@@ -11,6 +11,8 @@ A job file:
     samples = 4
     wireframe = "off"         # "off", "only", "beside"
     frames = "0:48"           # START:END[:STEP]; default: the whole scene
+    motion_blur = 0.5         # shutter, a fraction of a frame (as --motion-blur; 0: off, the default)
+    motion_samples = 8        # sub-frames per blurred frame (as --motion-samples)
 
     [[shots]]
     scene = "fig7_square_grab"                  # a path (relative to the job file) or a shipped name
@@ -37,7 +39,8 @@ from fraytool.scene.overrides import parse_assignment, parse_value
 DEFAULT_CHUNK_FRAMES = 24
 MAX_WEDGE_VALUES = 1000
 _JOB_KEYS = {"name", "chunk_frames"}
-_RENDER_KEYS = {"resolution", "samples", "wireframe", "frames", "alpha", "depth", "exr", "codec", "fit"}
+_RENDER_KEYS = {"resolution", "samples", "wireframe", "frames", "alpha", "depth", "exr", "codec", "fit",
+                "motion_blur", "motion_samples"}
 _SHOT_KEYS = {"scene", "set", "wedge", "render", "name"}
 
 
@@ -60,6 +63,10 @@ class RenderOptions:
     16-bit RGBA (the join encodes the .mov from them)."""
     fit: Optional[bool] = None
     """Frame the cloth over the whole shot (as `--fit`); None: not given (the scene's [camera] fit)."""
+    motion_blur: Optional[float] = None
+    """Shutter as a fraction of a frame (as `--motion-blur`); None: not given (0, off)."""
+    motion_samples: Optional[int] = None
+    """Sub-frames per blurred frame (as `--motion-samples`); None: not given (8)."""
 
 
 @dataclass(frozen=True)
@@ -199,8 +206,16 @@ def _render_options(table: dict, where: str, base: RenderOptions) -> RenderOptio
     codec = table.get("codec", base.codec)
     if codec not in ("h264", "prores", None):
         raise InputError(f'{where} codec = {codec!r}: "h264" or "prores"')
+    blur = table.get("motion_blur", base.motion_blur)
+    if blur is not None and (isinstance(blur, bool) or not isinstance(blur, (int, float)) or not 0 <= blur <= 1):
+        raise InputError(f"{where} motion_blur = {blur!r}: a number from 0 to 1 (the shutter, a fraction of a "
+                         "frame; 0: off)")
+    blur_samples = table.get("motion_samples", base.motion_samples)
+    if blur_samples is not None and (isinstance(blur_samples, bool) or not isinstance(blur_samples, int)
+                                     or not 2 <= blur_samples <= 64):
+        raise InputError(f"{where} motion_samples = {blur_samples!r}: an integer from 2 to 64")
     return check_render_options(RenderOptions(res, samples, wire, frames, flags["alpha"], depth, flags["exr"],
-                                              codec, flags["fit"]), where)
+                                              codec, flags["fit"], blur, blur_samples), where)
 
 
 def check_render_options(opts: RenderOptions, where: str, flags: bool = False) -> RenderOptions:
@@ -290,7 +305,8 @@ def _merge(base: RenderOptions, cli: RenderOptions) -> RenderOptions:
 
     return check_render_options(
         RenderOptions(cli.resolution or base.resolution, pick("samples"), pick("wireframe"), cli.frames or base.frames,
-                      pick("alpha"), pick("depth"), pick("exr"), pick("codec"), pick("fit")),
+                      pick("alpha"), pick("depth"), pick("exr"), pick("codec"), pick("fit"),
+                      pick("motion_blur"), pick("motion_samples")),
         "render options (job file and command line)")
 
 

@@ -89,7 +89,8 @@ def render_job_for(shot: Shot, out_dir: Path, frames: FrameRange):
                            resolution=f"{r.resolution[0]}x{r.resolution[1]}" if r.resolution else None,
                            samples=r.samples, camera_position=None, camera_target=None, fov=None,
                            wireframe=r.wireframe, alpha=bool(r.alpha), depth=16 if prores else r.depth,
-                           exr=bool(r.exr), codec=r.codec or "h264", fit=bool(r.fit))
+                           exr=bool(r.exr), codec=r.codec or "h264", fit=bool(r.fit),
+                           motion_blur=r.motion_blur, motion_samples=r.motion_samples)
     job = build_job(spec, args, out_dir)
     return job, replace(job, frames=frames)
 
@@ -100,10 +101,13 @@ def shot_frames(shot: Shot, out_dir: Path) -> FrameRange:
 
 
 def frames_to_simulate(shot: Shot, out_dir: Path) -> int:
-    """Frames the shot's simulation task runs: up to the end of its frame range, or the whole scene
-    when the camera is fitted (--fit, [camera] fit), as the fit covers the whole shot."""
+    """Frames the shot's simulation task runs: up to the end of its frame range (with motion blur the
+    frame after it too, as `fraytool render` reads), or the whole scene when the camera is fitted (--fit,
+    [camera] fit), as the fit covers the whole shot."""
+    from fraytool.commands.render import frames_needed
+
     job, _ = render_job_for(shot, out_dir, FrameRange(0, 1))
-    return job.spec.time.frames if job.spec.camera.fit else job.frames.end
+    return job.spec.time.frames if job.spec.camera.fit else frames_needed(job)
 
 
 def one_thread() -> None:

@@ -12,7 +12,7 @@ PASS (PASS_SUFFIX) is "" for the yarns (beauty), "_wireframe" for --wireframe on
 --wireframe beside, so no pass or range ever overwrites another's files.
 
 `digest()` names the pixels: it hashes the simulation (scene_hash), camera, render settings, size,
-samples, wireframe mode, alpha, the colour target and PNG bit depth, the shader sources, the renderer's
+samples, wireframe mode, alpha, the colour target and PNG bit depth, the motion blur (when on), the shader sources, the renderer's
 own code (every module of fraytool.render and the grid, kinds and color helpers it draws with:
 `renderer_code_digest`), the GL renderer and version strings of the context that draws (another Mesa
 draws other pixels) and RENDER_REVISION. A PNG or EXR carries the digest of the job that drew it; a
@@ -25,9 +25,11 @@ import hashlib
 import json
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Optional
 
 from fraytool.errors import InputError
 from fraytool.render.encode import VIDEO_SUFFIX
+from fraytool.render.motion_blur import MotionBlur, motion_blur_from
 from fraytool.render.options import (
     FrameRange,
     check_fov,
@@ -46,9 +48,9 @@ PASS_SUFFIX = {"off": "", "only": "_wireframe", "beside": "_beside"}
 RENDER_REVISION = 3
 """A hand-kept revision of the renderer; its code and shaders are hashed by themselves (renderer_code_digest)."""
 
-RENDERER_MODULES = ("render", "grid.py", "kinds.py", "meshes.py")
+RENDERER_MODULES = ("render", "grid.py", "kinds.py", "meshes.py", "export/rotation.py")
 """What the renderer's pixels are computed by, under the fraytool package: the render package and the
-leaf modules it draws with."""
+leaf modules it draws with (export/rotation.py: the quaternions motion blur turns bodies by)."""
 
 
 def renderer_code_digest(package_dir: Path | None = None) -> str:
@@ -85,12 +87,16 @@ class RenderJob:
     """Also write an EXR sequence (linear premultiplied RGBA + Z)."""
     codec: str = "h264"
     """Video codec: "h264" (MP4) or "prores" (ProRes 4444 with alpha, .mov)."""
+    motion_blur: Optional[MotionBlur] = None
+    """--motion-blur / --motion-samples; None: off (fraytool.render.motion_blur)."""
 
     @property
     def target(self) -> str:
         """The renderer's colour target: "float" when an output needs more than 8 bits (16-bit PNGs,
-        EXR, 10-bit ProRes), else "srgb8" (fraytool.render.renderer)."""
-        return "float" if self.png_bits == 16 or self.exr or self.codec == "prores" else "srgb8"
+        EXR, 10-bit ProRes) or sub-frames are averaged (motion blur, in linear light), else "srgb8"
+        (fraytool.render.renderer)."""
+        wide = self.png_bits == 16 or self.exr or self.codec == "prores"
+        return "float" if wide or self.motion_blur is not None else "srgb8"
 
     @property
     def size(self) -> tuple[int, int]:
@@ -152,6 +158,8 @@ class RenderJob:
             settings["panel_colors"] = colors
         if self.target != "srgb8":  # only when not the default, so the default digest stays as it was
             settings.update(target=self.target, png_bits=self.png_bits)
+        if self.motion_blur is not None:  # likewise only when on: without blur the digest is as before
+            settings["motion_blur"] = self.motion_blur.settings()
         blob = json.dumps(settings, sort_keys=True, default=list).encode()
         return hashlib.sha256(blob).hexdigest()[:16]
 
@@ -185,8 +193,8 @@ def parse_depth(value) -> int:
 
 def build_job(spec: SceneSpec, args, out: Path) -> RenderJob:
     """Validate the `fraytool render` flags (an argparse namespace: png, no_mp4, resolution, samples,
-    camera_position, camera_target, fov, frames, wireframe, alpha, depth, exr, codec; missing ones take
-    their defaults) against the scene and resolve them into a RenderJob writing to `out`."""
+    camera_position, camera_target, fov, frames, wireframe, alpha, depth, exr, codec, motion_blur,
+    motion_samples; missing ones take their defaults) against the scene and resolve them into a RenderJob writing to `out`."""
     png = bool(getattr(args, "png", False)) or spec.output.png
     video = spec.output.mp4 and not getattr(args, "no_mp4", False)
     exr = bool(getattr(args, "exr", False))
@@ -194,6 +202,7 @@ def build_job(spec: SceneSpec, args, out: Path) -> RenderJob:
     if codec not in VIDEO_SUFFIX:
         raise InputError(f"--codec {codec!r}: expected one of {', '.join(VIDEO_SUFFIX)}")
     png_bits = parse_depth(getattr(args, "depth", None) or 8)
+    blur = motion_blur_from(getattr(args, "motion_blur", None), getattr(args, "motion_samples", None))
     if codec == "prores" and not video:
         raise InputError("--codec prores chooses the video codec, but no video is written (--no-mp4, or the "
                          "scene's [output] mp4 = false): drop one of them")
@@ -230,4 +239,4 @@ def build_job(spec: SceneSpec, args, out: Path) -> RenderJob:
     alpha = bool(getattr(args, "alpha", False)) or codec == "prores"
     return RenderJob(spec=spec, out_dir=out, frames=frames, ranged=ranged,
                      wireframe=getattr(args, "wireframe", None) or "off", png=png, video=video, alpha=alpha,
-                     png_bits=png_bits, exr=exr, codec=codec)
+                     png_bits=png_bits, exr=exr, codec=codec, motion_blur=blur)

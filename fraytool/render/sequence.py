@@ -7,6 +7,10 @@ ffmpeg either from a kept file (a PNG, decoded; an EXR, encoded as a PNG would b
 frames, which an 8-bit PNG is too coarse for: then the EXR serves, or the frame is drawn again) or
 freshly drawn. Without files there is nothing to keep, and an interrupted video-only render starts
 over. The video is encoded into a temp file and renamed only once complete (fraytool.render.encode).
+
+Motion blur (job.motion_blur): a frame is its N sub-frames drawn one after the other into the float
+target and averaged in linear light (fraytool.render.motion_blur), then written as any float frame is;
+its files' digest also covers the neighbouring record the sub-frames are interpolated with.
 """
 from __future__ import annotations
 
@@ -28,6 +32,7 @@ from fraytool.render.encode import PNG_SETTINGS_KEY, VideoWriter, png_settings, 
 from fraytool.render.exr import exr_settings, read_exr_rgba, write_exr
 from fraytool.render.geometry import GeometryBuilder, YarnStyle
 from fraytool.render.job import RenderJob
+from fraytool.render.motion_blur import neighbour, sub_frame_records
 from fraytool.render.png16 import read_png16, write_png16
 from fraytool.render.renderer import Renderer
 
@@ -43,11 +48,14 @@ class RenderResult:
     stage_s: dict = field(default_factory=lambda: {"geometry": 0.0, "draw_readback": 0.0, "encode": 0.0})
 
 
-def frame_digest(job_digest: str, store: FrameStore, frame: int) -> str:
+def frame_digest(job_digest: str, store: FrameStore, frame: int, also: Optional[int] = None) -> str:
     """Digest of one frame's pixels: the job's settings and the bytes of the frame record it draws,
-    so a re-simulated frame (same scene, another fraytool) is drawn again, never reused stale."""
+    so a re-simulated frame (same scene, another fraytool) is drawn again, never reused stale; `also`:
+    the record a motion-blurred frame's sub-frames are interpolated with, hashed after it."""
     h = hashlib.sha256(job_digest.encode())
     h.update(store.frame_path(frame).read_bytes())
+    if also is not None:
+        h.update(store.frame_path(also).read_bytes())
     return h.hexdigest()[:16]
 
 
@@ -61,10 +69,16 @@ class _Drawn:
     """One drawn frame, read back once: the float target's linear RGBA (or the 8-bit image), the
     depth for EXR, and the straight-alpha sRGB images at 8 or 16 bits made from them on demand."""
 
-    def __init__(self, renderer: Renderer, depth: bool):
+    def __init__(self, renderer: Renderer, depth: bool, linear: Optional[np.ndarray] = None,
+                 depth_m: Optional[np.ndarray] = None):
+        """Read the renderer back, or (`linear` given: a motion-blurred frame) take its averaged image
+        and `depth_m`."""
         self.alpha = renderer.alpha
-        self.linear: Optional[np.ndarray] = None
+        self.linear: Optional[np.ndarray] = linear
         self._images: dict[int, np.ndarray] = {}
+        if linear is not None:
+            self.depth_m = depth_m
+            return
         if renderer.target == "float":
             self.linear = renderer.read_linear()
         else:
@@ -137,6 +151,32 @@ class _FramePlan:
     stale: list
     image: Optional[np.ndarray]
     geom: Optional[object]
+    sub_frames: list = field(default_factory=list)
+    """Motion blur: the records of the sub-frames after the first (whose geometry is `geom`)."""
+
+
+def _draw_blurred(renderer: Renderer, builder: GeometryBuilder, p: _FramePlan, depth: bool, build_kw: dict,
+                  ahead) -> _Drawn:
+    """Draw a frame's sub-frames (p.geom, then p.sub_frames), each one's successor built while the GL draws
+    it (and after the last, `ahead()`: the next frame's plan), and average them in linear light. Depth: the
+    nearest over the sub-frames (+inf where none drew anything); alpha: the average coverage."""
+    total: Optional[np.ndarray] = None
+    nearest: Optional[np.ndarray] = None
+    geom = p.geom
+    count = 1 + len(p.sub_frames)
+    for k in range(count):
+        renderer.draw(geom)
+        if k + 1 < count:
+            geom = builder.build(p.sub_frames[k], **build_kw)
+        else:
+            ahead()
+        linear = renderer.read_linear()
+        total = linear.astype(np.float64) if total is None else total + linear
+        if depth:
+            d = renderer.read_depth_m()
+            nearest = d if nearest is None else np.minimum(nearest, d)
+    p.sub_frames = []
+    return _Drawn(renderer, depth, linear=(total / count).astype(np.float32), depth_m=nearest)
 
 
 def render_job(job: RenderJob, ctx: moderngl.Context, store: FrameStore, stream: TextIO = sys.stderr,
@@ -159,6 +199,18 @@ def render_job(job: RenderJob, ctx: moderngl.Context, store: FrameStore, stream:
     builder = GeometryBuilder(topology, YarnStyle.from_spec(job.spec.render, topology), renderer.camera, H)
     want_yarns = job.wireframe != "only"
     want_lines = job.wireframe != "off"
+    build_kw = dict(yarns=want_yarns, lines=want_lines)
+    blur = job.motion_blur
+    scene_frames = job.spec.time.frames
+    loaded: dict[int, object] = {}
+
+    def load(frame: int):
+        """Frame records, the last few kept (a blurred frame reads its neighbour, the next frame's own)."""
+        if frame not in loaded:
+            if len(loaded) >= 3:
+                del loaded[min(loaded)]
+            loaded[frame] = store.load_frame(frame)
+        return loaded[frame]
     video_bits = 16 if job.codec == "prores" else 8
     result = RenderResult(png_dir=str(job.png_dir) if job.png else None,
                           exr_dir=str(job.exr_dir) if job.exr else None)
@@ -175,19 +227,24 @@ def render_job(job: RenderJob, ctx: moderngl.Context, store: FrameStore, stream:
             """What frame i needs (kept files or a draw), its geometry built ahead when drawn."""
             if i not in plans:
                 frame = frames[i]
-                file_digest = frame_digest(digest, store, frame) if files else ""
+                other = neighbour(frame, scene_frames) if blur is not None else None
+                file_digest = frame_digest(digest, store, frame, other) if files else ""
                 stale = [f for f in files if not f.reusable(frame, file_digest)]
                 image = None
                 kept = bool(files) and not stale
                 if kept and writer is not None:
                     image = _kept_video_image(files, frame, video_bits)
                     kept = image is not None
-                geom = None
+                geom, sub_frames = None, []
                 if not kept:
                     t = time.perf_counter()
-                    geom = builder.build(store.load_frame(frame), yarns=want_yarns, lines=want_lines)
+                    if blur is None:
+                        record = store.load_frame(frame)
+                    else:
+                        record, *sub_frames = sub_frame_records(frame, scene_frames, load, blur)
+                    geom = builder.build(record, **build_kw)
                     result.stage_s["geometry"] += time.perf_counter() - t
-                plans[i] = _FramePlan(file_digest, stale, image, geom)
+                plans[i] = _FramePlan(file_digest, stale, image, geom, sub_frames)
             return plans[i]
 
         for i, frame in enumerate(frames):
@@ -195,6 +252,15 @@ def render_job(job: RenderJob, ctx: moderngl.Context, store: FrameStore, stream:
             image = p.image
             if p.geom is None:
                 result.reused += 1
+            elif blur is not None:
+                t1 = time.perf_counter()
+                drawn = _draw_blurred(renderer, builder, p, job.exr, build_kw,
+                                      lambda: plan(i + 1) if i + 1 < len(frames) else None)
+                image = drawn.image(video_bits) if writer is not None else None
+                result.stage_s["draw_readback"] += time.perf_counter() - t1
+                for f in p.stale:
+                    f.write(frame, drawn, p.file_digest)
+                result.rendered += 1
             else:
                 t1 = time.perf_counter()
                 renderer.draw(p.geom)                  # llvmpipe rasterises on its own threads ...
