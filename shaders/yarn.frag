@@ -45,6 +45,10 @@ in vec3 v_position;
 #endif
 
 #include "output.glsl"
+#ifdef FAR_BAND
+#include "band.glsl"
+in float v_far;
+#endif
 
 out vec4 f_color;
 
@@ -83,5 +87,8 @@ void main() {
     // Clamped as a fixed-point target clamps before blending, so a float target blends the same:
     // with MSAA, attributes are evaluated at the pixel centre, which may lie outside the triangle,
     // and the fade alpha extrapolated there can leave [0, 1].
+#ifdef FAR_BAND
+    gl_SampleMask[0] = band_yarn_mask(v_far);
+#endif
     f_color = to_target(vec4(max(color, 0.0), clamp(v_albedo.a, 0.0, 1.0)));
 }

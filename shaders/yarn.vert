@@ -17,6 +17,10 @@ in vec3 in_normal;
 in vec3 in_tangent;
 in float in_alpha;
 in float in_warp;                // colour index: 2 panel + (0 weft, 1 warp); 2 P a seam's thread
+#ifdef FAR_BAND
+in float in_far;                 // far weight: the yarn blends into the far-field surface (band.glsl)
+out float v_far;
+#endif
 
 out vec3 v_normal;
 out vec2 v_kajiya;               // (diffuse sin(T, L), specular cos(thetaL - thetaE)^p)
@@ -46,6 +50,9 @@ void main() {
 #endif
 #ifdef RIBBON
     v_tangent = T;
+#endif
+#ifdef FAR_BAND
+    v_far = in_far;
 #endif
     gl_Position = u_view_proj * vec4(in_position, 1.0);
 }

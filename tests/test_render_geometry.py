@@ -297,7 +297,8 @@ def test_detail_grows_as_the_camera_comes_closer_and_stops_at_the_scene_maximum(
 
 def test_segments_far_from_the_camera_get_fewer_samples_than_near_ones():
     """A piece running away from the camera: its segments' counts fall with distance, never above the
-    frame's most, never below 2, each sample step at most lod.SAMPLE_PX pixels while the count can grow."""
+    frame's most, never below 2 but where a segment spans at most lod.STRAIGHT_PX pixels (then 1), each
+    sample step at most lod.SAMPLE_PX pixels while the count can grow."""
     from fraytool.render import lod
 
     cam = Camera(CameraSpec(position_m=(0.0, 0.0, 0.05), target_m=(0.0, 0.0, 0.0), fov_deg=40.0))
@@ -306,8 +307,10 @@ def test_segments_far_from_the_camera_get_fewer_samples_than_near_ones():
     off = np.array([0, len(z)])
     m = segment_samples(cam, 720, pts, off, 0.004, max_samples=6)
     assert m.shape == (250,) and m.dtype == np.int64
-    assert np.all(np.diff(m) <= 0) and m[0] == 6 and m[-1] == 2
+    assert np.all(np.diff(m) <= 0) and m[0] == 6 and m[-1] == 1
     depth = 0.05 - z[:-1]                                                    # the nearer end of each segment
     seg_px = 0.004 * 720 / (2.0 * depth * np.tan(np.radians(20.0)))
     assert np.all((seg_px / m <= lod.SAMPLE_PX + 1e-9) | (m == 6))
-    assert np.all((seg_px / (m - 1) > lod.SAMPLE_PX) | (m == 2))               # one fewer would be too long
+    assert np.array_equal(m == 1, seg_px <= lod.STRAIGHT_PX)                  # straight only where short
+    assert (m == 2).any()
+    assert np.all((seg_px / np.maximum(m - 1, 1) > lod.SAMPLE_PX) | (m <= 2))  # one fewer would be too long

@@ -206,7 +206,7 @@ def test_prores_render_carries_the_alpha_of_the_16bit_pngs_and_resumes(tmp_path,
     10-bit steps. Run again, it keeps the PNGs and rebuilds the same video from them."""
     out = tmp_path / "out"
     flags = ["render", str(SCENE), "-o", str(out), "--resolution", "64x48", "--frames", "0:2", "--codec", "prores",
-             "--png", "--depth", "16", "--set", "render.ground_plane=false"]
+             "--png", "--depth", "16", "--set", "render.ground_plane=false", "--set", "render.far_field=false"]
     assert main(flags) == 0
     err = capsys.readouterr().err
     assert "ProRes 4444 carries alpha" in err and "2 rendered, 0 kept" in err

@@ -78,10 +78,10 @@ def render_stage_timings(spec: SceneSpec, out_dir: Optional[Path] = None, frames
         try:
             renderer = Renderer(ctx, (W, H), samples, spec.render, spec.camera, topology,
                                 panels_spec=spec.all_panels)
-            builder = GeometryBuilder(topology, YarnStyle.from_spec(spec.render, topology), renderer.camera, H)
+            builder = GeometryBuilder(topology, YarnStyle.from_spec(spec.render, topology), renderer.camera, H,
+                                       image_width=renderer.shaded_width)
             renderer.render(builder.build(records[0]))  # warm-up: numba, shaders, buffers
             geometry_s, draw_s, read_s, images = [], [], [], []
-            geoms = []
             for record in records:
                 t0 = time.perf_counter()
                 geom = builder.build(record)
@@ -94,10 +94,11 @@ def render_stage_timings(spec: SceneSpec, out_dir: Optional[Path] = None, frames
                 geometry_s.append(t1 - t0)
                 draw_s.append(t2 - t1)
                 read_s.append(t3 - t2)
-                geoms.append(geom)
+                del geom  # (kept, every frame's arrays would be fresh memory: page faults a render never has)
             if parts is not None:  # timed apart: finishing the queue between parts costs a little
                 per_frame = []
-                for geom in geoms:
+                for record in records:
+                    geom = builder.build(record)
                     renderer.part_s = {}
                     t0 = time.perf_counter()
                     renderer.draw(geom)

@@ -83,7 +83,7 @@ def capture(spec: SceneSpec, frames: Sequence[int], work_dir: Path, stream: Text
         renderer = Renderer(ctx, tuple(spec.render.resolution), spec.render.samples, spec.render, spec.camera,
                             topology, target="float", panels_spec=spec.all_panels)
         builder = GeometryBuilder(topology, YarnStyle.from_spec(spec.render, topology), renderer.camera,
-                                  int(spec.render.resolution[1]))
+                                  int(spec.render.resolution[1]), image_width=renderer.shaded_width)
         try:
             for f in frames:
                 record = store.load_frame(f)

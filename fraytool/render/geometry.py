@@ -15,13 +15,14 @@ import numpy as np
 
 from fraytool.io.frame_record import FrameRecord
 from fraytool.render.camera import Camera
+from fraytool.render.farfield import FAR_PX, NEAR_PX, FarField, far_field, grid_arrays
 from fraytool.render.lod import Detail, choose_detail, segment_samples
 from fraytool.render.ribbon import (ribbon_triangles, ribbon_vertices, shadow_casters,
                                     translucent_ribbon_triangles)
 from fraytool.render.spline import catmull_rom, polyline_tangents
 from fraytool.render.tube import VERTEX_FLOATS, fade_alpha, sweep_tubes, translucent_triangles, tube_triangles
 from fraytool.render.wireframe import SpringLines, spring_lines
-from fraytool.render.yarns import YarnPieces, yarn_pieces
+from fraytool.render.yarns import YarnPieces, yarn_pieces, yarn_points
 from fraytool.scene.spec import RenderSpec
 
 __all__ = ["VERTEX_FLOATS", "YarnStyle", "YarnMesh", "YarnCurves", "FrameGeometry", "GeometryBuilder", "yarn_curves"]
@@ -46,6 +47,10 @@ class YarnStyle:
     light_direction: Optional[tuple] = None
     """Direction towards the key light when the render has shadows (ribbons: the shadow pass's strips
     face it), else None (no shadow strips are built)."""
+    far_field: bool = False
+    """Draw intact cloth whose yarns are under a few pixels apart as one surface (fraytool.render.farfield)."""
+    far_field_px: float = 0.5 * (NEAR_PX + FAR_PX)
+    """Middle of the blend band [px of yarn spacing on screen]; the band runs from 2/3 to 4/3 of it."""
 
     @staticmethod
     def from_spec(render: RenderSpec, topology: Mapping[str, np.ndarray]) -> "YarnStyle":
@@ -59,6 +64,8 @@ class YarnStyle:
             spacing_m=spacing,
             shape=render.yarn_shape,
             light_direction=tuple(float(v) for v in render.light_direction) if render.shadows else None,
+            far_field=render.far_field,
+            far_field_px=render.far_field_px,
         )
 
 
@@ -79,6 +86,9 @@ class YarnMesh:
     sample [m], (V', 3) float32, drawn into the shadow map instead of `vertices` (fraytool.render.ribbon)."""
     shadow_triangles: Optional[np.ndarray] = None
     """Ribbons only: the opaque triangles over `shadow_positions`, (F', 3) uint32."""
+    far: Optional[np.ndarray] = None
+    """Far weight of each vertex, (V,) float32, where yarns blend into the far-field surface (the blend
+    band, fraytool.render.farfield); None: no vertex does."""
 
 
 @dataclass(frozen=True)
@@ -123,6 +133,8 @@ class FrameGeometry:
     body_rotation: np.ndarray
     time_s: float = 0.0
     """The frame's simulated time [s] (animated mesh bodies are drawn as they are then)."""
+    surface: Optional[FarField] = None
+    """The far-field surface (None: every yarn is drawn as a yarn)."""
 
 
 class GeometryBuilder:
@@ -133,11 +145,15 @@ class GeometryBuilder:
     """
 
     def __init__(self, topology: Mapping[str, np.ndarray], style: YarnStyle, camera: Optional[Camera] = None,
-                 image_height: Optional[int] = None):
+                 image_height: Optional[int] = None, image_width: Optional[int] = None):
+        """`image_width`: the shaded view's width [px] (default: 16:9 of the height); with the far field
+        it decides which crossings are on screen."""
         self.topology = topology
         self.style = style
         self.camera = camera
         self.image_height = image_height
+        self.image_width = image_width if image_width is not None else (
+            None if image_height is None else int(round(image_height * 16 / 9)))
         self._tri_key: Optional[tuple] = None
         self._tri: Optional[np.ndarray] = None
 
@@ -158,11 +174,13 @@ class GeometryBuilder:
             self._tri_key = key
         return self._tri
 
-    def yarn_mesh(self, pieces: YarnPieces) -> YarnMesh:
+    def yarn_mesh(self, pieces: YarnPieces, far: Optional[FarField] = None) -> YarnMesh:
         st = self.style
+        point_far = _point_far_weight(pieces, far, int(np.asarray(self.topology["warp_yarns"]).item())) \
+            if far is not None else None
         detail = self.detail(pieces)
         if st.shape == "ribbon":
-            return self._ribbon_mesh(pieces, detail)
+            return self._ribbon_mesh(pieces, detail, point_far)
         curves = catmull_rom(pieces.points, pieces.offsets, _samples(detail))
         tangents = polyline_tangents(curves.points, curves.offsets)
         alpha = fade_alpha(curves.points, curves.offsets, pieces.broken_start, pieces.broken_end,
@@ -177,9 +195,15 @@ class GeometryBuilder:
         else:
             opaque, translucent = tri, tri[:0]
         centroid = tube.position[translucent].mean(axis=1) if len(translucent) else np.zeros((0, 3), np.float32)
-        return YarnMesh(tube.vertices, opaque, translucent, centroid, pieces.count, detail)
+        vertex_far = None
+        sample_far = _sample_far_weight(curves, point_far)
+        if sample_far is not None:
+            ends = np.stack([sample_far[curves.offsets[:-1]], sample_far[curves.offsets[1:] - 1]], axis=1)
+            vertex_far = np.concatenate([np.repeat(sample_far, detail.sides),
+                                         np.repeat(ends.ravel(), detail.sides + 1)]).astype(np.float32)
+        return YarnMesh(tube.vertices, opaque, translucent, centroid, pieces.count, detail, far=vertex_far)
 
-    def _ribbon_mesh(self, pieces: YarnPieces, detail: Detail) -> YarnMesh:
+    def _ribbon_mesh(self, pieces: YarnPieces, detail: Detail, point_far: Optional[np.ndarray] = None) -> YarnMesh:
         """View-facing strips (fraytool.render.ribbon); the eye is the camera's (its origin without one)."""
         st = self.style
         curves = catmull_rom(pieces.points, pieces.offsets, _samples(detail))
@@ -200,25 +224,82 @@ class GeometryBuilder:
             opaque, translucent = tri, tri[:0]
         centroid = (vertices[:, 0:3][translucent].mean(axis=1) if len(translucent)
                     else np.zeros((0, 3), np.float32))
+        sample_far = _sample_far_weight(curves, point_far)
         return YarnMesh(vertices, opaque, translucent, centroid, pieces.count,
                         Detail(2, detail.samples_per_segment, detail.segment_samples),
-                        shadow_positions=shadow, shadow_triangles=shadow_tri)
+                        shadow_positions=shadow, shadow_triangles=shadow_tri,
+                        far=None if sample_far is None else np.repeat(sample_far, 2).astype(np.float32))
 
     def build(self, record: FrameRecord, yarns: bool = True, lines: bool = False) -> FrameGeometry:
         """Geometry of one frame; `yarns` / `lines` choose what the shaded and wireframe views need."""
         topo = self.topology
         mesh = None
+        surface = None
         if yarns:
+            points = yarn_points(topo, record.particle_position_m, record.crossing_yarn_level)
+            surface = self.far_field(record, points)
+            hidden = None if surface is None else (surface.hidden_weft, surface.hidden_warp)
             pieces = yarn_pieces(topo, record.particle_position_m, record.crossing_yarn_level,
-                                 record.spring_alive)
-            mesh = self.yarn_mesh(pieces)
+                                 record.spring_alive, hidden=hidden, with_places=surface is not None, points=points)
+            mesh = self.yarn_mesh(pieces, surface)
         return FrameGeometry(
             yarns=mesh,
             lines=spring_lines(topo, record) if lines else None,
             body_position_m=np.asarray(record.body_position_m, dtype=np.float32),
             body_rotation=np.asarray(record.body_rotation, dtype=np.float32),
             time_s=float(record.time_s),
+            surface=surface,
         )
+
+    def far_field(self, record: FrameRecord, points=None) -> Optional[FarField]:
+        """The frame's far field (fraytool.render.farfield), or None: off in the style, no camera, or
+        no crossing far enough (then the frame is drawn exactly as without it). `points`: the frame's
+        yarn_points, if already computed."""
+        st = self.style
+        if not st.far_field or self.camera is None or self.image_height is None:
+            return None
+        topo = self.topology
+        weft_pt, warp_pt, normal = points if points is not None else \
+            yarn_points(topo, record.particle_position_m, record.crossing_yarn_level)
+        centre = 0.5 * (weft_pt + warp_pt)
+        grid = grid_arrays(topo, centre, normal, record.crossing_yarn_level, record.spring_alive)
+        field = far_field(self.camera, (self.image_width, self.image_height), *grid,
+                          near_px=st.far_field_px * 4.0 / 3.0, far_px=st.far_field_px * 2.0 / 3.0)
+        if not field.quads:
+            return None
+        return field
+
+
+def _point_far_weight(pieces: YarnPieces, far: FarField, warp_yarns: int) -> Optional[np.ndarray]:
+    """Far weight of each control point: the crossing's, where every link of its piece at the point has
+    surface quads on both sides (the surface then holds the whole yarn there), else 0; None if all 0."""
+    place = pieces.place
+    n = len(place)
+    if n == 0:
+        return None
+    W = warp_yarns
+    counts = np.diff(pieces.offsets)
+    kind = np.repeat(pieces.kind, counts)
+    first = np.zeros(n, dtype=bool)
+    first[pieces.offsets[:-1]] = True
+    last = np.zeros(n, dtype=bool)
+    last[pieces.offsets[1:] - 1] = True
+    valid = place >= 0
+    j, i = np.divmod(np.maximum(place, 0), W)
+    cw, cv = far.covered_weft, far.covered_warp
+    is_weft = kind == 0
+    prev_cov = np.where(is_weft, cw[j, np.clip(i - 1, 0, cw.shape[1] - 1)], cv[i, np.clip(j - 1, 0, cv.shape[1] - 1)])
+    next_cov = np.where(is_weft, cw[j, np.minimum(i, cw.shape[1] - 1)], cv[i, np.minimum(j, cv.shape[1] - 1)])
+    ok = valid & (first | prev_cov) & (last | next_cov)
+    w = np.where(ok, far.weight[np.maximum(place, 0)], 0.0)
+    return w if (w > 0.0).any() else None
+
+
+def _sample_far_weight(curves, point_far: Optional[np.ndarray]) -> Optional[np.ndarray]:
+    """Far weight of each spline sample: linear between its control points' (None: none)."""
+    if point_far is None or not len(curves.points):
+        return None
+    return np.interp(np.arange(len(curves.points)), curves.control_index, point_far)
 
 
 def _samples(detail: Detail):

@@ -6,7 +6,8 @@ geometry only costs time: llvmpipe's cost grows with the triangle count, and 4x 
 So for each frame we take the closest crossing to the camera (where yarns look biggest) and pick
 - sides: enough that one facet of the tube spans at most FACET_PX pixels (at least 3);
 - samples per segment: enough that one spline sample spans at most SAMPLE_PX pixels (at least 2,
-  so the curve stays a spline, unless the scene asks for 1).
+  so the curve stays a spline, unless the scene asks for 1 or the segment spans at most STRAIGHT_PX
+  pixels).
 Samples are then chosen per segment (`segment_samples`), from the nearer of its two control points,
 at most the frame's count: in a wide shot the far half of the cloth is drawn with fewer triangles
 than the near half, each sample step still at most SAMPLE_PX pixels.
@@ -27,6 +28,11 @@ FACET_PX = 2.0
 SAMPLE_PX = 8.0
 """Largest on-screen length of one spline sample step [pixels]: about the width of a yarn in the shipped
 framings (at least 8 px); fig7 frames with 6 look the same and take a quarter more triangles."""
+
+
+STRAIGHT_PX = 4.0
+"""Segments no longer than this on screen [pixels] are drawn straight (one sample step): a yarn's rise
+and fall over one spacing (the thickness, about a sixth of the spacing) is then under a pixel."""
 
 
 @dataclass(frozen=True)
@@ -72,5 +78,10 @@ def segment_samples(camera: Camera, image_height: int, points: np.ndarray, offse
     i = np.nonzero(starts)[0]
     nearest = np.minimum(depth[i], depth[i + 1])
     ppm = pixels_per_metre(camera, image_height, nearest)
-    samples = np.ceil(spacing_m * ppm / SAMPLE_PX).astype(np.int64)
-    return np.clip(samples, min(2, max_samples), max_samples)
+    length_px = spacing_m * ppm
+    samples = np.ceil(length_px / SAMPLE_PX).astype(np.int64)
+    # at least 2 (the curve stays a spline), but 1 (a straight step) where the segment spans at most
+    # STRAIGHT_PX: the weave's bend over one spacing is then well under a pixel
+    least = np.where(length_px <= STRAIGHT_PX, 1, min(2, max_samples))
+    return np.clip(samples, least, max_samples)
+

@@ -60,9 +60,12 @@ from fraytool.render.color import (
 )
 from fraytool.errors import RunError
 from fraytool.render.context import check_gl_error
+from fraytool.render.farfield import SURFACE_FLOATS
 from fraytool.render.geometry import FrameGeometry
 from fraytool.render.shadow import LightFrame, shadow_footprint
 from fraytool.render.shadow_pass import ShadowPass
+from fraytool.render.weave_texture import coverage_tile, weave_tile
+from fraytool.render.weave_visibility import visibility_table
 from fraytool.resources import shader_source
 from fraytool.scene.spec import CameraSpec, RenderSpec
 
@@ -72,6 +75,11 @@ KAJIYA_WEIGHT = 0.35
 WIREFRAME_MODES = ("off", "only", "beside")
 TARGETS = ("srgb8", "float")
 """Colour targets: 8-bit sRGB-encoded (the default) or 32-bit float linear (see the module docstring)."""
+
+WEAVE_UNIT = 1
+"""Texture unit of the far field's weave texture (the shadow map is unit 0)."""
+VISIBILITY_UNIT = 2
+"""Texture unit of the far field's view table (fraytool.render.weave_visibility)."""
 
 GL_SRGB8_ALPHA8 = 0x8C43
 GL_FRAMEBUFFER_SRGB = 0x8DB9
@@ -112,6 +120,8 @@ def _preprocess(source: str, defines: tuple[str, ...]) -> str:
         else:
             out.append(line)
             if stripped.startswith("#version"):
+                if "FAR_BAND" in defines:  # gl_SampleMask (band.glsl): core only from GLSL 4.00
+                    out.append("#extension GL_ARB_sample_shading : require\n")
                 out += [f"#define {d} 1\n" for d in defines]
     return "".join(out)
 
@@ -211,6 +221,18 @@ class Renderer:
                                  if split_ground else None)
         self._ground_progs = (self._ground_prog,) + ((self._ground_lit_prog,) if split_ground else ())
         self._line_prog = load_program(ctx, "line.vert", "line.frag", encode)
+        self._thickness_m = float(np.asarray(topology.get("thickness_m", 0.0)).item())
+        self._topology_spacing = float(np.asarray(topology.get("spacing_m", 0.0)).item())
+        # The far field (fraytool.render.farfield): the surface, and the yarns of the blend band
+        self.far_field = bool(render.far_field)
+        self._yarn_band_prog = self._far_prog = self._weave = self._visibility = None
+        if self.far_field:
+            self._yarn_band_prog = load_program(ctx, "yarn.vert", "yarn.frag", yarn_features + ("FAR_BAND",))
+            self._far_prog = load_program(ctx, "farfield.vert", "farfield.frag",
+                                          features + ("FAR_BAND",) + (("SHADOW_ONE_TAP",) if render.shadows else ()))
+            self._weave, self._mean_cover, self._weave_period, self._visibility = \
+                self._weave_textures(ctx, render, topology)
+        self._yarn_progs = tuple(p for p in (self._yarn_prog, self._yarn_band_prog) if p is not None)
         self.shadow = (ShadowPass(ctx, render.shadow_map_size, topology, load_program(ctx, "depth.vert", "depth.frag"))
                        if render.shadows else None)
 
@@ -251,6 +273,12 @@ class Renderer:
                 self._animated_meshes.append((m, vbo))
 
         self._yarn_vbo = _Stream(ctx)
+        self._far_vbo = _Stream(ctx)
+        """Far weight of each yarn vertex in the blend band (YarnMesh.far)."""
+        self._surface_vbo = _Stream(ctx)
+        self._surface_ibo = _Stream(ctx)
+        self._surface_shadow_ibo = _Stream(ctx)
+        self._surface_vao: Optional[tuple] = None
         self._shadow_vbo = _Stream(ctx)
         """Ribbons: the strips turned to the key light, for the shadow pass (fraytool.render.ribbon)."""
         self._opaque_ibo = _Stream(ctx)
@@ -261,11 +289,15 @@ class Renderer:
         self._line_vao: Optional[tuple[int, moderngl.VertexArray]] = None
         self._opaque_uploaded: Optional[np.ndarray] = None
 
-        self._thickness_m = float(np.asarray(topology.get("thickness_m", 0.0)).item())
         self._set_uniforms(render)
         self.bodies = BodySet(topology, plane_half_size_m=self._scene_scale(topology) * 20.0,
                               ground=self._ground())
         check_gl_error(ctx, "renderer set-up")
+
+    @property
+    def shaded_width(self) -> int:
+        """Width [px] of the shaded view (the whole image, or its left panel beside the wireframe)."""
+        return next((p.width for p in self.panels if p.view == "shaded"), self.size[0])
 
     # -- set-up -------------------------------------------------------------------------------
     def _scene_scale(self, topology: Mapping[str, np.ndarray]) -> float:
@@ -289,21 +321,37 @@ class Renderer:
         if r.fill_intensity > 0:
             fill = np.asarray(r.fill_direction, dtype=np.float64)
             common.update(u_fill_intensity=r.fill_intensity, u_fill_dir=fill / np.linalg.norm(fill))
-        for prog in (self._yarn_prog, self._body_prog, *self._ground_progs, self._line_prog):
+        far = (self._far_prog,) if self._far_prog is not None else ()
+        for prog in (*self._yarn_progs, *far, self._body_prog, *self._ground_progs, self._line_prog):
             if "u_encode" in prog:
                 prog["u_encode"].value = 1.0
-        for prog in (self._yarn_prog, self._body_prog, *self._ground_progs):
+        for prog in (*self._yarn_progs, *far, self._body_prog, *self._ground_progs):
             for k, v in common.items():
                 if k in prog:
                     prog[k].value = tuple(np.atleast_1d(v).tolist()) if np.ndim(v) else float(v)
-        y = self._yarn_prog
-        if "u_yarn_radius" in y:
-            radius = r.yarn_radius_m if r.yarn_radius_m > 0 else 0.5 * self._thickness_m
-            y["u_yarn_radius"].value = float(radius)
-        y["u_specular"].value = r.specular
-        y["u_shininess"].value = r.shininess
-        y["u_kajiya_weight"].value = KAJIYA_WEIGHT
-        y["u_yarn_colors"].write(srgb_to_linear(self.palette).astype("f4").tobytes())
+        radius = r.yarn_radius_m if r.yarn_radius_m > 0 else 0.5 * self._thickness_m
+        for y in (*self._yarn_progs, *far):
+            if "u_yarn_radius" in y:
+                y["u_yarn_radius"].value = float(radius)
+            y["u_specular"].value = r.specular
+            y["u_shininess"].value = r.shininess
+            y["u_kajiya_weight"].value = KAJIYA_WEIGHT
+            y["u_yarn_colors"].write(srgb_to_linear(self.palette).astype("f4").tobytes())
+            if "u_samples" in y:
+                y["u_samples"].value = max(1, self.samples)
+        if far:
+            f = self._far_prog
+            f["u_weave"].value = WEAVE_UNIT
+            f["u_visibility"].value = VISIBILITY_UNIT
+            f["u_visibility_rows"].value = float(self._visibility.height)
+            f["u_visibility_columns"].value = float(self._visibility.width)
+            f["u_weave_period"].value = self._weave_period
+            f["u_mean_cover"].value = self._mean_cover
+            f["u_yarn_diameter_m"].value = 2.0 * float(radius)
+            if "u_yarn_top_m" in f:
+                f["u_yarn_top_m"].value = float(radius) + 0.5 * self._thickness_m
+            spacing = float(np.asarray(self._topology_spacing).item())
+            f["u_undulation"].value = float(np.pi * self._thickness_m / (2.0 * spacing)) if spacing > 0 else 0.0
         self._body_prog["u_color"].value = tuple(srgb_to_linear(r.body_color))
         self._background = tuple(srgb_to_linear(r.background))
         stored = linear_to_srgb(self._background) if self.target == "srgb8" else np.asarray(self._background)
@@ -311,25 +359,52 @@ class Renderer:
         self._line_prog["u_base_color"].value = tuple(srgb_to_linear(WIREFRAME_BASE_SRGB))
         self._line_prog["u_yarn_color"].value = tuple(srgb_to_linear(WIREFRAME_YARN_SRGB))
 
+    def _weave_textures(self, ctx: moderngl.Context, r: RenderSpec, topology: Mapping[str, np.ndarray]):
+        """The far field's textures: the mipmapped weave coverage (fraytool.render.weave_texture), its
+        mean coverage per family, its repeat (crossings along i, j), and the view table
+        (fraytool.render.weave_visibility) scaled to agree with the texture's mean straight above."""
+        radius = r.yarn_radius_m if r.yarn_radius_m > 0 else 0.5 * self._thickness_m
+        spacing = float(np.asarray(topology.get("spacing_m", 1.0)).item())
+        tile = weave_tile(topology)
+        data = coverage_tile(tile, 2.0 * radius / spacing)
+        tex = ctx.texture((data.shape[1], data.shape[0]), 2, np.ascontiguousarray(data).tobytes())
+        tex.build_mipmaps()
+        tex.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
+        tex.anisotropy = 1.0  # trilinear: 16x anisotropic filtering tripled the surface's cost on llvmpipe
+        tex.repeat_x = tex.repeat_y = True
+        mean = np.maximum(data.reshape(-1, 2).mean(axis=0) / 255.0, 1e-6)
+        table = visibility_table(tile, radius, spacing, self._thickness_m)
+        table = table * (mean / np.maximum(table[-1].mean(axis=0), 1e-6))
+        vis = ctx.texture((table.shape[1], table.shape[0]), 2, np.ascontiguousarray(table, dtype="f4").tobytes(),
+                          dtype="f4")
+        vis.filter = (moderngl.LINEAR, moderngl.LINEAR)
+        vis.repeat_x = True                              # azimuth: a view and its opposite are alike
+        vis.repeat_y = False
+        return tex, float(mean.mean()), (float(tile.shape[1]), float(tile.shape[0])), vis
+
     # -- per frame ----------------------------------------------------------------------------
     def _upload_yarns(self, geom: FrameGeometry) -> None:
         mesh = geom.yarns
         self._yarn_vbo.write(mesh.vertices)
+        if mesh.far is not None:
+            self._far_vbo.write(mesh.far)
         if mesh.opaque is not self._opaque_uploaded:
             self._opaque_ibo.write(mesh.opaque)
             self._opaque_uploaded = mesh.opaque
 
-    def _yarn_vao(self, which: str, ibo: _Stream) -> moderngl.VertexArray:
-        key = (self._yarn_vbo.generation, ibo.generation)
+    def _yarn_vao(self, which: str, ibo: _Stream, band: bool = False) -> moderngl.VertexArray:
+        """The yarn vertices with `ibo`; `band`: through the blend band's program, with the far weights."""
+        key = (self._yarn_vbo.generation, ibo.generation) + ((self._far_vbo.generation,) if band else ())
+        which = which + ("_band" if band else "")
         have = self._yarn_vaos.get(which)
         if have is None or have[0] != key:
             if have is not None:
                 have[1].release()
-            vao = self.ctx.vertex_array(
-                self._yarn_prog,
-                [(self._yarn_vbo.buffer, "3f 3f 3f 1f 1f", "in_position", "in_normal", "in_tangent",
-                  "in_alpha", "in_warp")],
-                ibo.buffer, 4)
+            content = [(self._yarn_vbo.buffer, "3f 3f 3f 1f 1f", "in_position", "in_normal", "in_tangent",
+                        "in_alpha", "in_warp")]
+            if band:
+                content.append((self._far_vbo.buffer, "1f", "in_far"))
+            vao = self.ctx.vertex_array(self._yarn_band_prog if band else self._yarn_prog, content, ibo.buffer, 4)
             self._yarn_vaos[which] = (key, vao)
         return self._yarn_vaos[which][1]
 
@@ -402,19 +477,25 @@ class Renderer:
         # their shading (shadow lookups included) instead of being shaded and overdrawn.
         mesh = geom.yarns
         have_yarns = mesh is not None and len(mesh.vertices) > 0
+        band = have_yarns and mesh.far is not None
         if have_yarns:
-            self._yarn_prog["u_view_proj"].write(view_proj)
+            for prog in self._yarn_progs:
+                prog["u_view_proj"].write(view_proj)
         cull = not self.ribbons  # a strip has no back faces to cull, and its winding is not kept
         if have_yarns and len(mesh.opaque):
             if cull:
                 ctx.enable(moderngl.CULL_FACE)
             with self._part("yarns"):
-                self._yarn_vao("opaque", self._opaque_ibo).render(moderngl.TRIANGLES, vertices=mesh.opaque.size)
+                self._yarn_vao("opaque", self._opaque_ibo, band=band).render(moderngl.TRIANGLES,
+                                                                             vertices=mesh.opaque.size)
         ctx.disable(moderngl.CULL_FACE)
         with self._part("bodies"):
             self._draw_bodies(geom, view_proj)
         with self._part("ground"):
             self._draw_ground(view_proj)
+        if geom.surface is not None and self._far_prog is not None:
+            with self._part("far_field"):
+                self._draw_surface(geom, view_proj)
         if not have_yarns:
             return
         if cull:
@@ -422,26 +503,66 @@ class Renderer:
         if len(mesh.translucent):
             order = np.argsort(self.camera.view_depth(mesh.centroid), kind="stable")  # far first
             self._translucent_ibo.write(mesh.translucent[order])
-            ctx.enable(moderngl.BLEND)
-            # colour: over (premultiplied result); alpha: coverage a + a_dst (1 - a)
-            ctx.blend_func = (moderngl.SRC_ALPHA, moderngl.ONE_MINUS_SRC_ALPHA, moderngl.ONE,
-                              moderngl.ONE_MINUS_SRC_ALPHA)
+            # colour: over (premultiplied result); alpha: coverage a + a_dst (1 - a); in linear light
+            # (GL decodes the 8-bit target, blends and encodes: a few pixels)
+            restore = self._blend_linear()
             self._fbo_ms.depth_mask = False
-            encoded = self.target == "srgb8"
-            if encoded:  # blend in linear light: GL decodes the target, blends and encodes (a few pixels)
-                self._yarn_prog["u_encode"].value = 0.0
-                ctx.enable_direct(GL_FRAMEBUFFER_SRGB)
             try:
                 with self._part("yarns"):
                     self._yarn_vao("translucent", self._translucent_ibo).render(
                         moderngl.TRIANGLES, vertices=mesh.translucent.size)
             finally:
-                if encoded:
-                    ctx.disable_direct(GL_FRAMEBUFFER_SRGB)
-                    self._yarn_prog["u_encode"].value = 1.0
                 self._fbo_ms.depth_mask = True
-            ctx.disable(moderngl.BLEND)
+                restore()
         ctx.disable(moderngl.CULL_FACE)
+
+    def _blend_linear(self):
+        """Alpha blending in linear light for the next draws: colour over, alpha a + a_dst (1 - a); the
+        8-bit target is decoded, blended and encoded by GL (GL_FRAMEBUFFER_SRGB), the shaders' own
+        encoding off. Returns the function that restores the state."""
+        ctx = self.ctx
+        ctx.enable(moderngl.BLEND)
+        ctx.blend_func = (moderngl.SRC_ALPHA, moderngl.ONE_MINUS_SRC_ALPHA, moderngl.ONE, moderngl.ONE_MINUS_SRC_ALPHA)
+        encoded = self.target == "srgb8"
+        progs = (self._yarn_prog,) + ((self._far_prog,) if self._far_prog is not None else ())
+        if encoded:
+            for prog in progs:
+                prog["u_encode"].value = 0.0
+            ctx.enable_direct(GL_FRAMEBUFFER_SRGB)
+
+        def restore():
+            if encoded:
+                ctx.disable_direct(GL_FRAMEBUFFER_SRGB)
+                for prog in progs:
+                    prog["u_encode"].value = 1.0
+            ctx.disable(moderngl.BLEND)
+        return restore
+
+    def _surface_vertex_array(self) -> moderngl.VertexArray:
+        key = (self._surface_vbo.generation, self._surface_ibo.generation)
+        if self._surface_vao is None or self._surface_vao[0] != key:
+            if self._surface_vao is not None:
+                self._surface_vao[1].release()
+            vao = self.ctx.vertex_array(
+                self._far_prog,
+                [(self._surface_vbo.buffer, "3f 3f 3f 3f 2f 1f 1f", "in_position", "in_normal", "in_weft_edge",
+                  "in_warp_edge", "in_grid", "in_far", "in_panel")],
+                self._surface_ibo.buffer, 4)
+            self._surface_vao = (key, vao)
+        return self._surface_vao[1]
+
+    def _draw_surface(self, geom: FrameGeometry, view_proj: bytes) -> None:
+        """The far-field surface (fraytool.render.farfield), blended over what is behind it (its alpha
+        is the weave's coverage), both sides, writing depth (EXR Z is the surface's)."""
+        prog = self._far_prog
+        prog["u_view_proj"].write(view_proj)
+        self._weave.use(location=WEAVE_UNIT)
+        self._visibility.use(location=VISIBILITY_UNIT)
+        restore = self._blend_linear()
+        try:
+            self._surface_vertex_array().render(moderngl.TRIANGLES, vertices=geom.surface.shown.size)
+        finally:
+            restore()
 
     def _draw_wireframe(self, geom: FrameGeometry, view_proj: bytes) -> None:
         ctx = self.ctx
@@ -473,9 +594,15 @@ class Renderer:
             self._shadow_ibo.write(mesh.shadow_triangles)
             casters, positions, packed = self._shadow_vbo, mesh.shadow_positions, True
             triangles, count = self._shadow_ibo, mesh.shadow_triangles.size
+        surface = None
+        if geom.surface is not None and self._far_prog is not None:  # the far field casts as one sheet
+            surface = (self._surface_vbo, self._surface_shadow_ibo, geom.surface.triangles.size, SURFACE_FLOATS)
+            sheet = geom.surface.vertices[geom.surface.used, :3]
+            positions = sheet if positions is None else np.concatenate([positions, sheet])
         light = self._light = self.shadow.draw(self._light_dir, positions, casters, triangles if have_yarns else None,
-                                               count, self.bodies, geom, packed=packed)
-        for prog in (self._yarn_prog, self._body_prog, self._ground_prog):
+                                               count, self.bodies, geom, packed=packed, surface=surface)
+        for prog in (*self._yarn_progs, self._body_prog, self._ground_prog) + (
+                (self._far_prog,) if self._far_prog is not None else ()):
             self.shadow.bind(prog, light)
 
     @contextmanager
@@ -506,6 +633,11 @@ class Renderer:
         self._pose_meshes(geom.time_s)
         if geom.yarns is not None:
             self._upload_yarns(geom)
+        if geom.surface is not None and self._far_prog is not None:
+            self._surface_vbo.write(geom.surface.vertices)
+            self._surface_ibo.write(geom.surface.shown)
+            if self.shadow is not None:
+                self._surface_shadow_ibo.write(geom.surface.triangles)
         if self.shadow is not None:
             with self._part("shadow_map"):
                 self._draw_shadow_map(geom)
@@ -586,8 +718,13 @@ class Renderer:
             self._ground_lit_vao.release()
             self._ground_lit_prog.release()
         for s in (self._yarn_vbo, self._shadow_vbo, self._shadow_ibo, self._opaque_ibo, self._translucent_ibo,
-                  self._line_vbo):
+                  self._line_vbo, self._far_vbo, self._surface_vbo, self._surface_ibo, self._surface_shadow_ibo):
             s.release()
+        if self._surface_vao is not None:
+            self._surface_vao[1].release()
+        for obj in (self._yarn_band_prog, self._far_prog, self._weave, self._visibility):
+            if obj is not None:
+                obj.release()
         if self.shadow is not None:
             self.shadow.release()
         for obj in (*self._static, self._fbo_ms, self._color_ms, self._depth_ms, self._fbo_out,

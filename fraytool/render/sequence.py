@@ -196,7 +196,8 @@ def render_job(job: RenderJob, ctx: moderngl.Context, store: FrameStore, stream:
     renderer = Renderer(ctx, job.size, job.samples, job.spec.render, job.spec.camera, topology, job.wireframe,
                         alpha=job.alpha, target=job.target, depth=job.exr, panels_spec=job.spec.all_panels)
     digest = job.digest(renderer.samples, gl_strings(ctx))
-    builder = GeometryBuilder(topology, YarnStyle.from_spec(job.spec.render, topology), renderer.camera, H)
+    builder = GeometryBuilder(topology, YarnStyle.from_spec(job.spec.render, topology), renderer.camera, H,
+                               image_width=renderer.shaded_width)
     want_yarns = job.wireframe != "only"
     want_lines = job.wireframe != "off"
     build_kw = dict(yarns=want_yarns, lines=want_lines)

@@ -44,6 +44,7 @@ class ShadowPass:
         self.body_half = np.asarray(topology.get("body_half_extents_m", np.zeros((len(self.body_shape), 3))))
         self._body_vaos: dict[str, moderngl.VertexArray] = {}
         self._yarn_vao: Optional[tuple[tuple, moderngl.VertexArray]] = None
+        self._surface_vao: Optional[tuple[tuple, moderngl.VertexArray]] = None
 
     def add_body_mesh(self, name: str, vbo: moderngl.Buffer, ibo: moderngl.Buffer) -> None:
         self._body_vaos[name] = self.ctx.vertex_array(self.program, [(vbo, "3f 12x", "in_position")], ibo, 4)
@@ -60,9 +61,12 @@ class ShadowPass:
         return self._yarn_vao[1]
 
     def draw(self, light_dir: np.ndarray, yarn_positions: Optional[np.ndarray], yarn_vbo, opaque_ibo,
-             opaque_count: int, bodies: BodySet, geom, packed: bool = False) -> Optional[LightFrame]:
+             opaque_count: int, bodies: BodySet, geom, packed: bool = False, surface=None) -> Optional[LightFrame]:
         """Fit the light to this frame's casters and draw them; None when nothing casts. `packed`: the
-        yarn buffer holds positions only (ribbons turned to the light), not the interleaved vertices."""
+        yarn buffer holds positions only (ribbons turned to the light), not the interleaved vertices.
+        `surface`: (vertex stream, index stream, index count, floats per vertex) of the far-field
+        surface (fraytool.render.farfield), which casts as an opaque sheet; its positions are then
+        among `yarn_positions` (the light is fitted to them)."""
         points, radii = caster_points(yarn_positions, self.body_shape, geom.body_position_m,
                                       self.body_radius, self.body_half)
         light = fit_light(light_dir, points, radii, self.size)
@@ -84,8 +88,21 @@ class ShadowPass:
         if yarn_vbo is not None and opaque_count:
             prog["u_model"].write(gl_matrix_bytes(np.eye(4)))
             self._yarns(yarn_vbo, opaque_ibo, packed).render(moderngl.TRIANGLES, vertices=opaque_count)
+        if surface is not None and surface[2]:
+            prog["u_model"].write(gl_matrix_bytes(np.eye(4)))
+            self._surface(*surface).render(moderngl.TRIANGLES, vertices=surface[2])
         ctx.polygon_offset = (0.0, 0.0)
         return light
+
+    def _surface(self, vbo_stream, ibo_stream, count: int, floats: int) -> moderngl.VertexArray:
+        key = (vbo_stream.generation, ibo_stream.generation)
+        if self._surface_vao is None or self._surface_vao[0] != key:
+            if self._surface_vao is not None:
+                self._surface_vao[1].release()
+            vao = self.ctx.vertex_array(self.program, [(vbo_stream.buffer, f"3f {4 * (floats - 3)}x", "in_position")],
+                                        ibo_stream.buffer, 4)
+            self._surface_vao = (key, vao)
+        return self._surface_vao[1]
 
     def bind(self, prog: moderngl.Program, light: Optional[LightFrame]) -> None:
         """Hand the map and the light's matrix to a shaded program (a frame with no casters gets a
@@ -107,7 +124,8 @@ class ShadowPass:
     def release(self) -> None:
         for vao in self._body_vaos.values():
             vao.release()
-        if self._yarn_vao is not None:
-            self._yarn_vao[1].release()
+        for have in (self._yarn_vao, self._surface_vao):
+            if have is not None:
+                have[1].release()
         for obj in (self.fbo, self.texture, self.program):
             obj.release()

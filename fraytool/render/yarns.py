@@ -46,6 +46,9 @@ class YarnPieces:
     """True where the piece ends at a cut, shape (K,), bool."""
     normal: np.ndarray
     """Cloth normal at the piece's first crossing (orients the tube frames), shape (K, 3)."""
+    place: np.ndarray = None
+    """Grid place j * warp_yarns + i of each control point, (N,) int64; -1 on a seam's stitch; None when
+    not asked for (yarn_pieces' `with_places`)."""
     color: np.ndarray = None
     """Palette index per piece (fraytool.render.color.yarn_palette: 2 panel + kind for yarns, 2 P for a
     seam's stitch), shape (K,), float32; None: the kind (one panel)."""
@@ -121,8 +124,14 @@ def _on_grid(points: np.ndarray, places: np.ndarray, size: int) -> np.ndarray:
 
 
 def yarn_pieces(topology: Mapping[str, np.ndarray], particle_position_m: np.ndarray,
-                crossing_yarn_level: np.ndarray, spring_alive: np.ndarray) -> YarnPieces:
-    """All yarn pieces of a frame (see the module docstring for the rules)."""
+                crossing_yarn_level: np.ndarray, spring_alive: np.ndarray, hidden=None,
+                with_places: bool = False, points=None) -> YarnPieces:
+    """All yarn pieces of a frame (see the module docstring for the rules).
+
+    `hidden`: optional (weft (H, W - 1), warp (W, H - 1)) bool links that another representation draws
+    (the far field, fraytool.render.farfield): the yarn is split there like at a cut, and the ends it
+    leaves are clean (they do not fade). `with_places`: also give each control point's grid place.
+    `points`: yarn_points of this frame, if already computed."""
     W = int(_scalar(topology, "warp_yarns"))
     H = int(_scalar(topology, "weft_yarns"))
     alive = np.asarray(spring_alive, dtype=bool)
@@ -130,7 +139,8 @@ def yarn_pieces(topology: Mapping[str, np.ndarray], particle_position_m: np.ndar
         else np.zeros(alive.shape, dtype=bool)  # frames written before cuts existed
     if "spring_cut_time_s" in topology:  # scissors leave clean ends too
         precut = precut | np.isfinite(np.asarray(topology["spring_cut_time_s"]))
-    weft_pt, warp_pt, normal = yarn_points(topology, particle_position_m, crossing_yarn_level)
+    weft_pt, warp_pt, normal = points if points is not None else \
+        yarn_points(topology, particle_position_m, crossing_yarn_level)
     places = crossing_places(topology)
     if places.size != W * H:  # a shaped panel: lay its crossings on the full grid (gaps are never drawn)
         crossing = np.full(W * H, -1, np.int64)
@@ -147,12 +157,16 @@ def yarn_pieces(topology: Mapping[str, np.ndarray], particle_position_m: np.ndar
     warp_link = (warp_s >= 0) & alive[warp_s]
     weft_clean = (weft_s < 0) | precut[weft_s]
     warp_clean = (warp_s < 0) | precut[warp_s]
+    if hidden is not None:
+        hw, hv = (np.asarray(h, dtype=bool).reshape(s.shape) for h, s in zip(hidden, (weft_s, warp_s)))
+        weft_link, warp_link = weft_link & ~hw, warp_link & ~hv
+        weft_clean, warp_clean = weft_clean | hw, warp_clean | hv
     rows = [
         (WEFT, weft_pt.reshape(H, W, 3), crossing, weft_link.reshape(H, W - 1), weft_clean.reshape(H, W - 1)),
         (WARP, warp_pt.reshape(H, W, 3).transpose(1, 0, 2), crossing.T, warp_link.reshape(W, H - 1),
          warp_clean.reshape(W, H - 1)),
     ]
-    pts, offs, kinds, yarns, firsts, bstart, bend, normals = [], [], [], [], [], [], [], []
+    pts, offs, kinds, yarns, firsts, bstart, bend, normals, point_places = [], [], [], [], [], [], [], [], []
     base = 0
     for kind, p, cross, link, snipped in rows:
         Y, n = p.shape[:2]
@@ -161,6 +175,8 @@ def yarn_pieces(topology: Mapping[str, np.ndarray], particle_position_m: np.ndar
         starts, lengths = starts[keep], lengths[keep]
         idx = np.repeat(starts - np.cumsum(np.concatenate([[0], lengths[:-1]])), lengths) + np.arange(lengths.sum())
         pts.append(p.reshape(-1, 3)[idx])
+        if with_places:  # idx is j * W + i along a weft row, i * H + j along a warp column
+            point_places.append(idx if kind == WEFT else (idx % H) * W + idx // H)
         offs.append(base + np.concatenate([[0], np.cumsum(lengths)])[:-1])
         base += int(lengths.sum())
         kinds.append(np.full(len(starts), kind, dtype=np.int8))
@@ -185,6 +201,7 @@ def yarn_pieces(topology: Mapping[str, np.ndarray], particle_position_m: np.ndar
         broken_start=np.concatenate(bstart),
         broken_end=np.concatenate(bend),
         normal=np.concatenate(normals),
+        place=np.concatenate(point_places).astype(np.int64) if with_places else None,
     )
     if "crossing_panel" not in topology or int(np.asarray(topology["crossing_panel"]).max(initial=0)) == 0:
         if not (np.asarray(topology["spring_kind"]) == STITCH).any():
@@ -218,5 +235,6 @@ def _with_panels_and_stitches(pieces: YarnPieces, topology: Mapping[str, np.ndar
         broken_start=np.concatenate([pieces.broken_start, np.zeros(st.size, bool)]),
         broken_end=np.concatenate([pieces.broken_end, np.zeros(st.size, bool)]),
         normal=np.concatenate([pieces.normal, normal[a]]),
+        place=None if pieces.place is None else np.concatenate([pieces.place, np.full(2 * st.size, -1, np.int64)]),
         color=np.concatenate([color, np.full(st.size, thread, np.float32)]),
     )

@@ -339,6 +339,11 @@ class RenderSpec:
     yarn_shape: str = key("str", "tube", choices=("tube", "ribbon"),
                           doc="how yarns are drawn: tube (swept circles of tube_sides) or ribbon (view-facing "
                               "strips shaded and depth-corrected as round tubes: a sixth of the triangles)")
+    far_field: bool = key("bool", True, doc="draw intact cloth whose yarns are under far_field_px apart on screen as "
+                                           "one weave-shaded surface (level of detail: no moire, less to draw)")
+    far_field_px: float = key("float", 3.0, lo=0.25, hi=64,
+                              doc="yarn spacing on screen [pixels] at the middle of the band where yarns blend "
+                                  "into the far-field surface (the band runs from 2/3 to 4/3 of it)")
     ground_plane: bool = key("bool", False, doc="draw a ground plane at ground_height_m")
     ground_height_m: float = key("float", 0.0, doc="height of the drawn ground plane [m]")
     body_color: Vec3 = key("color", (0.55, 0.6, 0.7), doc="sRGB colour of rigid bodies")

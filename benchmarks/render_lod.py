@@ -1,0 +1,138 @@
+"""Aliasing error against render cost of the yarn representations (docs/rendering.md, "Level of detail").
+
+For a scene's frames, each representation is drawn at the scene's resolution (scaled by --scale: 0.5,
+1 and 2 halve, keep and double the yarns' footprint in pixels) and compared with a reference of the
+same frame drawn at REF_FACTOR times the resolution in each axis with yarns only (the far field off),
+averaged in linear light over each REF_FACTOR x REF_FACTOR block (a box filter) and encoded to sRGB.
+The error is the RMS difference in 8-bit sRGB levels after a Gaussian blur of BLUR_SIGMA_PX pixels
+on both images (fraytool.render.aliasing). Cost: median milliseconds per frame of geometry + draw + read-back (as `fraytool bench
+--render`), over --repeat draws.
+
+    python benchmarks/render_lod.py scenes/tablecloth_tear.toml OUT_DIR --frames 53,106
+    python benchmarks/render_lod.py scenes/tablecloth_tear.toml OUT_DIR --frames 53 --scales 0.5,1,2 \\
+        --modes tube,ribbon,far_field
+
+OUT_DIR holds (or receives) the scene's frame records. With --save DIR the images are written there.
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from fraytool.io.frame_store import FrameStore
+from fraytool.render.aliasing import BLUR_SIGMA_PX, FACTOR, blurred_rms, box_downsample
+from fraytool.render.context import create_context
+from fraytool.render.geometry import GeometryBuilder, YarnStyle
+from fraytool.render.renderer import Renderer
+from fraytool.scene import load_scene, scene_hash
+
+REF_FACTOR = FACTOR
+MODES = {
+    "tube": dict(yarn_shape="tube", far_field=False),
+    "ribbon": dict(yarn_shape="ribbon", far_field=False),
+    "far_field": dict(far_field=True),       # the scene's own yarn shape, with the far field
+}
+
+
+def draw(spec, topology, record, size, samples, target="srgb8", repeat=1):
+    """(image, median ms of geometry + draw + read-back): 8-bit sRGB (H, W, 3), or the float target's
+    linear premultiplied RGBA."""
+    ctx = create_context()
+    try:
+        r = Renderer(ctx, size, samples, spec.render, spec.camera, topology, target=target,
+                     panels_spec=spec.all_panels)
+        b = GeometryBuilder(topology, YarnStyle.from_spec(spec.render, topology), r.camera, size[1],
+                            image_width=r.shaded_width)
+        r.draw(b.build(record))  # warm-up (numba, shaders, buffers)
+        ctx.finish()
+        times = []
+        for _ in range(repeat):
+            t0 = time.perf_counter()
+            r.draw(b.build(record))
+            image = r.read() if target == "srgb8" else r.read_linear()
+            times.append(time.perf_counter() - t0)
+        r.release()
+    finally:
+        ctx.release()
+    return image, 1e3 * statistics.median(times)
+
+
+def reference(spec, topology, record, size, samples) -> np.ndarray:
+    """The frame at REF_FACTOR x the size, yarns only, box-filtered in linear light: (H, W, 3) uint8 sRGB."""
+    W, H = size
+    f = REF_FACTOR
+    ref_spec = with_render(spec, far_field=False)
+    linear, _ = draw(ref_spec, topology, record, (W * f, H * f), samples, target="float")
+    return box_downsample(linear, f)
+
+
+def with_render(spec, **changes):
+    return dataclasses.replace(spec, render=dataclasses.replace(spec.render, **changes))
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("scene")
+    ap.add_argument("out_dir")
+    ap.add_argument("--frames", default="53,106")
+    ap.add_argument("--scales", default="1")
+    ap.add_argument("--modes", default="ribbon,far_field")
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--save", default=None)
+    ap.add_argument("--far-field-px", type=float, default=None,
+                    help="middle of the blend band [px] (default: the scene's [render] far_field_px)")
+    ap.add_argument("--render-set", action="append", default=[], metavar="KEY=VALUE",
+                    help="override a [render] key for every image, e.g. shadows=false (repeatable)")
+    ap.add_argument("--json", action="store_true")
+    args = ap.parse_args(argv)
+    spec = load_scene(args.scene)
+    for item in args.render_set:
+        key, value = item.split("=", 1)
+        kind = type(getattr(spec.render, key))
+        spec = with_render(spec, **{key: (value.lower() in ("1", "true", "on")) if kind is bool else kind(value)})
+    if args.far_field_px is not None:
+        spec = with_render(spec, far_field_px=args.far_field_px)
+    store = FrameStore(Path(args.out_dir))
+    frames = [int(f) for f in args.frames.split(",")]
+    if not (store.matches(scene_hash(spec)) and store.frames_complete() > max(frames)):
+        from fraytool.sim.run import simulate_to_disk
+        simulate_to_disk(spec, Path(args.out_dir), frames=max(frames) + 1, progress=sys.stderr.isatty())
+    topology = store.load_topology()
+    save = Path(args.save) if args.save else None
+    if save:
+        save.mkdir(parents=True, exist_ok=True)
+    rows = []
+    for scale in (float(s) for s in args.scales.split(",")):
+        W, H = (int(round(v * scale)) for v in spec.render.resolution)
+        for frame in frames:
+            record = store.load_frame(frame)
+            ref = reference(spec, topology, record, (W, H), spec.render.samples)
+            if save:
+                from PIL import Image
+                Image.fromarray(ref).save(save / f"ref_{frame}_{scale:g}.png")
+            for mode in args.modes.split(","):
+                image, ms = draw(with_render(spec, **MODES[mode]), topology, record, (W, H), spec.render.samples,
+                                 repeat=args.repeat)
+                err = blurred_rms(image, ref)
+                rows.append(dict(scale=scale, size=[W, H], frame=frame, mode=mode, rms_levels=round(err, 2),
+                                 ms=round(ms, 1)))
+                if save:
+                    from PIL import Image
+                    Image.fromarray(image).save(save / f"{mode}_{frame}_{scale:g}.png")
+                if not args.json:
+                    print(f"{spec.name} frame {frame} {W}x{H} (x{scale:g}) {mode:9s}: "
+                          f"error {err:5.2f} sRGB levels RMS (blur {BLUR_SIGMA_PX:g} px), {ms:7.1f} ms/frame",
+                          flush=True)
+    if args.json:
+        print(json.dumps(rows))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,128 @@
+"""How much of each yarn family a view of the weave sees: a table over view directions, ray cast
+through our own yarn geometry, for the far-field surface (fraytool.render.farfield).
+
+From straight above, weft and warp yarns of diameter D at spacing s each show a - a^2 / 2 of the cloth
+(a = D / s; the crossings split between them by the weave) and a share (1 - a)^2 is gap. From a
+grazing view the gaps close and the family that runs across the view stands in front, but not
+completely: the yarns run over and under each other, so the one along the view still shows on top
+of the crossings where the weave puts it there. Rather than guess a formula, we measure it: a height
+field of one weave repeat built as the renderer builds the yarns (docs/method.md §5: each yarn passes
+its crossings at +-T/2 from the cloth's middle, as the weave says, here between them on a half cosine;
+round yarns of the render radius), and orthographic rays from each direction of a table (elevation
+above the cloth x azimuth from the weft direction) cast through it. The table holds, per direction,
+the share of rays that first meet a weft yarn and a warp yarn; the rest pass through the gaps.
+farfield.vert looks it up (linear filtering between directions).
+
+The height field is sampled at SAMPLES_PER_SPACING points per spacing; rays start on a grid of the
+same density over the repeat and march in steps of a tenth of a sample until they pass below the
+surface (a hit) or below the lowest yarn (a gap). numba, a few tens of milliseconds per table.
+"""
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+ELEVATIONS = 16
+"""Table rows: elevation above the cloth, sin(elevation) from 1 / ELEVATIONS to 1 in even steps."""
+AZIMUTHS = 16
+"""Table columns: azimuth from the weft direction, 0 to 180 degrees (a view and its opposite are alike)."""
+SAMPLES_PER_SPACING = 24
+
+
+@numba.njit(cache=True)
+def _height_field(on_top, radius, half_thickness, n, bulge_weft, bulge_warp):  # pragma: no cover - numba
+    """(height, family) of one weave repeat, (py n, px n) each, in spacing units; family 0 weft, 1 warp,
+    -1 gap (height -inf). bulge_*: the height of each family's round top above its axis, as a share of
+    the radius (1: round yarns)."""
+    py, px = on_top.shape
+    Ny, Nx = py * n, px * n
+    h = np.full((Ny, Nx), -1e9)
+    fam = np.full((Ny, Nx), -1, np.int8)
+    for y in range(Ny):
+        z = (y + 0.5) / n                               # position across the weft yarns (j direction)
+        for x in range(Nx):
+            u = (x + 0.5) / n                           # position along the weft yarns (i direction)
+            # weft yarns j near z: centre height along u between crossings i and i + 1 (half cosine)
+            for dj in range(-1, 2):
+                j = int(math.floor(z)) + dj
+                dz = z - (j + 0.5)
+                if abs(dz) >= radius:
+                    continue
+                i0 = int(math.floor(u - 0.5))
+                t = u - 0.5 - i0
+                a0 = half_thickness if on_top[j % py, i0 % px] else -half_thickness
+                a1 = half_thickness if on_top[j % py, (i0 + 1) % px] else -half_thickness
+                centre = a0 + (a1 - a0) * 0.5 * (1.0 - math.cos(math.pi * t))
+                top = centre + bulge_weft * math.sqrt(radius * radius - dz * dz)
+                if top > h[y, x]:
+                    h[y, x] = top
+                    fam[y, x] = 0
+            # warp yarns i near u: centre height along z (the warp is up where the weft is not)
+            for di in range(-1, 2):
+                i = int(math.floor(u)) + di
+                du = u - (i + 0.5)
+                if abs(du) >= radius:
+                    continue
+                j0 = int(math.floor(z - 0.5))
+                t = z - 0.5 - j0
+                a0 = -half_thickness if on_top[j0 % py, i % px] else half_thickness
+                a1 = -half_thickness if on_top[(j0 + 1) % py, i % px] else half_thickness
+                centre = a0 + (a1 - a0) * 0.5 * (1.0 - math.cos(math.pi * t))
+                top = centre + bulge_warp * math.sqrt(radius * radius - du * du)
+                if top > h[y, x]:
+                    h[y, x] = top
+                    fam[y, x] = 1
+    return h, fam
+
+
+@numba.njit(cache=True)
+def _cast(h, fam, n, sin_elevation, azimuth, bottom, top):  # pragma: no cover - numba
+    """(weft, warp) shares of orthographic rays going down at `sin_elevation`, heading `azimuth`
+    [rad] from the weft direction, over one repeat of the height field."""
+    Ny, Nx = h.shape
+    cos_e = math.sqrt(max(0.0, 1.0 - sin_elevation * sin_elevation))
+    dx, dz = cos_e * math.cos(azimuth), cos_e * math.sin(azimuth)
+    dy = -sin_elevation
+    step = 0.1 / n                                      # [spacings] along the ray
+    hits_weft = 0
+    hits_warp = 0
+    for y0 in range(Ny):
+        for x0 in range(Nx):
+            # start above the highest yarn, on the ray that ends at this sample's centre on the top plane
+            px_ = (x0 + 0.5) / n
+            pz_ = (y0 + 0.5) / n
+            py_ = top
+            while py_ > bottom:
+                ix = int(math.floor(px_ * n)) % Nx
+                iz = int(math.floor(pz_ * n)) % Ny
+                if py_ <= h[iz, ix]:
+                    if fam[iz, ix] == 0:
+                        hits_weft += 1
+                    else:
+                        hits_warp += 1
+                    break
+                px_ += dx * step
+                pz_ += dz * step
+                py_ += dy * step
+    total = Ny * Nx
+    return hits_weft / total, hits_warp / total
+
+
+def visibility_table(on_top_tile: np.ndarray, radius_m: float, spacing_m: float, thickness_m: float,
+                     elevations: int = ELEVATIONS, azimuths: int = AZIMUTHS,
+                     samples: int = SAMPLES_PER_SPACING) -> np.ndarray:
+    """(elevations, azimuths, 2) float32: the weft and warp shares seen from each table direction
+    (module docstring). Row e: sin(elevation) = (e + 1) / elevations (the last row straight above);
+    column a: azimuth a / azimuths x 180 degrees."""
+    tile = np.ascontiguousarray(on_top_tile, dtype=np.bool_)
+    r = float(radius_m) / float(spacing_m)
+    half_t = 0.5 * float(thickness_m) / float(spacing_m)
+    h, fam = _height_field(tile, r, half_t, int(samples), 1.0, 1.0)
+    out = np.zeros((elevations, azimuths, 2), dtype=np.float32)
+    for e in range(elevations):
+        s = (e + 1.0) / elevations
+        for a in range(azimuths):
+            out[e, a] = _cast(h, fam, int(samples), s, math.pi * a / azimuths, -r - half_t, r + half_t + 1e-6)
+    return out

@@ -1,0 +1,50 @@
+#version 330 core
+// The far-field surface: the weave aggregated over each pixel (fraytool.render.farfield).
+// The weave texture (fraytool.render.weave_texture) gives the weft and warp shares of the pixel's
+// footprint at normal view, filtered by its mipmaps; farfield.vert's view factor scales them and
+// gives each family's colour. The uncovered share is alpha: what lies behind shows through.
+
+uniform float u_light_intensity;
+uniform sampler2D u_weave;       // RG: weft and warp coverage of one weave repeat
+uniform vec2 u_weave_period;     // crossings per repeat along i and j
+uniform float u_yarn_top_m;      // the yarns' tops above the cloth's middle: radius + thickness / 2
+#ifdef SHADOWS
+#include "shadow.glsl"
+#endif
+#include "band.glsl"
+#include "output.glsl"
+
+in vec3 v_position;
+in vec3 v_normal;
+in vec2 v_grid;
+in float v_far;
+in vec2 v_share;
+in vec3 v_weft_ambient;
+in vec3 v_weft_key;
+in vec3 v_warp_ambient;
+in vec3 v_warp_key;
+
+out vec4 f_color;
+
+void main() {
+    vec2 share = texture(u_weave, (v_grid + 0.5) / u_weave_period).rg * v_share;
+    float cover = share.x + share.y;
+    if (cover > 1.0) {
+        share /= cover;
+        cover = 1.0;
+    }
+    if (cover < 0.5 / 255.0)   // less than an 8-bit alpha step (a magnified gap): nothing to draw
+        discard;
+    float key = u_light_intensity;
+#ifdef SHADOWS
+    // looked up at the yarns' tops, not the cloth's middle: the yarns (and, in the blend band, the
+    // yarns drawn as yarns) must not shade the surface that stands for them; their own shading is in
+    // the key part (farfield.vert)
+    vec3 n = normalize(v_normal);
+    key *= key_light_visibility(v_position + u_yarn_top_m * n, n);
+#endif
+    vec3 weft = v_weft_ambient + key * v_weft_key;
+    vec3 warp = v_warp_ambient + key * v_warp_key;
+    gl_SampleMask[0] = band_surface_mask(v_far);
+    f_color = to_target(vec4(max((share.x * weft + share.y * warp) / cover, 0.0), cover));
+}

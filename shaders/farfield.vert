@@ -1,0 +1,154 @@
+#version 330 core
+// The far-field surface over the crossing grid (fraytool.render.farfield): world-space vertices at
+// the crossings' centres. The yarn model, averaged over each yarn family, is evaluated here per
+// vertex (it depends on the yarn directions, the view and the light, all smooth over the cloth; a
+// surface quad spans a few pixels at most); farfield.frag adds the weave texture and the shadow.
+//
+// Coverage: the shares of the weft and the warp that a view sees (the rest is gap) come from a table
+// over view directions ray cast through the yarns' own geometry (fraytool.render.weave_visibility),
+// relative to the shares straight above (the weave texture's, which farfield.frag filters).
+// Shading: yarn.frag's model (Lambert on the tube normal mixed with Kajiya-Kay's sin(T, L), the
+// Kajiya-Kay highlight faded on the shaded side, the fill light) averaged over the visible part of
+// each family's yarn: normals v S + sqrt(1 - v^2) V, V towards the eye square to the yarn and S = T x V
+// turned away from the cloth, v uniform across the yarn as the eye sees it (as the ribbons' shader
+// draws them), by an 8-point midpoint rule. Where the gaps close (k > 1), the yarn in front hides the
+// lower part of the next: only v in [1 - 2 / k, 1], its upper 1 / k, is seen. In the same way the
+// yarn nearer the light shades all but the upper 1 / k_L of the next as the light sees it (k_L: the
+// family's cover seen from the light), so a grazing light leaves the yarns' flanks in shadow.
+
+uniform mat4 u_view_proj;
+uniform vec3 u_eye;
+uniform vec3 u_light_dir;
+uniform float u_ambient;
+uniform float u_specular;
+uniform float u_shininess;
+uniform float u_kajiya_weight;
+uniform vec3 u_yarn_colors[32];
+uniform float u_mean_cover;      // the weave texture's mean coverage per family
+uniform sampler2D u_visibility;  // RG: weft and warp shares by view (azimuth, sin elevation)
+uniform float u_visibility_rows;
+uniform float u_visibility_columns;
+uniform float u_yarn_diameter_m;
+uniform float u_undulation;      // pi T / (2 s): the yarn's largest slope out of the cloth
+#ifdef FILL
+uniform float u_fill_intensity;
+uniform vec3 u_fill_dir;
+#endif
+
+in vec3 in_position;
+in vec3 in_normal;
+in vec3 in_weft_edge;            // local spacing vector along the weft yarns [m]
+in vec3 in_warp_edge;            // ... along the warp yarns [m]
+in vec2 in_grid;                 // (i, j): warp and weft yarn index, the weave texture's coordinates
+in float in_far;                 // far weight (the blend band, band.glsl)
+in float in_panel;
+
+out vec3 v_position;
+out vec3 v_normal;               // the cloth normal, towards the eye
+out vec2 v_grid;
+out float v_far;
+out vec2 v_share;                // view factor of the weft and warp shares (1 at normal view)
+out vec3 v_weft_ambient;         // each family's colour: ambient + key light x (shadow) x key part
+out vec3 v_weft_key;
+out vec3 v_warp_ambient;
+out vec3 v_warp_key;
+
+float family_cover(vec3 along, vec3 stacked, vec3 E) {
+    vec3 a = along - dot(along, E) * E;
+    vec3 b = stacked - dot(stacked, E) * E;
+    float la = length(a);
+    vec3 an = la > 1e-12 ? a / la : vec3(0.0);
+    float d = length(b - dot(b, an) * an);
+    return u_yarn_diameter_m / max(d, 1e-9);
+}
+
+// Kajiya-Kay's terms (diffuse sin(T, L), highlight cos(thetaL - thetaE)^p) averaged along a yarn that
+// runs over and under the other family: its tangent tilts out of the cloth by psi with
+// tan psi = m sin(theta) (a sinusoid of amplitude T/2 over one spacing s: m = pi T / (2 s)), theta
+// uniform over the yarn; 8 samples, +-psi. The tilt spreads the narrow highlight over more views.
+vec2 kajiya_along(vec3 T0, vec3 N, vec3 E) {
+    vec2 sum = vec2(0.0);
+    for (int q = 0; q < 8; ++q) {
+        float slope = u_undulation * sin(1.5707963 * (float(q / 2) + 0.5) / 4.0) * (q % 2 == 0 ? 1.0 : -1.0);
+        vec3 T = normalize(T0 + slope * N);
+        float tl = dot(T, -u_light_dir);
+        float te = dot(T, E);
+        float sin_tl = sqrt(max(0.0, 1.0 - tl * tl));
+        float sin_te = sqrt(max(0.0, 1.0 - te * te));
+        sum += vec2(sin_tl, pow(max(tl * te + sin_tl * sin_te, 0.0), u_shininess));
+    }
+    return sum * 0.125;
+}
+
+void family(vec3 T, vec3 E, vec3 N, float k, float k_light, vec3 albedo, out vec3 ambient_part, out vec3 key_part) {
+    float tl = dot(T, -u_light_dir);
+    float te = dot(T, E);
+    vec2 kajiya = kajiya_along(T, N, E);
+    float sin_tl = kajiya.x;
+    float spec = kajiya.y;
+    vec3 across = E - te * T;
+    float la = length(across);
+    vec3 V = la > 1e-6 ? across / la : E;
+    vec3 S = cross(T, V);
+    S = dot(S, N) < 0.0 ? -S : S;
+    float seen = 1.0 / max(k, 1.0);              // the upper share of the yarn that is not hidden
+    float sl = dot(S, u_light_dir);
+    float vl = dot(V, u_light_dir);
+    // The light's own view of the yarn: across it, S_L (turned away from the cloth); the neighbour
+    // towards the light shades all but the upper 1 / k_light of it.
+    vec3 across_l = u_light_dir - tl * -T;
+    float ll = length(across_l);
+    vec3 S_L = ll > 1e-6 ? cross(T, across_l / ll) : S;
+    S_L = dot(S_L, N) < 0.0 ? -S_L : S_L;
+    float shade_below = 1.0 - 2.0 / max(k_light, 1.0);
+    float lambert = 0.0;
+    float lit = 0.0;
+    float sun = 0.0;
+    float fill = 0.0;
+    for (int q = 0; q < 8; ++q) {
+        float v = 1.0 - seen * (2.0 * float(q) + 1.0) / 8.0;
+        float c = sqrt(max(0.0, 1.0 - v * v));
+        float nl = v * sl + c * vl;
+        float unshaded = smoothstep(shade_below - 0.1, shade_below + 0.1, dot(v * S + c * V, S_L));
+        sun += unshaded;
+        lambert += max(nl, 0.0) * unshaded;
+        lit += smoothstep(-0.2, 0.3, nl) * unshaded;
+#ifdef FILL
+        fill += 0.5 + 0.5 * dot(v * S + c * V, u_fill_dir);
+#endif
+    }
+    float ambient = u_ambient;
+#ifdef FILL
+    ambient += u_fill_intensity * fill * 0.125;
+#endif
+    float diffuse = mix(lambert * 0.125, sin_tl * sun * 0.125, u_kajiya_weight);
+    ambient_part = albedo * ambient;
+    key_part = albedo * diffuse + vec3(u_specular * spec * lit * 0.125);
+}
+
+void main() {
+    vec3 E = normalize(u_eye - in_position);
+    vec3 N = normalize(in_normal);
+    N = dot(N, E) < 0.0 ? -N : N;
+    float kf = family_cover(in_weft_edge, in_warp_edge, E);   // weft yarns run along the weft edge
+    float kw = family_cover(in_warp_edge, in_weft_edge, E);
+    // the shares this view sees (fraytool.render.weave_visibility): elevation and azimuth from the weft
+    vec3 weft_dir = normalize(in_weft_edge - dot(in_weft_edge, N) * N);
+    vec3 side = cross(N, weft_dir);
+    float azimuth = atan(dot(E, side), dot(E, weft_dir));          // -pi .. pi; the table repeats every pi
+    float elevation = clamp(dot(E, N), 0.0, 1.0);
+    vec2 seen = texture(u_visibility, vec2(azimuth / 3.14159265 + 0.5 / u_visibility_columns,
+                                           elevation - 0.5 / u_visibility_rows)).rg;   // texel centres: table rows and columns
+    v_share = seen / u_mean_cover;
+    int panel = int(in_panel + 0.5);
+    vec3 L = u_light_dir;
+    float lf = family_cover(in_weft_edge, in_warp_edge, L);    // the same as the light sees it
+    float lw = family_cover(in_warp_edge, in_weft_edge, L);
+    family(normalize(in_weft_edge), E, N, kf, lf, u_yarn_colors[2 * panel], v_weft_ambient, v_weft_key);
+    family(normalize(in_warp_edge), E, N, kw, lw, u_yarn_colors[2 * panel + 1], v_warp_ambient, v_warp_key);
+    v_position = in_position;
+    v_normal = N;
+    v_grid = in_grid;
+    v_far = in_far;
+    gl_Position = u_view_proj * vec4(in_position, 1.0);
+}

@@ -1,0 +1,242 @@
+"""The far field (fraytool.render.farfield): intact cloth whose yarns are under a few pixels apart on
+screen is drawn as one weave-shaded surface, with a blend band to the yarns.
+
+Checked against independent references: the projection's own arithmetic (footprints), the weave's
+analytic coverage a - a^2/2 per family (texture, view table), and the same frame drawn with yarns only
+at 4x the resolution in each axis, box-filtered (shares of each family, aliasing error)."""
+from __future__ import annotations
+
+import dataclasses
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conftest import GOLDEN_SCENE, PosedCloth
+from fraytool.render.aliasing import FACTOR, blurred_rms, box_downsample, gaussian_blur
+from fraytool.render.camera import Camera
+from fraytool.render.color import srgb_to_linear
+from fraytool.render.farfield import FAR_PX, NEAR_PX, band_weight
+from fraytool.render.geometry import GeometryBuilder, YarnStyle
+from fraytool.render.renderer import Renderer
+from fraytool.render.weave_texture import coverage_tile
+from fraytool.render.weave_visibility import visibility_table
+
+FLAT = Path(__file__).parent / "scenes" / "flat_weave.toml"
+PLAIN = np.array([[True, False], [False, True]])
+
+
+@pytest.fixture(scope="module")
+def flat():
+    return PosedCloth(FLAT)
+
+
+def _view(spec, elevation_deg: float, azimuth_deg: float, footprint_px: float, height_px: int):
+    """The spec with its camera looking at the cloth's centre from elevation / azimuth (from the weft,
+    +x) at the distance where one yarn spacing spans `footprint_px` pixels (isotropic measure)."""
+    spacing = spec.cloth.spacing_m
+    d = spacing * height_px / (2.0 * math.tan(math.radians(spec.camera.fov_deg) / 2.0) * footprint_px)
+    e, a = math.radians(elevation_deg), math.radians(azimuth_deg)
+    pos = (d * math.cos(e) * math.cos(a), d * math.sin(e), d * math.cos(e) * math.sin(a))
+    up = (0.0, 1.0, 0.0) if elevation_deg < 89.0 else (1.0, 0.0, 0.0)
+    return dataclasses.replace(spec, camera=dataclasses.replace(spec.camera, position_m=pos, target_m=(0.0, 0.0, 0.0),
+                                                                up=up))
+
+
+def _with(spec, **render):
+    return dataclasses.replace(spec, render=dataclasses.replace(spec.render, **render))
+
+
+def _draw(ctx, spec, pc, record, size, target="srgb8", alpha=False, depth=False, wireframe="off"):
+    r = Renderer(ctx, size, spec.render.samples, spec.render, spec.camera, pc.topology, wireframe, alpha=alpha,
+                 target=target, depth=depth)
+    try:
+        b = GeometryBuilder(pc.topology, YarnStyle.from_spec(spec.render, pc.topology), r.camera, size[1],
+                            image_width=r.shaded_width)
+        geom = b.build(record, yarns=wireframe != "only", lines=wireframe != "off")
+        r.draw(geom)
+        out = r.read() if target == "srgb8" else r.read_linear()
+        z = r.read_depth_m() if depth else None
+        return out.copy(), geom, z
+    finally:
+        r.release()
+
+
+def _reference(ctx, spec, pc, record, size):
+    """Yarns only, at FACTOR x the size, box-filtered in linear light: (H, W, 3) 8-bit sRGB."""
+    big = (size[0] * FACTOR, size[1] * FACTOR)
+    linear, _, _ = _draw(ctx, _with(spec, far_field=False), pc, record, big, target="float")
+    return box_downsample(linear)
+
+
+# -- without GL ------------------------------------------------------------------------------------
+
+def test_band_weight_is_zero_above_one_below_and_smooth_between():
+    w = band_weight(np.array([10.0, NEAR_PX, 0.5 * (NEAR_PX + FAR_PX), FAR_PX, 0.2]))
+    assert w[0] == 0.0 and w[1] == 0.0 and w[3] == 1.0 and w[4] == 1.0
+    assert w[2] == pytest.approx(0.5)
+    x = np.linspace(0.5, 4.0, 200)
+    assert (np.diff(band_weight(x)) <= 0).all()
+
+
+def test_footprint_seen_head_on_is_the_spacing_in_pixels(flat):
+    """Straight above, the centre crossing's footprint is spacing x H / (2 d tan(fov / 2))."""
+    H = 90
+    spec = _view(flat.spec, 90.0, 0.0, 1.7, H)
+    cam = Camera(spec.camera)
+    b = GeometryBuilder(flat.topology, YarnStyle.from_spec(spec.render, flat.topology), cam, H, image_width=160)
+    field = b.far_field(flat.rest)
+    d = float(np.linalg.norm(np.asarray(spec.camera.position_m)))
+    want = flat.spec.cloth.spacing_m * H / (2.0 * d * math.tan(math.radians(spec.camera.fov_deg) / 2.0))
+    centre = (flat.H // 2) * flat.W + flat.W // 2
+    assert want == pytest.approx(1.7)
+    assert field.footprint_px[centre] == pytest.approx(want, rel=0.02)
+
+
+def test_coverage_texture_holds_the_weaves_analytic_coverage():
+    for a in (0.4, 0.65, 0.9):
+        tile = coverage_tile(PLAIN, a).astype(float) / 255.0
+        assert tile[..., 0].mean() == pytest.approx(a - a * a / 2.0, abs=0.01)   # weft
+        assert tile[..., 1].mean() == pytest.approx(a - a * a / 2.0, abs=0.01)   # warp
+    tile = coverage_tile(PLAIN, 0.65, texels=16)
+    assert tuple(tile[8, 8]) == (255, 0) and tuple(tile[8, 24]) == (0, 255)   # the on-top yarn covers its crossing
+    assert tuple(tile[0, 0]) == (0, 0)                                          # a gap between four yarns
+
+
+def test_view_table_straight_above_and_grazing():
+    a = 2 * 0.00065 / 0.002
+    t = visibility_table(PLAIN, 0.00065, 0.002, 0.0003)
+    assert t[-1, :, 0] == pytest.approx(a - a * a / 2.0, abs=0.01)
+    assert t[-1, :, 1] == pytest.approx(a - a * a / 2.0, abs=0.01)
+    # low over the cloth, looking along the weft: the warp runs across the view and stands in front
+    weft, warp = t[1, 0]
+    assert warp > 0.6 and weft < 0.4 and weft + warp == pytest.approx(1.0, abs=0.02)
+    # a plain weave seen along the warp is the same with the families swapped
+    assert tuple(t[1, t.shape[1] // 2]) == pytest.approx((warp, weft), abs=0.02)
+
+
+def test_surface_leaves_torn_cloth_and_mass_couples_to_the_yarns(flat):
+    """A flat cloth with weft springs cut down a column and the crossings beside the cut at yarn level,
+    every intact crossing far (far_field_px 64): no surface quad holds a yarn-level crossing or a cut
+    spring, the tear's yarns are still drawn (their broken ends fade) and so is the cloth's border."""
+    from fraytool.kinds import STRUCT_WARP, STRUCT_WEFT
+
+    rec = flat.copy()
+    cut_i, rows = 47, range(20, 70)
+    for j in rows:
+        rec.spring_alive[flat.topology["weft_structural_spring"][j, cut_i]] = False
+        for i in range(cut_i - 1, cut_i + 3):
+            rec.crossing_yarn_level[flat.crossing(i, j)] = True
+    spec = _with(_view(flat.spec, 60.0, 30.0, 1.0, 90), far_field_px=64.0)
+    b = GeometryBuilder(flat.topology, YarnStyle.from_spec(spec.render, flat.topology), Camera(spec.camera), 90,
+                        image_width=160)
+    geom = b.build(rec)
+    field = geom.surface
+    assert field is not None and field.quads > 0
+    step = round(float(np.abs(np.diff(field.vertices[field.triangles[0], 12])).max()))   # grid cells per quad side
+    level = np.asarray(rec.crossing_yarn_level)
+    dead = ~np.asarray(rec.spring_alive) & np.isin(np.asarray(flat.topology["spring_kind"]), (STRUCT_WEFT, STRUCT_WARP))
+    ends = np.stack([np.asarray(flat.topology["spring_crossing_a"])[dead],
+                     np.asarray(flat.topology["spring_crossing_b"])[dead]], axis=1)
+    for corner in field.triangles[0::2, 0]:
+        jq, iq = divmod(int(corner), flat.W)
+        block = np.array([(jq + dj) * flat.W + iq + di for dj in range(step + 1) for di in range(step + 1)])
+        assert not level[block].any()
+        assert not np.isin(ends, block).all(axis=1).any()
+    assert len(geom.yarns.translucent) > 0                      # the cut's broken ends, fading
+    # the cut's yarns and the border's are yarns: the hidden links are none of theirs
+    assert not field.hidden_weft[20:70, cut_i - 1:cut_i + 3].any()
+    assert not field.hidden_weft[0].any() and not field.hidden_warp[0].any()
+
+
+# -- with GL --------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("elevation, azimuth", [(90.0, 0.0), (35.0, 0.0), (15.0, 0.0), (15.0, 20.0), (35.0, 60.0)])
+def test_far_field_shows_the_families_as_supersampled_tubes_do(gl_ctx, flat, elevation, azimuth, monkeypatch):
+    """With pure red warp, green weft, blue background and only ambient light, the colour of a pixel is
+    the share of each family and of the gap: the far field (yarns about 0.7 px apart) against round tubes
+    (24 sides: the level of detail's facet limit lifted) drawn at 4x and box-filtered, mid-frame."""
+    import fraytool.render.lod as lod
+
+    monkeypatch.setattr(lod, "FACET_PX", 0.05)
+    size = (160, 90)
+    spec = _with(_view(flat.spec, elevation, azimuth, 0.7, size[1]), warp_color=(1.0, 0.0, 0.0),
+                 weft_color=(0.0, 1.0, 0.0), background=(0.0, 0.0, 1.0), ambient=1.0, light_intensity=0.0,
+                 specular=0.0, fill_intensity=0.0, shadows=False, yarn_shape="tube", tube_sides=24)
+    far, geom, _ = _draw(gl_ctx, spec, flat, flat.rest, size)
+    assert geom.surface is not None and geom.yarns.far is None or geom.surface.quads > 0
+    ref = _reference(gl_ctx, spec, flat, flat.rest, size)
+    middle = (slice(39, 51), slice(50, 110))
+
+    def shares(img):
+        return srgb_to_linear(img[middle].reshape(-1, 3).astype(float).mean(axis=0) / 255.0)
+
+    got, want = shares(far), shares(ref)
+    assert got == pytest.approx(want, abs=0.03), (got, want)
+
+
+def test_far_field_removes_the_moire_of_a_grazing_weave(gl_ctx, flat):
+    """A weave seen at 20 degrees with yarns about a pixel apart: drawn as ribbons it beats against the
+    pixel grid; the far field stays within 4 levels (blurred RMS) of the 4x supersampled ribbons, under
+    half the ribbons' own error."""
+    size = (160, 90)
+    spec = _view(flat.spec, 20.0, 30.0, 1.2, size[1])
+    ref = _reference(gl_ctx, spec, flat, flat.rest, size)
+    far, geom, _ = _draw(gl_ctx, spec, flat, flat.rest, size)
+    yarns, _, _ = _draw(gl_ctx, _with(spec, far_field=False), flat, flat.rest, size)
+    assert geom.surface is not None
+    e_far, e_yarns = blurred_rms(far, ref), blurred_rms(yarns, ref)
+    assert e_far <= 4.0 and e_far < 0.5 * e_yarns, (e_far, e_yarns)
+
+
+def test_large_yarns_draw_exactly_as_without_the_far_field(gl_ctx, flat):
+    """The whole cloth in view from straight above with its yarns 5.7 px apart in the middle (over 5 px
+    at the corners): no surface is built and the frame is bit-identical to the far field off."""
+    size = (960, 540)
+    spec = _view(flat.spec, 90.0, 0.0, 5.7, size[1])
+    on, geom, _ = _draw(gl_ctx, spec, flat, flat.rest, size)
+    off, _, _ = _draw(gl_ctx, _with(spec, far_field=False), flat, flat.rest, size)
+    assert geom.surface is None and geom.yarns.far is None
+    assert np.array_equal(on, off)
+
+
+def test_wireframe_view_is_unchanged(gl_ctx, flat):
+    size = (160, 90)
+    spec = _view(flat.spec, 50.0, 30.0, 1.0, size[1])
+    on, _, _ = _draw(gl_ctx, spec, flat, flat.rest, size, wireframe="only")
+    off, _, _ = _draw(gl_ctx, _with(spec, far_field=False), flat, flat.rest, size, wireframe="only")
+    assert np.array_equal(on, off)
+
+
+def test_surface_depth_and_alpha(gl_ctx, flat):
+    """Straight above, yarns 0.7 px apart: the float target's alpha is the weave's coverage
+    1 - (1 - a)^2 (the gaps show what is behind) and the depth is the cloth's distance."""
+    size = (160, 90)
+    spec = _view(flat.spec, 90.0, 0.0, 0.7, size[1])
+    rgba, geom, z = _draw(gl_ctx, spec, flat, flat.rest, size, target="float", alpha=True, depth=True)
+    assert geom.surface is not None and geom.yarns.far is None      # all far: no band
+    a = 2 * 0.00065 / 0.002
+    middle = (slice(35, 55), slice(60, 100))
+    assert rgba[middle][..., 3].mean() == pytest.approx(1.0 - (1.0 - a) ** 2, abs=0.02)
+    d = float(np.linalg.norm(np.asarray(spec.camera.position_m)))
+    assert np.abs(z[middle] - d).max() < 1e-3 * d
+
+
+def test_a_dolly_through_the_band_does_not_pop(gl_ctx, flat):
+    """A camera moving away until the yarns go from 4 px to 0.9 px apart crosses the blend band; the
+    largest blurred frame-to-frame change is no larger than when the same move is drawn with yarns only
+    (no switch at all)."""
+    size = (160, 90)
+    footprints = np.geomspace(4.0, 0.9, 14)
+
+    def largest_step(far_field: bool) -> float:
+        frames = []
+        for fp in footprints:
+            spec = _with(_view(flat.spec, 55.0, 30.0, float(fp), size[1]), far_field=far_field)
+            img, _, _ = _draw(gl_ctx, spec, flat, flat.rest, size)
+            frames.append(gaussian_blur(img.astype(float)))
+        return max(float(np.abs(b - a).mean()) for a, b in zip(frames, frames[1:]))
+
+    with_band, yarns_only = largest_step(True), largest_step(False)
+    assert with_band <= yarns_only * 1.05, (with_band, yarns_only)
