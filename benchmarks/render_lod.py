@@ -1,9 +1,10 @@
 """Aliasing error against render cost of the yarn representations (docs/rendering.md, "Level of detail").
 
-For a scene's frames, each representation is drawn at the scene's resolution (scaled by --scale: 0.5,
+For a scene's frames, each representation is drawn at the scene's resolution (scaled by --scales: 0.5,
 1 and 2 halve, keep and double the yarns' footprint in pixels) and compared with a reference of the
-same frame drawn at REF_FACTOR times the resolution in each axis with yarns only (the far field off),
-averaged in linear light over each REF_FACTOR x REF_FACTOR block (a box filter) and encoded to sRGB.
+same frame drawn with yarns only (the far field off) at REF_FACTOR times the scene's resolution in
+each axis (for a scale s, max(2, REF_FACTOR / s) times the frame's), averaged in linear light over
+each block (a box filter) and encoded to sRGB.
 The error is the RMS difference in 8-bit sRGB levels after a Gaussian blur of BLUR_SIGMA_PX pixels
 on both images (fraytool.render.aliasing). Cost: median milliseconds per frame of geometry + draw + read-back (as `fraytool bench
 --render`), over --repeat draws.
@@ -64,10 +65,10 @@ def draw(spec, topology, record, size, samples, target="srgb8", repeat=1):
     return image, 1e3 * statistics.median(times)
 
 
-def reference(spec, topology, record, size, samples) -> np.ndarray:
-    """The frame at REF_FACTOR x the size, yarns only, box-filtered in linear light: (H, W, 3) uint8 sRGB."""
+def reference(spec, topology, record, size, samples, factor: int = REF_FACTOR) -> np.ndarray:
+    """The frame at `factor` x the size, yarns only, box-filtered in linear light: (H, W, 3) uint8 sRGB."""
     W, H = size
-    f = REF_FACTOR
+    f = int(factor)
     ref_spec = with_render(spec, far_field=False)
     linear, _ = draw(ref_spec, topology, record, (W * f, H * f), samples, target="float")
     return box_downsample(linear, f)
@@ -113,7 +114,10 @@ def main(argv=None) -> None:
         W, H = (int(round(v * scale)) for v in spec.render.resolution)
         for frame in frames:
             record = store.load_frame(frame)
-            ref = reference(spec, topology, record, (W, H), spec.render.samples)
+            # the reference is always the 1x frame's REF_FACTOR x (5120x2880 for a 1280x720 scene):
+            # 8x for the half-size frame, 2x for the double-size one
+            factor = max(2, int(round(REF_FACTOR / scale)))
+            ref = reference(spec, topology, record, (W, H), spec.render.samples, factor)
             if save:
                 from PIL import Image
                 Image.fromarray(ref).save(save / f"ref_{frame}_{scale:g}.png")

@@ -15,6 +15,7 @@ from fraytool.errors import RunError
 from fraytool.io.frame_store import FrameStore
 from fraytool.io.lock import OutputLock
 from fraytool.render.job import build_job
+from fraytool.render.motion_blur import frames_needed
 from fraytool.scene import SceneSpec
 from fraytool.sim.model import Model
 
@@ -44,17 +45,6 @@ def ensure_frames(spec: SceneSpec, out_dir: Path, needed: int, stream: TextIO = 
     print(f"fraytool: simulating {needed} frames into {store.dir}", file=stream)
     simulate_to_disk(spec, out_dir, frames=needed, stream=stream, model=model, digest=digest)
     return store
-
-
-def frames_needed(job) -> int:
-    """Frame records (0 .. n-1) a render of `job` reads: up to the end of its range, and with motion blur
-    the record after it too, which the last frame's sub-frames are interpolated towards (none past the
-    scene's end: fraytool.render.motion_blur)."""
-    if job.motion_blur is None:
-        return job.frames.end
-    from fraytool.render.motion_blur import records_needed
-
-    return records_needed(job.frames.end, job.spec.time.frames)
 
 
 def _fmt(v) -> str:

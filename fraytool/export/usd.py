@@ -46,7 +46,7 @@ import numpy as np
 
 from fraytool import __version__
 from fraytool.errors import InputError, RunError
-from fraytool.export.rotation import quaternion_wxyz
+from fraytool.rotation import quaternion_wxyz
 from fraytool.export.usd_camera import define_camera
 from fraytool.export.velocities import (FrameSource, Stencil, body_velocities, mesh_vertex_velocities,
                                         yarn_point_velocities)

@@ -104,7 +104,7 @@ def frames_to_simulate(shot: Shot, out_dir: Path) -> int:
     """Frames the shot's simulation task runs: up to the end of its frame range (with motion blur the
     frame after it too, as `fraytool render` reads), or the whole scene when the camera is fitted (--fit,
     [camera] fit), as the fit covers the whole shot."""
-    from fraytool.commands.render import frames_needed
+    from fraytool.render.motion_blur import frames_needed
 
     job, _ = render_job_for(shot, out_dir, FrameRange(0, 1))
     return job.spec.time.frames if job.spec.camera.fit else frames_needed(job)

@@ -97,11 +97,13 @@ def band_weight(footprint_px: np.ndarray, near_px: float = NEAR_PX, far_px: floa
 
 
 @numba.njit(cache=True)
-def _grid_pass(centre, normal, exists, panel, weft_ok, warp_ok, vp, half_w, half_h, near, margin,
-               near_px, far_px, vertices_out, footprint_out, onscreen_out, weight_out):  # pragma: no cover - numba
-    """One pass over the grid (see grid_footprint and surface_vertices): screen position of every
+def _grid_pass(centre, normal, exists, panel, weft_ok, warp_ok, view, vertices_out, footprint_out, onscreen_out,
+               weight_out):  # pragma: no cover - numba
+    """One pass over the grid (see grid_pass): screen position of every
     crossing, its footprint (geometric mean of its projected spacings along the two yarns [px]; 0 beside a
     crossing behind the eye, inf with no neighbour), on-screen flag, far weight and surface vertex."""
+    vp = view[:16].reshape(4, 4)
+    half_w, half_h, near, margin, near_px, far_px = view[16], view[17], view[18], view[19], view[20], view[21]
     H, W = exists.shape
     sx = np.empty((H, W))
     sy = np.empty((H, W))
@@ -189,7 +191,10 @@ def grid_pass(camera: Camera, image_size: tuple[int, int], centre: np.ndarray, n
     the surface vertex's edges are the mean grid edges to those neighbours [m]."""
     Wpx, Hpx = int(image_size[0]), int(image_size[1])
     H, W = exists.shape
-    vp = np.ascontiguousarray(camera.view_proj(Wpx / Hpx), dtype=np.float64)
+    # the view: view-projection (16, row-major), half the image in pixels (2), the near plane, the
+    # on-screen margin, and the band's ends [px]
+    view = np.concatenate([np.asarray(camera.view_proj(Wpx / Hpx), dtype=np.float64).ravel(),
+                           [0.5 * Wpx, 0.5 * Hpx, float(camera.near), SCREEN_MARGIN, float(near_px), float(far_px)]])
     n = H * W
     vertices = np.empty((n, SURFACE_FLOATS), dtype=np.float32)
     footprint = np.empty(n)
@@ -197,8 +202,8 @@ def grid_pass(camera: Camera, image_size: tuple[int, int], centre: np.ndarray, n
     weight = np.empty(n)
     _grid_pass(np.ascontiguousarray(centre, dtype=np.float64), np.ascontiguousarray(normal, dtype=np.float64),
                np.ascontiguousarray(exists), np.ascontiguousarray(panel, dtype=np.float64),
-               np.ascontiguousarray(weft_edge_ok), np.ascontiguousarray(warp_edge_ok), vp, 0.5 * Wpx, 0.5 * Hpx,
-               float(camera.near), SCREEN_MARGIN, float(near_px), float(far_px), vertices, footprint, onscreen, weight)
+               np.ascontiguousarray(weft_edge_ok), np.ascontiguousarray(warp_edge_ok), view, vertices, footprint, onscreen,
+               weight)
     return vertices, footprint, onscreen, weight
 
 

@@ -48,9 +48,9 @@ PASS_SUFFIX = {"off": "", "only": "_wireframe", "beside": "_beside"}
 RENDER_REVISION = 3
 """A hand-kept revision of the renderer; its code and shaders are hashed by themselves (renderer_code_digest)."""
 
-RENDERER_MODULES = ("render", "grid.py", "kinds.py", "meshes.py", "export/rotation.py")
+RENDERER_MODULES = ("render", "grid.py", "kinds.py", "meshes.py", "rotation.py")
 """What the renderer's pixels are computed by, under the fraytool package: the render package and the
-leaf modules it draws with (export/rotation.py: the quaternions motion blur turns bodies by)."""
+leaf modules it draws with (rotation.py: the quaternions motion blur turns bodies by)."""
 
 
 def renderer_code_digest(package_dir: Path | None = None) -> str:

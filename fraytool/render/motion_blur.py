@@ -25,7 +25,7 @@ from typing import Callable, Optional
 import numpy as np
 
 from fraytool.errors import InputError
-from fraytool.export.rotation import quaternion_wxyz
+from fraytool.rotation import quaternion_wxyz
 from fraytool.io.frame_record import FrameRecord
 
 SHUTTER_RANGE = (0.0, 1.0)
@@ -160,3 +160,12 @@ def sub_frame_records(frame: int, scene_frames: int, load: Callable[[int], Frame
     for s in blur.offsets():
         out.append(record if s == 0.0 else interpolate(record, a, b, start + s))
     return out
+
+
+def frames_needed(job) -> int:
+    """Frame records (0 .. n-1) a render of `job` (fraytool.render.job.RenderJob) reads: up to the end of
+    its range, and with motion blur the record after it too, which the last frame's sub-frames are
+    interpolated towards (none past the scene's end)."""
+    if job.motion_blur is None:
+        return job.frames.end
+    return records_needed(job.frames.end, job.spec.time.frames)

@@ -1,5 +1,6 @@
-"""Rotation matrices as the USD export writes and differentiates them: unit quaternions (xformOp:orient)
-and rotation vectors (the axis times the angle, for angular velocities). NumPy only, no pxr."""
+"""Rotation matrices as unit quaternions (the USD export's xformOp:orient, motion blur's slerp) and
+rotation vectors (the axis times the angle, for angular velocities). NumPy only, no pxr; a leaf that
+the export and the renderer both use."""
 from __future__ import annotations
 
 import numpy as np
