@@ -31,11 +31,24 @@ AZIMUTHS = 16
 SAMPLES_PER_SPACING = 24
 
 
+@numba.njit(cache=True, inline="always")
+def _yarn_top(along, across, up0, up1, radius, half_thickness):  # pragma: no cover - numba
+    """Height of a round yarn's top at a point `along` its length (its crossings at integer + 0.5, up or
+    down by up0 / up1 at the two either side, a half cosine between) and `across` it from its axis;
+    -inf off it."""
+    if abs(across) >= radius:
+        return -1e9
+    t = along - 0.5 - math.floor(along - 0.5)
+    a0 = half_thickness if up0 else -half_thickness
+    a1 = half_thickness if up1 else -half_thickness
+    centre = a0 + (a1 - a0) * 0.5 * (1.0 - math.cos(math.pi * t))
+    return centre + math.sqrt(radius * radius - across * across)
+
+
 @numba.njit(cache=True)
-def _height_field(on_top, radius, half_thickness, n, bulge_weft, bulge_warp):  # pragma: no cover - numba
+def _height_field(on_top, radius, half_thickness, n):  # pragma: no cover - numba
     """(height, family) of one weave repeat, (py n, px n) each, in spacing units; family 0 weft, 1 warp,
-    -1 gap (height -inf). bulge_*: the height of each family's round top above its axis, as a share of
-    the radius (1: round yarns)."""
+    -1 gap (height -inf)."""
     py, px = on_top.shape
     Ny, Nx = py * n, px * n
     h = np.full((Ny, Nx), -1e9)
@@ -44,33 +57,19 @@ def _height_field(on_top, radius, half_thickness, n, bulge_weft, bulge_warp):  #
         z = (y + 0.5) / n                               # position across the weft yarns (j direction)
         for x in range(Nx):
             u = (x + 0.5) / n                           # position along the weft yarns (i direction)
-            # weft yarns j near z: centre height along u between crossings i and i + 1 (half cosine)
-            for dj in range(-1, 2):
-                j = int(math.floor(z)) + dj
-                dz = z - (j + 0.5)
-                if abs(dz) >= radius:
-                    continue
+            for d in range(-1, 2):                      # weft yarns j near z, along u
+                j = int(math.floor(z)) + d
                 i0 = int(math.floor(u - 0.5))
-                t = u - 0.5 - i0
-                a0 = half_thickness if on_top[j % py, i0 % px] else -half_thickness
-                a1 = half_thickness if on_top[j % py, (i0 + 1) % px] else -half_thickness
-                centre = a0 + (a1 - a0) * 0.5 * (1.0 - math.cos(math.pi * t))
-                top = centre + bulge_weft * math.sqrt(radius * radius - dz * dz)
+                top = _yarn_top(u, z - (j + 0.5), on_top[j % py, i0 % px], on_top[j % py, (i0 + 1) % px],
+                                radius, half_thickness)
                 if top > h[y, x]:
                     h[y, x] = top
                     fam[y, x] = 0
-            # warp yarns i near u: centre height along z (the warp is up where the weft is not)
-            for di in range(-1, 2):
-                i = int(math.floor(u)) + di
-                du = u - (i + 0.5)
-                if abs(du) >= radius:
-                    continue
+            for d in range(-1, 2):                      # warp yarns i near u, along z: up where the weft is not
+                i = int(math.floor(u)) + d
                 j0 = int(math.floor(z - 0.5))
-                t = z - 0.5 - j0
-                a0 = -half_thickness if on_top[j0 % py, i % px] else half_thickness
-                a1 = -half_thickness if on_top[(j0 + 1) % py, i % px] else half_thickness
-                centre = a0 + (a1 - a0) * 0.5 * (1.0 - math.cos(math.pi * t))
-                top = centre + bulge_warp * math.sqrt(radius * radius - du * du)
+                top = _yarn_top(z, u - (i + 0.5), not on_top[j0 % py, i % px], not on_top[(j0 + 1) % py, i % px],
+                                radius, half_thickness)
                 if top > h[y, x]:
                     h[y, x] = top
                     fam[y, x] = 1
@@ -119,7 +118,7 @@ def visibility_table(on_top_tile: np.ndarray, radius_m: float, spacing_m: float,
     tile = np.ascontiguousarray(on_top_tile, dtype=np.bool_)
     r = float(radius_m) / float(spacing_m)
     half_t = 0.5 * float(thickness_m) / float(spacing_m)
-    h, fam = _height_field(tile, r, half_t, int(samples), 1.0, 1.0)
+    h, fam = _height_field(tile, r, half_t, int(samples))
     out = np.zeros((elevations, azimuths, 2), dtype=np.float32)
     for e in range(elevations):
         s = (e + 1.0) / elevations
