@@ -224,15 +224,13 @@ class Renderer:
         self._thickness_m = float(np.asarray(topology.get("thickness_m", 0.0)).item())
         self._topology_spacing = float(np.asarray(topology.get("spacing_m", 0.0)).item())
         # The far field (fraytool.render.farfield): the surface, and the yarns of the blend band
+        # made on the first frame that has a far field (_ensure_far_field): a render that never needs
+        # one pays nothing for it
         self.far_field = bool(render.far_field)
+        self._far_features = (yarn_features, features)
+        self._far_topology = topology
         self._yarn_band_prog = self._far_prog = self._weave = self._visibility = None
-        if self.far_field:
-            self._yarn_band_prog = load_program(ctx, "yarn.vert", "yarn.frag", yarn_features + ("FAR_BAND",))
-            self._far_prog = load_program(ctx, "farfield.vert", "farfield.frag",
-                                          features + ("FAR_BAND",) + (("SHADOW_ONE_TAP",) if render.shadows else ()))
-            self._weave, self._mean_cover, self._weave_period, self._visibility = \
-                self._weave_textures(ctx, render, topology)
-        self._yarn_progs = tuple(p for p in (self._yarn_prog, self._yarn_band_prog) if p is not None)
+        self._yarn_progs = (self._yarn_prog,)
         self.shadow = (ShadowPass(ctx, render.shadow_map_size, topology, load_program(ctx, "depth.vert", "depth.frag"))
                        if render.shadows else None)
 
@@ -359,6 +357,20 @@ class Renderer:
         self._line_prog["u_base_color"].value = tuple(srgb_to_linear(WIREFRAME_BASE_SRGB))
         self._line_prog["u_yarn_color"].value = tuple(srgb_to_linear(WIREFRAME_YARN_SRGB))
 
+    def _ensure_far_field(self) -> None:
+        """The far field's programs (the surface, and the yarns of the blend band) and textures, once."""
+        if self._far_prog is not None or not self.far_field:
+            return
+        ctx, render = self.ctx, self.render_spec
+        yarn_features, features = self._far_features
+        self._yarn_band_prog = load_program(ctx, "yarn.vert", "yarn.frag", yarn_features + ("FAR_BAND",))
+        self._far_prog = load_program(ctx, "farfield.vert", "farfield.frag",
+                                      features + ("FAR_BAND",) + (("SHADOW_ONE_TAP",) if render.shadows else ()))
+        self._weave, self._mean_cover, self._weave_period, self._visibility = \
+            self._weave_textures(ctx, render, self._far_topology)
+        self._yarn_progs = (self._yarn_prog, self._yarn_band_prog)
+        self._set_uniforms(render)
+
     def _weave_textures(self, ctx: moderngl.Context, r: RenderSpec, topology: Mapping[str, np.ndarray]):
         """The far field's textures: the mipmapped weave coverage (fraytool.render.weave_texture), its
         mean coverage per family, its repeat (crossings along i, j), and the view table
@@ -477,7 +489,7 @@ class Renderer:
         # their shading (shadow lookups included) instead of being shaded and overdrawn.
         mesh = geom.yarns
         have_yarns = mesh is not None and len(mesh.vertices) > 0
-        band = have_yarns and mesh.far is not None
+        band = have_yarns and mesh.far is not None and self._yarn_band_prog is not None
         if have_yarns:
             for prog in self._yarn_progs:
                 prog["u_view_proj"].write(view_proj)
@@ -629,6 +641,8 @@ class Renderer:
     def draw(self, geom: FrameGeometry) -> None:
         """Draw one frame into the multisampled framebuffer and resolve it (no read-back)."""
         W, H = self.size
+        if geom.surface is not None or (geom.yarns is not None and geom.yarns.far is not None):
+            self._ensure_far_field()
         self._fbo_ms.use()
         self._pose_meshes(geom.time_s)
         if geom.yarns is not None:
