@@ -1,5 +1,5 @@
 """The far field: intact cloth drawn as one surface over the crossing grid where its yarns are too
-small on screen to draw one by one (docs/rendering.md, "Level of detail").
+small on screen to draw one by one (docs/rendering.md, "Far field: cloth under a few pixels").
 
 Why: where the yarn spacing on screen falls to a couple of pixels, tubes (or ribbons) alias: 4x MSAA
 takes 4 point samples of a weave whose period is about a pixel, and the beat between the two makes
@@ -9,32 +9,33 @@ reflectance (Irawan & Marschner 2012, "Specular reflection from woven cloth", AC
 al. 2016, "Fitting procedural yarn models for realistic cloth rendering", for the yarn-to-surface
 hierarchy). Ours is the aggregate of our own near-field model, so the two agree where they meet:
 - what covers a pixel: the weave pattern as a mipmapped coverage texture (weft and warp shares of each
-  texel, the on-top yarn at each crossing from the weave), which the GPU filters to the average
-  over the pixel's footprint, times a view-dependent factor: a yarn family of diameter 2 r whose
-  yarns lie d apart on screen covers min(1, 2 r / d) across them, so a grazing view closes the gaps
-  (fraytool.render.weave_texture, shaders/farfield.frag);
+  texel, the on-top yarn at each crossing from the weave: fraytool.render.weave_texture), which the
+  GPU filters to the average over the pixel's footprint, scaled by the shares a view of the weave
+  sees, ray cast through our own yarns (fraytool.render.weave_visibility): a grazing view closes the
+  gaps and the family across the view stands in front;
 - how it is shaded: the Kajiya-Kay + Lambert yarn model of shaders/yarn.frag averaged over the visible
-  half of each family's yarn cylinder (the ribbon's normal v S + sqrt(1 - v^2) V, v uniform across the
-  yarn), with the family's own tangent, so the highlight runs along the yarn directions;
+  part of each family's yarn (shaders/farfield.vert), with the family's own tangent, so the highlight
+  runs along the yarn directions;
 - what shows through: the uncovered share, alpha-blended in linear light over what lies behind.
 
 Which crossings: the footprint of a crossing is its yarn spacing on screen, in pixels: the geometric
 mean of its projected grid edges along the weft and along the warp (the square root of its area on
 screen), so a grazing view counts its foreshortened direction without switching cloth whose yarns
-are still several pixels long across the view. Its
-far weight is 0 at NEAR_PX and above (yarns only), 1 at FAR_PX and below (surface only), smoothstep
-between: the blend band (a crossing beside one behind the eye counts as 0 px: weight 1). Crossings
-outside the view keep their own weight, so the band never starts at the edge of the frame. A quad of
-the grid is drawn as surface where its four crossings are at base level (not mass couples), its four
-structural springs are alive and one corner has weight > 0. A yarn segment is left out of the yarn
-mesh where the quads on both its sides are surface and both its ends have weight 1; segments at the
+are still several pixels long across the view. Its far weight is 0 at NEAR_PX and above (yarns
+only), 1 at FAR_PX and below (surface only), smoothstep between: the blend band (a crossing beside
+one behind the eye counts as 0 px: weight 1). Crossings outside the view keep their own weight, so
+the band never starts at the edge of the frame. The surface's quads are blocks of SURFACE_STEP x
+SURFACE_STEP grid cells, drawn where all their crossings are at base level (not mass couples), all
+their structural springs alive and one crossing has weight > 0. A yarn segment is left out of the
+yarn mesh where surface quads lie on both its sides and both its ends have weight 1; segments at the
 border, at a tear or beside a couple stay yarns (the surface covers only half their width).
 In the band both are drawn and split each pixel's MSAA samples between them (gl_SampleMask): the
 surface takes n = floor(w S + dither) of the S samples, the yarns the rest, so the resolved pixel
 is the mix (1 - w) yarns + w surface of two complete pictures (each with its own coverage), with no
 sorting and no overdraw (shaders/band.glsl).
 
-Everything here is NumPy over all crossings of the frame (no Python loop over yarns).
+One numba pass over the grid (projection, footprints, weights, vertices), then NumPy on the blocks; no
+Python loop over yarns or crossings.
 """
 from __future__ import annotations
 
@@ -75,7 +76,8 @@ class FarField:
     weight: np.ndarray
     """Far weight per grid place, (H * W,) float64 in [0, 1]."""
     footprint_px: np.ndarray
-    """Smaller yarn spacing on screen per grid place [px], (H * W,); inf where it has no neighbour."""
+    """Yarn spacing on screen per grid place [px] (module docstring), (H * W,); inf where it has no
+    neighbour."""
     hidden_weft: np.ndarray
     """(H, W - 1) bool: weft links (j, i -> i + 1) drawn by the surface alone."""
     hidden_warp: np.ndarray
@@ -208,9 +210,11 @@ def grid_pass(camera: Camera, image_size: tuple[int, int], centre: np.ndarray, n
 
 
 SURFACE_STEP = 4
-"""Crossings per surface quad side: the surface is drawn over every other crossing (a quarter of the
-triangles). A quad then spans at most 2 x NEAR_PX pixels, where the cloth's curvature between its
-corners is well under a pixel, and the weave texture still carries every crossing."""
+"""Grid cells per surface quad side: the surface is drawn over every 4th crossing (a sixteenth of the
+triangles: on llvmpipe a triangle's set-up, not its pixels, was most of the surface's cost; 2 took 117
+ms on the tablecloth, 4 took 49, with the same error). A quad spans at most 4 NEAR_PX pixels, where a
+drape's curvature between its corners stays under a yarn's radius; the weave texture still carries
+every crossing."""
 
 
 def far_field(camera: Camera, image_size: tuple[int, int], centre: np.ndarray, normal: np.ndarray,
