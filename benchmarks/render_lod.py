@@ -1,4 +1,5 @@
-"""Aliasing error against render cost of the yarn representations (docs/rendering.md, "Level of detail").
+"""Aliasing error against render cost of the yarn representations (docs/rendering.md, "Far field: cloth
+under a few pixels", "Error against cost").
 
 For a scene's frames, each representation is drawn at the scene's resolution (scaled by --scales: 0.5,
 1 and 2 halve, keep and double the yarns' footprint in pixels) and compared with a reference of the

@@ -2,8 +2,9 @@
 // surface, each pixel's MSAA samples are split between the two. With far weight w (0: yarns only,
 // 1: surface only), the surface takes the first n = floor(w S + d) of the S samples and the yarns the
 // others; d is a 4 x 4 ordered dither (Bayer) of the pixel, so over a 4 x 4 block the split has 16 S
-// levels. Both draws see the same n (their w agree where they meet), so every sample is drawn by
-// exactly one of them: the resolve gives (1 - w) yarns + w surface, each with its own coverage.
+// levels. Where both draws see the same n, every sample is drawn by exactly one of them and the
+// resolve gives (1 - w) yarns + w surface, each with its own coverage; their w differ a little (the
+// yarns' from their crossings, the surface's over its quads), so a few samples go to both or neither.
 // Needs GL_ARB_sample_shading (gl_SampleMask; core in GL 4.0), enabled by the FAR_BAND define.
 
 uniform int u_samples;            // MSAA samples per pixel (1 without MSAA)

@@ -5,7 +5,7 @@
 // gives each family's colour. The uncovered share is alpha: what lies behind shows through.
 
 uniform float u_light_intensity;
-uniform sampler2D u_weave;       // RG: weft and warp coverage of one weave repeat
+uniform sampler2DArray u_weave;  // per panel layer: weft, warp coverage of one weave repeat, front (RG) and back (BA)
 uniform vec2 u_weave_period;     // crossings per repeat along i and j
 uniform float u_yarn_top_m;      // the yarns' tops above the cloth's middle: radius + thickness / 2
 #ifdef SHADOWS
@@ -19,6 +19,8 @@ in vec3 v_normal;
 in vec2 v_grid;
 in float v_far;
 in vec2 v_share;
+flat in int v_layer;
+flat in int v_back;
 in vec3 v_weft_ambient;
 in vec3 v_weft_key;
 in vec3 v_warp_ambient;
@@ -27,7 +29,8 @@ in vec3 v_warp_key;
 out vec4 f_color;
 
 void main() {
-    vec2 share = texture(u_weave, (v_grid + 0.5) / u_weave_period).rg * v_share;
+    vec4 texel = texture(u_weave, vec3((v_grid + 0.5) / u_weave_period, float(v_layer)));
+    vec2 share = (v_back == 1 ? texel.ba : texel.rg) * v_share;
     float cover = share.x + share.y;
     if (cover > 1.0) {
         share /= cover;

@@ -24,8 +24,10 @@ uniform float u_specular;
 uniform float u_shininess;
 uniform float u_kajiya_weight;
 uniform vec3 u_yarn_colors[32];
-uniform float u_mean_cover;      // the weave texture's mean coverage per family
-uniform sampler2D u_visibility;  // RG: weft and warp shares by view (azimuth, sin elevation)
+uniform vec4 u_mean_cover[16];   // per panel layer: the weave texture's mean weft, warp coverage, front then back
+uniform sampler2DArray u_visibility;  // per panel layer: weft, warp shares by view (azimuth, sin elevation),
+                                      // front (RG) and back (BA)
+uniform int u_layers;
 uniform float u_visibility_rows;
 uniform float u_visibility_columns;
 uniform float u_yarn_diameter_m;
@@ -48,6 +50,8 @@ out vec3 v_normal;               // the cloth normal, towards the eye
 out vec2 v_grid;
 out float v_far;
 out vec2 v_share;                // view factor of the weft and warp shares (1 at normal view)
+flat out int v_layer;            // the panel's weave (texture layer)
+flat out int v_back;             // 1: the eye sees the cloth's back, where the other yarn is on top
 out vec3 v_weft_ambient;         // each family's colour: ambient + key light x (shadow) x key part
 out vec3 v_weft_key;
 out vec3 v_warp_ambient;
@@ -129,18 +133,25 @@ void family(vec3 T, vec3 E, vec3 N, float k, float k_light, vec3 albedo, out vec
 void main() {
     vec3 E = normalize(u_eye - in_position);
     vec3 N = normalize(in_normal);
-    N = dot(N, E) < 0.0 ? -N : N;
+    bool back = dot(N, E) < 0.0;    // the crossing normals point to the front (docs/method.md §5)
+    N = back ? -N : N;
     float kf = family_cover(in_weft_edge, in_warp_edge, E);   // weft yarns run along the weft edge
     float kw = family_cover(in_warp_edge, in_weft_edge, E);
     // the shares this view sees (fraytool.render.weave_visibility): elevation and azimuth from the weft
     vec3 weft_dir = normalize(in_weft_edge - dot(in_weft_edge, N) * N);
     vec3 side = cross(N, weft_dir);
     float azimuth = atan(dot(E, side), dot(E, weft_dir));          // -pi .. pi; the table repeats every pi
+    azimuth = back ? -azimuth : azimuth;                           // from the back, side is -j: turn it back
     float elevation = clamp(dot(E, N), 0.0, 1.0);
-    vec2 seen = texture(u_visibility, vec2(azimuth / 3.14159265 + 0.5 / u_visibility_columns,
-                                           elevation - 0.5 / u_visibility_rows)).rg;   // texel centres: table rows and columns
-    v_share = seen / u_mean_cover;
     int panel = int(in_panel + 0.5);
+    int layer = min(panel, u_layers - 1);
+    vec4 table = texture(u_visibility, vec3(azimuth / 3.14159265 + 0.5 / u_visibility_columns,
+                                            elevation - 0.5 / u_visibility_rows,   // texel centres: rows, columns
+                                            float(layer)));
+    vec4 mean = u_mean_cover[layer];
+    v_share = back ? table.ba / mean.ba : table.rg / mean.rg;
+    v_layer = layer;
+    v_back = back ? 1 : 0;
     vec3 L = u_light_dir;
     float lf = family_cover(in_weft_edge, in_warp_edge, L);    // the same as the light sees it
     float lw = family_cover(in_warp_edge, in_weft_edge, L);

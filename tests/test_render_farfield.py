@@ -148,6 +148,9 @@ def test_surface_leaves_torn_cloth_and_mass_couples_to_the_yarns(flat):
     # the cut's yarns and the border's are yarns: the hidden links are none of theirs
     assert not field.hidden_weft[20:70, cut_i - 1:cut_i + 3].any()
     assert not field.hidden_weft[0].any() and not field.hidden_warp[0].any()
+    # the far border too, beside the leftover cells (95 = 4 x 23 + 3) no quad reaches
+    assert not field.hidden_weft[-4:].any() and not field.hidden_warp[-4:].any()
+    assert not field.hidden_weft[:, -3:].any() and not field.hidden_warp[:, -3:].any()
 
 
 # -- with GL --------------------------------------------------------------------------------------
@@ -165,7 +168,7 @@ def test_far_field_shows_the_families_as_supersampled_tubes_do(gl_ctx, flat, ele
                  weft_color=(0.0, 1.0, 0.0), background=(0.0, 0.0, 1.0), ambient=1.0, light_intensity=0.0,
                  specular=0.0, fill_intensity=0.0, shadows=False, yarn_shape="tube", tube_sides=24)
     far, geom, _ = _draw(gl_ctx, spec, flat, flat.rest, size)
-    assert geom.surface is not None and geom.yarns.far is None or geom.surface.quads > 0
+    assert geom.surface is not None and geom.surface.quads > 0
     ref = _reference(gl_ctx, spec, flat, flat.rest, size)
     middle = (slice(39, 51), slice(50, 110))
 
@@ -174,6 +177,42 @@ def test_far_field_shows_the_families_as_supersampled_tubes_do(gl_ctx, flat, ele
 
     got, want = shares(far), shares(ref)
     assert got == pytest.approx(want, abs=0.03), (got, want)
+
+
+@pytest.fixture(scope="module")
+def twill(tmp_path_factory):
+    """The flat cloth woven as a 3/1 twill: the weft shows on three crossings in four from the front,
+    on one from the back."""
+    path = tmp_path_factory.mktemp("twill") / "flat_twill.toml"
+    path.write_text(FLAT.read_text().replace('weave = "plain"', 'weave = "twill"\ntwill = "3/1"'))
+    return PosedCloth(path)
+
+
+@pytest.mark.parametrize("elevation", [70.0, -70.0, 30.0, -30.0])
+def test_an_uneven_weave_shows_its_own_shares_from_either_side(gl_ctx, twill, elevation, monkeypatch):
+    """A 3/1 twill seen from either side: from its front (below: an "xz" cloth's crossing normals point
+    down, -y) the weft floats over three crossings in four and leads, from its back (above) the warp
+    does. The far field's weft, warp and gap shares against round tubes drawn at 4x, within 0.05."""
+    import fraytool.render.lod as lod
+
+    monkeypatch.setattr(lod, "FACET_PX", 0.05)
+    size = (160, 90)
+    spec = _with(_view(twill.spec, elevation, 30.0, 0.7, size[1]), warp_color=(1.0, 0.0, 0.0),
+                 weft_color=(0.0, 1.0, 0.0), background=(0.0, 0.0, 1.0), ambient=1.0, light_intensity=0.0,
+                 specular=0.0, fill_intensity=0.0, shadows=False, yarn_shape="tube", tube_sides=24)
+    far, geom, _ = _draw(gl_ctx, spec, twill, twill.rest, size)
+    assert geom.surface is not None
+    ref = _reference(gl_ctx, spec, twill, twill.rest, size)
+    middle = (slice(39, 51), slice(50, 110))
+
+    def shares(img):
+        return srgb_to_linear(img[middle].reshape(-1, 3).astype(float).mean(axis=0) / 255.0)
+
+    got, want = shares(far), shares(ref)
+    assert got == pytest.approx(want, abs=0.05), (got, want)
+    front = elevation < 0
+    warp, weft = got[0], got[1]
+    assert (weft > warp + 0.1) if front else (warp > weft + 0.1), got
 
 
 def test_far_field_removes_the_moire_of_a_grazing_weave(gl_ctx, flat):

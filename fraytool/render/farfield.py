@@ -188,8 +188,9 @@ def grid_pass(camera: Camera, image_size: tuple[int, int], centre: np.ndarray, n
               near_px: float = NEAR_PX, far_px: float = FAR_PX):
     """(vertices (H W, SURFACE_FLOATS) float32, footprint [px], on screen, far weight) per grid place.
     centre, normal: (H, W, 3) [m]; exists, panel: (H, W); weft_edge_ok (H, W - 1) / warp_edge_ok
-    (H - 1, W): a structural spring joins the two places. The footprint is the smaller projected
-    spacing to the crossing's yarn neighbours [px] (0 beside a crossing behind the eye: weight 1);
+    (H - 1, W): a structural spring joins the two places. The footprint is the geometric mean of the
+    crossing's smaller projected edge along the weft and along the warp [px] (one direction where it
+    has only one; 0 beside a crossing behind the eye: weight 1);
     the surface vertex's edges are the mean grid edges to those neighbours [m]."""
     Wpx, Hpx = int(image_size[0]), int(image_size[1])
     H, W = exists.shape

@@ -64,7 +64,7 @@ from fraytool.render.farfield import SURFACE_FLOATS
 from fraytool.render.geometry import FrameGeometry
 from fraytool.render.shadow import LightFrame, shadow_footprint
 from fraytool.render.shadow_pass import ShadowPass
-from fraytool.render.weave_texture import coverage_tile, weave_tile
+from fraytool.render.weave_texture import coverage_tile, weave_tiles
 from fraytool.render.weave_visibility import visibility_table
 from fraytool.resources import shader_source
 from fraytool.scene.spec import CameraSpec, RenderSpec
@@ -80,6 +80,8 @@ WEAVE_UNIT = 1
 """Texture unit of the far field's weave texture (the shadow map is unit 0)."""
 VISIBILITY_UNIT = 2
 """Texture unit of the far field's view table (fraytool.render.weave_visibility)."""
+MAX_WEAVE_LAYERS = 16
+"""Panels with a weave of their own in the far field (the rest share the last one's; shaders/farfield.*)."""
 
 GL_SRGB8_ALPHA8 = 0x8C43
 GL_FRAMEBUFFER_SRGB = 0x8DB9
@@ -335,8 +337,8 @@ class Renderer:
             y["u_shininess"].value = r.shininess
             y["u_kajiya_weight"].value = KAJIYA_WEIGHT
             y["u_yarn_colors"].write(srgb_to_linear(self.palette).astype("f4").tobytes())
-            if "u_samples" in y:
-                y["u_samples"].value = max(1, self.samples)
+            if "u_samples" in y:  # (band.glsl shifts 1 by it: at most 31)
+                y["u_samples"].value = min(max(1, self.samples), 31)
         if far:
             f = self._far_prog
             f["u_weave"].value = WEAVE_UNIT
@@ -344,7 +346,10 @@ class Renderer:
             f["u_visibility_rows"].value = float(self._visibility.height)
             f["u_visibility_columns"].value = float(self._visibility.width)
             f["u_weave_period"].value = self._weave_period
-            f["u_mean_cover"].value = self._mean_cover
+            f["u_layers"].value = int(len(self._mean_cover))
+            means = np.ones((MAX_WEAVE_LAYERS, 4), dtype="f4")
+            means[:len(self._mean_cover)] = self._mean_cover
+            f["u_mean_cover"].write(means.tobytes())
             f["u_yarn_diameter_m"].value = 2.0 * float(radius)
             if "u_yarn_top_m" in f:
                 f["u_yarn_top_m"].value = float(radius) + 0.5 * self._thickness_m
@@ -372,27 +377,34 @@ class Renderer:
         self._set_uniforms(render)
 
     def _weave_textures(self, ctx: moderngl.Context, r: RenderSpec, topology: Mapping[str, np.ndarray]):
-        """The far field's textures: the mipmapped weave coverage (fraytool.render.weave_texture), its
-        mean coverage per family, its repeat (crossings along i, j), and the view table
-        (fraytool.render.weave_visibility) scaled to agree with the texture's mean straight above."""
+        """The far field's textures, one layer per panel (fraytool.render.weave_texture.weave_tiles), each
+        RGBA: weft and warp seen from the front, then from the back (where the other yarn is on top):
+        the mipmapped weave coverage (fraytool.render.weave_texture), and the view table
+        (fraytool.render.weave_visibility) scaled to agree with the coverage straight above, family by
+        family. Returns (coverage array, mean coverage per layer (P, 4), repeat (i, j), view table array)."""
         radius = r.yarn_radius_m if r.yarn_radius_m > 0 else 0.5 * self._thickness_m
         spacing = float(np.asarray(topology.get("spacing_m", 1.0)).item())
-        tile = weave_tile(topology)
-        data = coverage_tile(tile, 2.0 * radius / spacing)
-        tex = ctx.texture((data.shape[1], data.shape[0]), 2, np.ascontiguousarray(data).tobytes())
+        tiles = weave_tiles(topology)[:MAX_WEAVE_LAYERS]
+        cover = 2.0 * radius / spacing
+        data = np.stack([np.concatenate([coverage_tile(t, cover), coverage_tile(~t, cover)], axis=-1) for t in tiles])
+        py, px = tiles.shape[1:]
+        tex = ctx.texture_array((data.shape[2], data.shape[1], data.shape[0]), 4, np.ascontiguousarray(data).tobytes())
         tex.build_mipmaps()
         tex.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
         tex.anisotropy = 1.0  # trilinear: 16x anisotropic filtering tripled the surface's cost on llvmpipe
         tex.repeat_x = tex.repeat_y = True
-        mean = np.maximum(data.reshape(-1, 2).mean(axis=0) / 255.0, 1e-6)
-        table = visibility_table(tile, radius, spacing, self._thickness_m)
-        table = table * (mean / np.maximum(table[-1].mean(axis=0), 1e-6))
-        vis = ctx.texture((table.shape[1], table.shape[0]), 2, np.ascontiguousarray(table, dtype="f4").tobytes(),
-                          dtype="f4")
+        mean = np.maximum(data.reshape(len(tiles), -1, 4).mean(axis=1) / 255.0, 1e-6)      # (P, 4)
+        tables = []
+        for t, m in zip(tiles, mean):
+            sides = [visibility_table(side, radius, spacing, self._thickness_m) for side in (t, ~t)]
+            table = np.concatenate(sides, axis=-1)                                        # (E, A, 4)
+            tables.append(table * (m / np.maximum(table[-1].mean(axis=0), 1e-6)))
+        table = np.ascontiguousarray(np.stack(tables), dtype="f4")                       # (P, E, A, 4)
+        vis = ctx.texture_array((table.shape[2], table.shape[1], table.shape[0]), 4, table.tobytes(), dtype="f4")
         vis.filter = (moderngl.LINEAR, moderngl.LINEAR)
         vis.repeat_x = True                              # azimuth: a view and its opposite are alike
         vis.repeat_y = False
-        return tex, float(mean.mean()), (float(tile.shape[1]), float(tile.shape[0])), vis
+        return tex, mean, (float(px), float(py)), vis
 
     # -- per frame ----------------------------------------------------------------------------
     def _upload_yarns(self, geom: FrameGeometry) -> None:

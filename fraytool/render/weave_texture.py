@@ -65,25 +65,46 @@ def coverage_tile(on_top_tile: np.ndarray, cover: float, texels: int = TEXELS_PE
     return np.round(np.stack([r, g], axis=-1) * 255.0).astype(np.uint8)
 
 
-def weave_tile(topology: Mapping[str, np.ndarray]) -> np.ndarray:
-    """The on-top pattern's repeat of the cloth, (py, px) bool (the plain weave's if it has none)."""
+def weave_tiles(topology: Mapping[str, np.ndarray]) -> np.ndarray:
+    """Each panel's on-top repeat on one common period, (P, py, px) bool, True where the weft is on
+    top seen from the front (the side the crossing normals point to), phased on the full grid (the
+    texture is looked up by grid place). A panel with no repeat of at most MAX_PERIOD, or periods
+    whose common multiple is longer, is drawn with the plain weave's."""
+    from math import lcm
+
     from fraytool.render.yarns import crossing_places
 
+    plain = np.array([[True, False], [False, True]])
     W = int(np.asarray(topology["warp_yarns"]).item())
     H = int(np.asarray(topology["weft_yarns"]).item())
     if "crossing_weft_on_top" not in topology:
-        return np.array([[True, False], [False, True]])
+        return plain[None]
     places = crossing_places(topology)
-    grid = np.zeros(H * W, dtype=bool)
-    exists = np.zeros(H * W, dtype=bool)
-    grid[places] = np.asarray(topology["crossing_weft_on_top"], dtype=bool)
-    exists[places] = True
-    grid, exists = grid.reshape(H, W), exists.reshape(H, W)
-    period = weave_period(grid, exists)
-    if period is None:
-        return np.array([[True, False], [False, True]])
-    py, px = period
-    tile = np.zeros((py, px), dtype=bool)
-    jj, ii = np.nonzero(exists)
-    tile[jj % py, ii % px] = grid[jj, ii]
-    return tile
+    on_top = np.asarray(topology["crossing_weft_on_top"], dtype=bool)
+    panel = np.asarray(topology["crossing_panel"]) if "crossing_panel" in topology else np.zeros(places.size, np.int64)
+    count = int(panel.max(initial=0)) + 1
+    periods, grids = [], []
+    for p in range(count):
+        grid = np.zeros(H * W, dtype=bool)
+        exists = np.zeros(H * W, dtype=bool)
+        mine = panel == p
+        grid[places[mine]] = on_top[mine]
+        exists[places[mine]] = True
+        grid, exists = grid.reshape(H, W), exists.reshape(H, W)
+        periods.append(weave_period(grid, exists) if exists.any() else (2, 2))
+        grids.append((grid, exists))
+    good = [q for q in periods if q is not None]
+    py = lcm(*(q[0] for q in good)) if good else 2
+    px = lcm(*(q[1] for q in good)) if good else 2
+    if py > MAX_PERIOD or px > MAX_PERIOD:
+        py, px = 2, 2
+        periods = [None] * count
+    tiles = np.zeros((count, py, px), dtype=bool)
+    for p, ((grid, exists), period) in enumerate(zip(grids, periods)):
+        if period is None or not exists.any():
+            tiles[p] = np.tile(plain, (py // 2, px // 2)) if py % 2 == 0 and px % 2 == 0 else \
+                (np.add.outer(np.arange(py), np.arange(px)) % 2 == 0)
+            continue
+        jj, ii = np.nonzero(exists)
+        tiles[p, jj % py, ii % px] = grid[jj, ii]
+    return tiles
