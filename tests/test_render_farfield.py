@@ -155,27 +155,34 @@ def test_surface_leaves_torn_cloth_and_mass_couples_to_the_yarns(flat):
 
 # -- with GL --------------------------------------------------------------------------------------
 
-@pytest.mark.parametrize("elevation, azimuth", [(90.0, 0.0), (35.0, 0.0), (15.0, 0.0), (15.0, 20.0), (35.0, 60.0)])
-def test_far_field_shows_the_families_as_supersampled_tubes_do(gl_ctx, flat, elevation, azimuth, monkeypatch):
-    """With pure red warp, green weft, blue background and only ambient light, the colour of a pixel is
-    the share of each family and of the gap: the far field (yarns about 0.7 px apart) against round tubes
-    (24 sides: the level of detail's facet limit lifted) drawn at 4x and box-filtered, mid-frame."""
+def _shares(ctx, pc, elevation: float, azimuth: float, monkeypatch):
+    """(far field, reference) shares of warp, weft and gap mid-frame: pure red warp, green weft, blue
+    background, ambient light only, so a pixel's linear colour is the share of each; the far field
+    with yarns about 0.7 px apart, the reference round tubes (24 sides: the level of detail's facet
+    limit lifted) drawn at 4x and box-filtered."""
     import fraytool.render.lod as lod
 
     monkeypatch.setattr(lod, "FACET_PX", 0.05)
     size = (160, 90)
-    spec = _with(_view(flat.spec, elevation, azimuth, 0.7, size[1]), warp_color=(1.0, 0.0, 0.0),
+    spec = _with(_view(pc.spec, elevation, azimuth, 0.7, size[1]), warp_color=(1.0, 0.0, 0.0),
                  weft_color=(0.0, 1.0, 0.0), background=(0.0, 0.0, 1.0), ambient=1.0, light_intensity=0.0,
                  specular=0.0, fill_intensity=0.0, shadows=False, yarn_shape="tube", tube_sides=24)
-    far, geom, _ = _draw(gl_ctx, spec, flat, flat.rest, size)
+    far, geom, _ = _draw(ctx, spec, pc, pc.rest, size)
     assert geom.surface is not None and geom.surface.quads > 0
-    ref = _reference(gl_ctx, spec, flat, flat.rest, size)
+    ref = _reference(ctx, spec, pc, pc.rest, size)
     middle = (slice(39, 51), slice(50, 110))
 
     def shares(img):
         return srgb_to_linear(img[middle].reshape(-1, 3).astype(float).mean(axis=0) / 255.0)
 
-    got, want = shares(far), shares(ref)
+    return shares(far), shares(ref)
+
+
+@pytest.mark.parametrize("elevation, azimuth", [(90.0, 0.0), (35.0, 0.0), (15.0, 0.0), (15.0, 20.0), (35.0, 60.0)])
+def test_far_field_shows_the_families_as_supersampled_tubes_do(gl_ctx, flat, elevation, azimuth, monkeypatch):
+    """A plain weave from straight above down to 15 degrees: the far field's warp, weft and gap shares
+    are the round tubes', within 0.03 (_shares)."""
+    got, want = _shares(gl_ctx, flat, elevation, azimuth, monkeypatch)
     assert got == pytest.approx(want, abs=0.03), (got, want)
 
 
@@ -192,27 +199,11 @@ def twill(tmp_path_factory):
 def test_an_uneven_weave_shows_its_own_shares_from_either_side(gl_ctx, twill, elevation, monkeypatch):
     """A 3/1 twill seen from either side: from its front (below: an "xz" cloth's crossing normals point
     down, -y) the weft floats over three crossings in four and leads, from its back (above) the warp
-    does. The far field's weft, warp and gap shares against round tubes drawn at 4x, within 0.05."""
-    import fraytool.render.lod as lod
-
-    monkeypatch.setattr(lod, "FACET_PX", 0.05)
-    size = (160, 90)
-    spec = _with(_view(twill.spec, elevation, 30.0, 0.7, size[1]), warp_color=(1.0, 0.0, 0.0),
-                 weft_color=(0.0, 1.0, 0.0), background=(0.0, 0.0, 1.0), ambient=1.0, light_intensity=0.0,
-                 specular=0.0, fill_intensity=0.0, shadows=False, yarn_shape="tube", tube_sides=24)
-    far, geom, _ = _draw(gl_ctx, spec, twill, twill.rest, size)
-    assert geom.surface is not None
-    ref = _reference(gl_ctx, spec, twill, twill.rest, size)
-    middle = (slice(39, 51), slice(50, 110))
-
-    def shares(img):
-        return srgb_to_linear(img[middle].reshape(-1, 3).astype(float).mean(axis=0) / 255.0)
-
-    got, want = shares(far), shares(ref)
+    does. The far field's shares against round tubes drawn at 4x, within 0.05 (_shares)."""
+    got, want = _shares(gl_ctx, twill, elevation, 30.0, monkeypatch)
     assert got == pytest.approx(want, abs=0.05), (got, want)
-    front = elevation < 0
     warp, weft = got[0], got[1]
-    assert (weft > warp + 0.1) if front else (warp > weft + 0.1), got
+    assert (weft > warp + 0.1) if elevation < 0 else (warp > weft + 0.1), got
 
 
 def test_far_field_removes_the_moire_of_a_grazing_weave(gl_ctx, flat):
