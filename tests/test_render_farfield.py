@@ -94,6 +94,41 @@ def test_footprint_seen_head_on_is_the_spacing_in_pixels(flat):
     assert field.footprint_px[centre] == pytest.approx(want, rel=0.02)
 
 
+def test_footprint_at_a_grazing_view_is_the_mean_of_both_directions(flat):
+    """Seen at 20 degrees along the weft, a crossing's weft edge is foreshortened by sin(20) and its warp
+    edge is not: the footprint is their geometric mean, s ppm sqrt(sin 20), with ppm at its distance."""
+    H = 90
+    spec = _view(flat.spec, 20.0, 0.0, 2.0, H)
+    cam = Camera(spec.camera)
+    b = GeometryBuilder(flat.topology, YarnStyle.from_spec(spec.render, flat.topology), cam, H, image_width=160)
+    field = b.far_field(flat.rest)
+    d = float(np.linalg.norm(np.asarray(spec.camera.position_m)))
+    ppm = H / (2.0 * d * math.tan(math.radians(spec.camera.fov_deg) / 2.0))
+    want = flat.spec.cloth.spacing_m * ppm * math.sqrt(math.sin(math.radians(20.0)))
+    centre = (flat.H // 2) * flat.W + flat.W // 2
+    assert field.footprint_px[centre] == pytest.approx(want, rel=0.05)
+
+
+def test_each_panel_keeps_its_own_weave():
+    """seam_rip sews a plain panel to a twill one: the far field's weave layers are the two patterns,
+    each as the topology has it at every crossing of its panel."""
+    from fraytool.render.weave_texture import weave_tiles
+    from fraytool.render.yarns import crossing_places
+    from fraytool.scene import load_scene
+    from fraytool.sim.builder import build_model
+
+    topo = build_model(load_scene(Path(__file__).parent.parent / "scenes" / "seam_rip.toml")).arrays()
+    tiles = weave_tiles(topo)
+    assert tiles.shape[0] == 2
+    W = int(np.asarray(topo["warp_yarns"]).item())
+    jj, ii = np.divmod(crossing_places(topo), W)
+    panel = np.asarray(topo["crossing_panel"])
+    on_top = np.asarray(topo["crossing_weft_on_top"], bool)
+    py, px = tiles.shape[1:]
+    assert np.array_equal(tiles[panel, jj % py, ii % px], on_top)
+    assert not np.array_equal(tiles[0], tiles[1])
+
+
 def test_coverage_texture_holds_the_weaves_analytic_coverage():
     for a in (0.4, 0.65, 0.9):
         tile = coverage_tile(PLAIN, a).astype(float) / 255.0
