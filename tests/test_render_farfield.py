@@ -80,33 +80,30 @@ def test_band_weight_is_zero_above_one_below_and_smooth_between():
     assert (np.diff(band_weight(x)) <= 0).all()
 
 
-def test_footprint_seen_head_on_is_the_spacing_in_pixels(flat):
-    """Straight above, the centre crossing's footprint is spacing x H / (2 d tan(fov / 2))."""
-    H = 90
-    spec = _view(flat.spec, 90.0, 0.0, 1.7, H)
-    cam = Camera(spec.camera)
-    b = GeometryBuilder(flat.topology, YarnStyle.from_spec(spec.render, flat.topology), cam, H, image_width=160)
+def _centre_footprint(flat, elevation: float, azimuth: float, footprint: float, H: int = 90):
+    """(the centre crossing's footprint [px], spacing in pixels at its distance by the projection's own
+    arithmetic, spacing x H / (2 d tan(fov / 2)))."""
+    spec = _view(flat.spec, elevation, azimuth, footprint, H)
+    b = GeometryBuilder(flat.topology, YarnStyle.from_spec(spec.render, flat.topology), Camera(spec.camera), H,
+                        image_width=160)
     field = b.far_field(flat.rest)
     d = float(np.linalg.norm(np.asarray(spec.camera.position_m)))
-    want = flat.spec.cloth.spacing_m * H / (2.0 * d * math.tan(math.radians(spec.camera.fov_deg) / 2.0))
-    centre = (flat.H // 2) * flat.W + flat.W // 2
-    assert want == pytest.approx(1.7)
-    assert field.footprint_px[centre] == pytest.approx(want, rel=0.02)
+    spacing_px = flat.spec.cloth.spacing_m * H / (2.0 * d * math.tan(math.radians(spec.camera.fov_deg) / 2.0))
+    return float(field.footprint_px[(flat.H // 2) * flat.W + flat.W // 2]), spacing_px
+
+
+def test_footprint_seen_head_on_is_the_spacing_in_pixels(flat):
+    """Straight above, the centre crossing's footprint is its spacing in pixels."""
+    got, spacing_px = _centre_footprint(flat, 90.0, 0.0, 1.7)
+    assert spacing_px == pytest.approx(1.7)
+    assert got == pytest.approx(spacing_px, rel=0.02)
 
 
 def test_footprint_at_a_grazing_view_is_the_mean_of_both_directions(flat):
     """Seen at 20 degrees along the weft, a crossing's weft edge is foreshortened by sin(20) and its warp
-    edge is not: the footprint is their geometric mean, s ppm sqrt(sin 20), with ppm at its distance."""
-    H = 90
-    spec = _view(flat.spec, 20.0, 0.0, 2.0, H)
-    cam = Camera(spec.camera)
-    b = GeometryBuilder(flat.topology, YarnStyle.from_spec(spec.render, flat.topology), cam, H, image_width=160)
-    field = b.far_field(flat.rest)
-    d = float(np.linalg.norm(np.asarray(spec.camera.position_m)))
-    ppm = H / (2.0 * d * math.tan(math.radians(spec.camera.fov_deg) / 2.0))
-    want = flat.spec.cloth.spacing_m * ppm * math.sqrt(math.sin(math.radians(20.0)))
-    centre = (flat.H // 2) * flat.W + flat.W // 2
-    assert field.footprint_px[centre] == pytest.approx(want, rel=0.05)
+    edge is not: the footprint is their geometric mean, spacing x sqrt(sin 20) in pixels."""
+    got, spacing_px = _centre_footprint(flat, 20.0, 0.0, 2.0)
+    assert got == pytest.approx(spacing_px * math.sqrt(math.sin(math.radians(20.0))), rel=0.05)
 
 
 def test_each_panel_keeps_its_own_weave():
