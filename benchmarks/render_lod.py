@@ -88,6 +88,8 @@ def main(argv=None) -> None:
     ap.add_argument("--modes", default="ribbon,far_field")
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--save", default=None)
+    ap.add_argument("--ref-factor", type=int, default=None,
+                    help="supersampling of the reference per axis (default: REF_FACTOR times the scene's size)")
     ap.add_argument("--far-field-px", type=float, default=None,
                     help="middle of the blend band [px] (default: the scene's [render] far_field_px)")
     ap.add_argument("--render-set", action="append", default=[], metavar="KEY=VALUE",
@@ -117,7 +119,7 @@ def main(argv=None) -> None:
             record = store.load_frame(frame)
             # the reference is always the 1x frame's REF_FACTOR x (5120x2880 for a 1280x720 scene):
             # 8x for the half-size frame, 2x for the double-size one
-            factor = max(2, int(round(REF_FACTOR / scale)))
+            factor = args.ref_factor or max(2, int(round(REF_FACTOR / scale)))
             ref = reference(spec, topology, record, (W, H), spec.render.samples, factor)
             if save:
                 from PIL import Image
