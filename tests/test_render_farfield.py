@@ -302,3 +302,34 @@ def test_a_dolly_through_the_band_does_not_pop(gl_ctx, flat):
 
     with_band, yarns_only = largest_step(True), largest_step(False)
     assert with_band <= yarns_only * 1.05, (with_band, yarns_only)
+
+
+def test_sewn_panels_far_away_keep_their_seam_and_colours(gl_ctx):
+    """seam_rip's two panels (plain and twill, each its own colours) and the seam between them, drawn at
+    160x90 where their yarns are about a pixel apart: each panel is surface, the stitches stay yarns,
+    and the frame agrees with the same frame drawn with yarns only at 4x (blurred RMS within 6 levels,
+    under the yarns' own error at 1x)."""
+    pc = PosedCloth(Path(__file__).parent.parent / "scenes" / "seam_rip.toml")
+    size = (160, 90)
+    spec = pc.spec
+    far, geom, _ = _draw(gl_ctx, spec, pc, pc.rest, size)
+    assert geom.surface is not None and geom.surface.quads > 0
+    panel = np.asarray(pc.topology["crossing_panel"])
+    corners = np.unique(geom.surface.triangles)
+    from fraytool.render.yarns import crossing_places
+
+    place_panel = np.full(pc.W * pc.H, -1)
+    place_panel[crossing_places(pc.topology)] = panel
+    assert set(place_panel[corners]) == {0, 1}                 # both panels drawn as surface
+    from fraytool.kinds import STITCH
+    from fraytool.render.yarns import yarn_pieces
+
+    field = geom.surface
+    pieces = yarn_pieces(pc.topology, pc.rest.particle_position_m, pc.rest.crossing_yarn_level, pc.rest.spring_alive,
+                         hidden=(field.hidden_weft, field.hidden_warp))
+    live_stitches = int(((np.asarray(pc.topology["spring_kind"]) == STITCH) & pc.rest.spring_alive).sum())
+    assert live_stitches > 0 and int((pieces.yarn == -1).sum()) == live_stitches   # every stitch a yarn piece
+    ref = _reference(gl_ctx, spec, pc, pc.rest, size)
+    yarns, _, _ = _draw(gl_ctx, _with(spec, far_field=False), pc, pc.rest, size)
+    e_far, e_yarns = blurred_rms(far, ref), blurred_rms(yarns, ref)
+    assert e_far <= 6.0 and e_far < e_yarns, (e_far, e_yarns)
