@@ -92,10 +92,25 @@ class FarField:
         return int(self.triangles.shape[0] // 2)
 
 
-def band_weight(footprint_px: np.ndarray, near_px: float = NEAR_PX, far_px: float = FAR_PX) -> np.ndarray:
-    """Far weight of a footprint: 0 at near_px and above, 1 at far_px and below, smoothstep between."""
-    t = np.clip((near_px - np.asarray(footprint_px, dtype=np.float64)) / (near_px - far_px), 0.0, 1.0)
+@numba.njit(cache=True, inline="always")
+def _band(f, near_px, far_px):  # pragma: no cover - numba
+    t = min(max((near_px - f) / (near_px - far_px), 0.0), 1.0)
     return t * t * (3.0 - 2.0 * t)
+
+
+@numba.njit(cache=True)
+def _bands(footprint, near_px, far_px, weight_out):  # pragma: no cover - numba
+    for k in range(footprint.shape[0]):
+        weight_out[k] = _band(footprint[k], near_px, far_px)
+
+
+def band_weight(footprint_px: np.ndarray, near_px: float = NEAR_PX, far_px: float = FAR_PX) -> np.ndarray:
+    """Far weight of a footprint: 0 at near_px and above, 1 at far_px and below, smoothstep between
+    (the grid pass's own rule)."""
+    f = np.ascontiguousarray(np.atleast_1d(footprint_px), dtype=np.float64).ravel()
+    out = np.empty_like(f)
+    _bands(f, float(near_px), float(far_px), out)
+    return out.reshape(np.shape(footprint_px))
 
 
 @numba.njit(cache=True)
@@ -168,8 +183,7 @@ def _grid_pass(centre, normal, exists, panel, weft_ok, warp_ok, view, vertices_o
             else:
                 f = min(fi, fj)
             footprint_out[k] = f
-            t = min(max((near_px - f) / (near_px - far_px), 0.0), 1.0)
-            w = t * t * (3.0 - 2.0 * t) if exists[j, i] else 0.0
+            w = _band(f, near_px, far_px) if exists[j, i] else 0.0
             weight_out[k] = w
             v = vertices_out[k]
             v[0], v[1], v[2] = centre[j, i, 0], centre[j, i, 1], centre[j, i, 2]
