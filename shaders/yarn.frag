@@ -30,7 +30,10 @@ uniform vec3 u_fill_dir;
 // the tube at P + r sqrt(1 - v^2) / sin(theta) E (E towards the eye, theta between E and the yarn),
 // where the tube's normal is v S + sqrt(1 - v^2) V (V: E square to the yarn, normalised): the normal
 // shades the pixel, the point is looked up in the shadow map and its depth is written, so the strip
-// draws as the round tube.
+// draws as the round tube. The depth is one per pixel for all its samples (gl_FragDepth), so it is
+// found at the centroid of the samples the strip covers, not at the pixel's centre: at the strip's
+// edge the centre lies outside it (|v| > 1, the tube's deepest, its axis), and the yarn behind took
+// the samples the strip covers there, a rim of the other family around every yarn's silhouette.
 uniform mat4 u_view_proj;
 uniform vec3 u_eye;
 uniform float u_yarn_radius;     // [m]
@@ -52,19 +55,29 @@ in float v_far;
 
 out vec4 f_color;
 
-void main() {
 #ifdef RIBBON
-    vec3 T = normalize(v_tangent);
-    vec3 E = normalize(u_eye - v_position);
+// The point where the ray through `position` (on the strip, `across` = v S there) enters the tube,
+// and the tube's normal there, not normalised (module comment above).
+vec3 tube_entry(vec3 position, vec3 across, vec3 tangent, out vec3 n) {
+    vec3 T = normalize(tangent);
+    vec3 E = normalize(u_eye - position);
     vec3 across_view = E - dot(E, T) * T;          // length sin(theta)
     float sin_theta = max(length(across_view), 0.2); // looking (nearly) along the yarn: bounded
-    vec3 V = across_view / sin_theta;
-    float v2 = min(dot(v_normal, v_normal), 1.0);
-    float bulge = sqrt(1.0 - v2);
-    vec3 n = v_normal + bulge * V;
-    vec3 N = dot(n, n) > 1e-12 ? normalize(n) : E;  // a yarn seen exactly end-on: face the eye
-    vec3 surface = v_position + (u_yarn_radius * bulge / sin_theta) * E;
-    vec4 clip = u_view_proj * vec4(surface, 1.0);
+    float bulge = sqrt(1.0 - min(dot(across, across), 1.0));
+    n = across + bulge * (across_view / sin_theta);
+    return position + (u_yarn_radius * bulge / sin_theta) * E;
+}
+#endif
+
+void main() {
+#ifdef RIBBON
+    vec3 n;
+    vec3 surface = tube_entry(v_position, v_normal, v_tangent, n);
+    vec3 N = dot(n, n) > 1e-12 ? normalize(n) : normalize(u_eye - v_position);  // seen exactly end-on: face the eye
+    vec3 unused;
+    vec3 covered = tube_entry(interpolateAtCentroid(v_position), interpolateAtCentroid(v_normal),
+                              interpolateAtCentroid(v_tangent), unused);
+    vec4 clip = u_view_proj * vec4(covered, 1.0);
     gl_FragDepth = clamp(0.5 * clip.z / clip.w + 0.5, 0.0, 1.0);
 #else
     vec3 N = normalize(v_normal);

@@ -65,7 +65,7 @@ from fraytool.render.geometry import FrameGeometry
 from fraytool.render.shadow import LightFrame, shadow_footprint
 from fraytool.render.shadow_pass import ShadowPass
 from fraytool.render.weave_texture import coverage_tile, weave_tiles
-from fraytool.render.weave_visibility import visibility_table
+from fraytool.render.weave_visibility import NORMAL_BINS, view_tables
 from fraytool.resources import shader_source
 from fraytool.scene.spec import CameraSpec, RenderSpec
 
@@ -80,6 +80,10 @@ WEAVE_UNIT = 1
 """Texture unit of the far field's weave texture (the shadow map is unit 0)."""
 VISIBILITY_UNIT = 2
 """Texture unit of the far field's view table (fraytool.render.weave_visibility)."""
+VISIBILITY_LAYERS = 1 + 2 * 2 * 2 * NORMAL_BINS // 4
+"""Layers of the view table per panel: the shares, then the seen normals of the front's weft, its warp,
+the back's weft and warp, each their shares per bin and their mean part along the yarn, NORMAL_BINS / 4
+RGBA layers each (fraytool.render.weave_visibility; shaders/farfield.vert holds the same layout)."""
 MAX_WEAVE_LAYERS = 16
 """Panels with a weave of their own in the far field (the rest share the last one's; shaders/farfield.*)."""
 
@@ -124,6 +128,8 @@ def _preprocess(source: str, defines: tuple[str, ...]) -> str:
             if stripped.startswith("#version"):
                 if "FAR_BAND" in defines:  # gl_SampleMask (band.glsl): core only from GLSL 4.00
                     out.append("#extension GL_ARB_sample_shading : require\n")
+                if "RIBBON" in defines:  # interpolateAtCentroid (yarn.frag): core only from GLSL 4.00
+                    out.append("#extension GL_ARB_gpu_shader5 : require\n")
                 out += [f"#define {d} 1\n" for d in defines]
     return "".join(out)
 
@@ -394,12 +400,16 @@ class Renderer:
         tex.anisotropy = 1.0  # trilinear: 16x anisotropic filtering tripled the surface's cost on llvmpipe
         tex.repeat_x = tex.repeat_y = True
         mean = np.maximum(data.reshape(len(tiles), -1, 4).mean(axis=1) / 255.0, 1e-6)      # (P, 4)
-        tables = []
+        layers = []
         for t, m in zip(tiles, mean):
-            sides = [visibility_table(side, radius, spacing, self._thickness_m) for side in (t, ~t)]
-            table = np.concatenate(sides, axis=-1)                                        # (E, A, 4)
-            tables.append(table * (m / np.maximum(table[-1].mean(axis=0), 1e-6)))
-        table = np.ascontiguousarray(np.stack(tables), dtype="f4")                       # (P, E, A, 4)
+            sides = [view_tables(side, radius, spacing, self._thickness_m) for side in (t, ~t)]
+            table = np.concatenate([shares for shares, _ in sides], axis=-1)                  # (E, A, 4)
+            layers.append(table * (m / np.maximum(table[-1].mean(axis=0), 1e-6)))
+            for _, normals in sides:                          # (E, A, 2, 2, bins): share, along; weft, warp
+                for family in range(2):
+                    layers += [normals[:, :, part, family, q:q + 4] for part in range(2)
+                               for q in range(0, NORMAL_BINS, 4)]
+        table = np.ascontiguousarray(np.stack(layers), dtype="f4")      # (P x VISIBILITY_LAYERS, E, A, 4)
         vis = ctx.texture_array((table.shape[2], table.shape[1], table.shape[0]), 4, table.tobytes(), dtype="f4")
         vis.filter = (moderngl.LINEAR, moderngl.LINEAR)
         vis.repeat_x = True                              # azimuth: a view and its opposite are alike
