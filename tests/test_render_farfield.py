@@ -390,3 +390,54 @@ def test_sewn_panels_far_away_keep_their_seam_and_colours(gl_ctx):
     yarns, _, _ = _draw(gl_ctx, _with(spec, far_field=False), pc, pc.rest, size)
     e_far, e_yarns = blurred_rms(far, ref), blurred_rms(yarns, ref)
     assert e_far <= 6.0 and e_far < e_yarns, (e_far, e_yarns)
+
+
+def test_a_seam_ripping_far_away_keeps_its_tear_in_yarns(gl_ctx):
+    """seam_rip far away (160x90) with its seam half ripped: half the stitches dead, the structural
+    springs beside them cut and those crossings at yarn level (and 40 couples elsewhere). The dead stitches are not drawn, every live one
+    is a yarn piece, no surface quad holds a yarn-level crossing or both ends of a cut spring, the torn
+    yarns fade out, and the frame still agrees with the same frame drawn with yarns only at 4x (blurred
+    RMS within 6 levels, under the yarns' own error at 1x)."""
+    from fraytool.kinds import STITCH, STRUCT_WARP, STRUCT_WEFT
+    from fraytool.render.yarns import crossing_places, yarn_pieces
+
+    pc = PosedCloth(Path(__file__).parent.parent / "scenes" / "seam_rip.toml")
+    topo = pc.topology
+    kind = np.asarray(topo["spring_kind"])
+    a, b = np.asarray(topo["spring_crossing_a"]), np.asarray(topo["spring_crossing_b"])
+    rec = pc.copy()
+    stitches = np.flatnonzero(kind == STITCH)
+    ripped = stitches[: len(stitches) // 2]
+    rec.spring_alive[ripped] = False
+    torn = np.unique(np.concatenate([a[ripped], b[ripped]]))
+    rec.crossing_yarn_level[torn] = True
+    structural = np.isin(kind, (STRUCT_WEFT, STRUCT_WARP))
+    cut = np.flatnonzero(structural & (np.isin(a, torn) | np.isin(b, torn)))
+    rec.spring_alive[cut] = False
+    # and, away from the seam, crossings already turned into mass couples with their springs whole
+    rng = np.random.default_rng(3)
+    rec.crossing_yarn_level[rng.choice(np.flatnonzero(~np.isin(np.arange(len(rec.crossing_yarn_level)), torn)),
+                                       40, replace=False)] = True
+    size = (160, 90)
+    far, geom, _ = _draw(gl_ctx, pc.spec, pc, rec, size)
+    field = geom.surface
+    assert field is not None and field.quads > 0
+    places = crossing_places(topo)
+    level_places = places[np.asarray(rec.crossing_yarn_level)]
+    cut_ends = np.stack([places[a[cut]], places[b[cut]]], axis=1)
+    step = round(float(np.abs(np.diff(field.vertices[field.triangles[0], 12])).max()))
+    for corner in field.triangles[0::2, 0]:
+        jq, iq = divmod(int(corner), pc.W)
+        block = np.array([(jq + dj) * pc.W + iq + di for dj in range(step + 1) for di in range(step + 1)])
+        assert not np.isin(level_places, block).any()
+        assert not np.isin(cut_ends, block).all(axis=1).any()
+    pieces = yarn_pieces(topo, rec.particle_position_m, rec.crossing_yarn_level, rec.spring_alive,
+                         hidden=(field.hidden_weft, field.hidden_warp))
+    live = int(((kind == STITCH) & rec.spring_alive).sum())
+    assert 0 < live < len(stitches) and int((pieces.yarn == -1).sum()) == live
+    assert len(geom.yarns.translucent) > 0                      # the cut yarns' broken ends fade
+    assert np.isfinite(far.astype(float)).all()
+    ref = _reference(gl_ctx, pc.spec, pc, rec, size)
+    yarns, _, _ = _draw(gl_ctx, _with(pc.spec, far_field=False), pc, rec, size)
+    e_far, e_yarns = blurred_rms(far, ref), blurred_rms(yarns, ref)
+    assert e_far <= 6.0 and e_far < e_yarns, (e_far, e_yarns)
