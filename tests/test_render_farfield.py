@@ -126,6 +126,61 @@ def test_each_panel_keeps_its_own_weave():
     assert not np.array_equal(tiles[0], tiles[1])
 
 
+def test_a_twill_seamed_to_a_satin_keeps_both_weaves(tmp_path):
+    """seam_rip with a 3/1 twill panel sewn to a 5-shaft satin: the two repeat every 4 and 5 crossings,
+    so the layers share a repeat of 20 (over the old limit of 16, where both panels fell back to the
+    plain weave), each holding its own pattern at every crossing of its panel; the coverage texture
+    keeps 12 texels a crossing (240 a side) and its mean stays the weave's a - a^2/2 per family."""
+    from fraytool.render.weave_texture import texels_per_crossing, weave_tiles
+    from fraytool.render.yarns import crossing_places
+    from fraytool.scene import load_scene
+    from fraytool.sim.builder import build_model
+
+    text = (Path(__file__).parent.parent / "scenes" / "seam_rip.toml").read_text()
+    text = text.replace('weave = "plain"', 'weave = "twill"\ntwill = "3/1"', 1)
+    text = text.replace('weave = "twill"\nwarp_color', 'weave = "satin"\nsatin_shafts = 5\nwarp_color', 1)
+    path = tmp_path / "twill_satin.toml"
+    path.write_text(text)
+    topo = build_model(load_scene(path)).arrays()
+    tiles = weave_tiles(topo)
+    assert tiles.shape == (2, 20, 20)
+    W = int(np.asarray(topo["warp_yarns"]).item())
+    jj, ii = np.divmod(crossing_places(topo), W)
+    panel = np.asarray(topo["crossing_panel"])
+    on_top = np.asarray(topo["crossing_weft_on_top"], bool)
+    assert np.array_equal(tiles[panel, jj % 20, ii % 20], on_top)
+    assert sorted(tiles.reshape(2, -1).mean(axis=1)) == pytest.approx([0.75, 0.8])  # weft over 3 in 4, 4 in 5
+    n = texels_per_crossing(tiles.shape[1:])
+    assert n == 12
+    a = 2 * 0.00065 / 0.002
+    cover = coverage_tile(tiles[1], a, n).astype(float) / 255.0
+    assert cover.shape == (240, 240, 2)
+    assert cover.mean(axis=(0, 1)).sum() == pytest.approx(2 * a - a * a, abs=0.01)
+
+
+def test_a_weave_with_no_short_repeat_is_drawn_yarn_by_yarn(tmp_path):
+    """A weave table repeating every 70 crossings on a 140 x 140 cloth has no repeat the far field can
+    hold (at most 64): weave_tiles says so and the yarn style turns the far field off, rather than
+    drawing the plain weave's coverage; the same cloth woven 4 x 4 keeps it."""
+    from fraytool.render.weave_texture import weave_tiles
+    from fraytool.scene import load_scene
+    from fraytool.sim.builder import build_model
+
+    rng = np.random.default_rng(5)
+    rows = rng.integers(0, 2, size=(70, 70))
+    text = FLAT.read_text().replace("warp_yarns = 96", "warp_yarns = 140").replace("weft_yarns = 96", "weft_yarns = 140")
+    styles = {}
+    for name, table in (("long", rows), ("short", rows[:4, :4])):
+        body = "[" + ", ".join("[" + ", ".join(str(int(v)) for v in r) + "]" for r in table) + "]"
+        path = tmp_path / f"{name}.toml"
+        path.write_text(text.replace('weave = "plain"', f'weave = "table"\ntable = {body}'))
+        spec = load_scene(path)
+        topo = build_model(spec).arrays()
+        styles[name] = (weave_tiles(topo), YarnStyle.from_spec(spec.render, topo))
+    assert styles["long"][0] is None and not styles["long"][1].far_field
+    assert styles["short"][0].shape[1:] == (4, 4) and styles["short"][1].far_field
+
+
 def test_coverage_texture_holds_the_weaves_analytic_coverage():
     for a in (0.4, 0.65, 0.9):
         tile = coverage_tile(PLAIN, a).astype(float) / 255.0

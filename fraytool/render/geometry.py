@@ -21,6 +21,7 @@ from fraytool.render.ribbon import (ribbon_triangles, ribbon_vertices, shadow_ca
                                     translucent_ribbon_triangles)
 from fraytool.render.spline import catmull_rom, polyline_tangents
 from fraytool.render.tube import VERTEX_FLOATS, fade_alpha, sweep_tubes, translucent_triangles, tube_triangles
+from fraytool.render.weave_texture import weave_tiles
 from fraytool.render.wireframe import SpringLines, spring_lines
 from fraytool.render.yarns import YarnPieces, yarn_pieces, yarn_points
 from fraytool.scene.spec import RenderSpec
@@ -48,7 +49,9 @@ class YarnStyle:
     """Direction towards the key light when the render has shadows (ribbons: the shadow pass's strips
     face it), else None (no shadow strips are built)."""
     far_field: bool = False
-    """Draw intact cloth whose yarns are under a few pixels apart as one surface (fraytool.render.farfield)."""
+    """Draw intact cloth whose yarns are under a few pixels apart as one surface (fraytool.render.farfield):
+    the scene's `far_field`, off for a cloth whose weave has no repeat the far field can hold
+    (fraytool.render.weave_texture.weave_tiles)."""
     far_field_px: float = 0.5 * (NEAR_PX + FAR_PX)
     """Middle of the blend band [px of yarn spacing on screen]; the band runs from 2/3 to 4/3 of it."""
 
@@ -64,7 +67,8 @@ class YarnStyle:
             spacing_m=spacing,
             shape=render.yarn_shape,
             light_direction=tuple(float(v) for v in render.light_direction) if render.shadows else None,
-            far_field=render.far_field,
+            # a cloth whose weave has no repeat of at most 64 crossings is drawn yarn by yarn
+            far_field=render.far_field and weave_tiles(topology) is not None,
             far_field_px=render.far_field_px,
         )
 

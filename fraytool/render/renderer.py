@@ -64,7 +64,7 @@ from fraytool.render.farfield import SURFACE_FLOATS
 from fraytool.render.geometry import FrameGeometry
 from fraytool.render.shadow import LightFrame, shadow_footprint
 from fraytool.render.shadow_pass import ShadowPass
-from fraytool.render.weave_texture import coverage_tile, weave_tiles
+from fraytool.render.weave_texture import coverage_tile, texels_per_crossing, weave_tiles
 from fraytool.render.weave_visibility import NORMAL_BINS, view_tables
 from fraytool.resources import shader_source
 from fraytool.scene.spec import CameraSpec, RenderSpec
@@ -390,9 +390,14 @@ class Renderer:
         family. Returns (coverage array, mean coverage per layer (P, 4), repeat (i, j), view table array)."""
         radius = r.yarn_radius_m if r.yarn_radius_m > 0 else 0.5 * self._thickness_m
         spacing = float(np.asarray(topology.get("spacing_m", 1.0)).item())
-        tiles = weave_tiles(topology)[:MAX_WEAVE_LAYERS]
+        tiles = weave_tiles(topology)
+        if tiles is None:  # YarnStyle builds no surface for such a cloth; a style made by hand may
+            tiles = np.array([[[True, False], [False, True]]])   # (it is drawn with plain coverage)
+        tiles = tiles[:MAX_WEAVE_LAYERS]
         cover = 2.0 * radius / spacing
-        data = np.stack([np.concatenate([coverage_tile(t, cover), coverage_tile(~t, cover)], axis=-1) for t in tiles])
+        texels = texels_per_crossing(tiles.shape[1:])
+        data = np.stack([np.concatenate([coverage_tile(t, cover, texels), coverage_tile(~t, cover, texels)], axis=-1)
+                         for t in tiles])
         py, px = tiles.shape[1:]
         tex = ctx.texture_array((data.shape[2], data.shape[1], data.shape[0]), 4, np.ascontiguousarray(data).tobytes())
         tex.build_mipmaps()

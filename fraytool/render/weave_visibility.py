@@ -24,8 +24,9 @@ part is seen.
 
 The yarns are sampled at SAMPLES_PER_SPACING columns per spacing (each column: the span of the weft
 and of the warp yarn there, with the yarn's axis height and offset across it); rays start on a grid
-of the same density over the repeat and march in steps of a tenth of a column until they enter a yarn
-(a hit) or pass below the lowest (a gap). numba, about 0.2 s per table.
+of the same density over the repeat (every k-th column where the repeat is large: at most RAY_BUDGET
+rays per direction) and march in steps of a tenth of a column until they enter a yarn (a hit) or pass
+below the lowest (a gap). numba, about 0.2 s per table.
 """
 from __future__ import annotations
 
@@ -39,6 +40,9 @@ ELEVATIONS = 16
 AZIMUTHS = 16
 """Table columns: azimuth from the weft direction, 0 to 180 degrees (a view and its opposite are alike)."""
 SAMPLES_PER_SPACING = 24
+"""Columns per yarn spacing of the yarn field (a repeat over 16 crossings gets fewer, at least 12)."""
+RAY_BUDGET = 96 * 96
+"""Most rays per direction: a larger repeat (over 4 x 4 crossings) casts from every k-th column."""
 NORMAL_BINS = 8
 """Bins of the seen normal's angle around the yarn (phi in [-90, 90] degrees, module docstring)."""
 
@@ -107,9 +111,10 @@ def _seen_normal(span, iz, ix, family, height, across_eye, along_eye, bins, seen
 
 
 @numba.njit(cache=True)
-def _cast(span, n, sin_elevation, azimuth, bottom, top, normals_out):  # pragma: no cover - numba
+def _cast(span, n, stride, sin_elevation, azimuth, bottom, top, normals_out):  # pragma: no cover - numba
     """(weft, warp) shares of orthographic rays going down at `sin_elevation`, heading `azimuth`
-    [rad] from the weft direction, over one repeat of the yarn field: the first yarn a ray enters;
+    [rad] from the weft direction, over one repeat of the yarn field (a ray from every `stride`-th
+    column each way): the first yarn a ray enters;
     rays that pass below every yarn go through a gap. normals_out (2, 2, bins) receives each family's
     hits per bin of the seen normal (module docstring) as a share of that family's hits ([0, family]),
     and the mean part of those normals along the yarn towards the eye ([1, family])."""
@@ -125,8 +130,10 @@ def _cast(span, n, sin_elevation, azimuth, bottom, top, normals_out):  # pragma:
     hits_weft = 0
     hits_warp = 0
     normals_out[:, :, :] = 0.0
-    for y0 in range(Ny):
-        for x0 in range(Nx):
+    rays = 0
+    for y0 in range(0, Ny, stride):
+        for x0 in range(0, Nx, stride):
+            rays += 1
             # start above the highest yarn, on the ray through this sample's centre on the top plane
             px_ = (x0 + 0.5) / n
             pz_ = (y0 + 0.5) / n
@@ -145,7 +152,7 @@ def _cast(span, n, sin_elevation, azimuth, bottom, top, normals_out):  # pragma:
                 px_ += dx * step
                 pz_ += dz * step
                 py_ += dy * step
-    total = Ny * Nx
+    total = max(rays, 1)
     for f in range(2):
         for b in range(bins):
             normals_out[1, f, b] /= max(normals_out[0, f, b], 1.0)
@@ -154,8 +161,14 @@ def _cast(span, n, sin_elevation, azimuth, bottom, top, normals_out):  # pragma:
     return hits_weft / total, hits_warp / total
 
 
+def samples_per_spacing(tile_shape: tuple[int, int]) -> int:
+    """Yarn-field columns per spacing for a repeat of `tile_shape` crossings: SAMPLES_PER_SPACING, fewer
+    (at least 12) over 16 crossings, so the field stays under 800 x 800 columns."""
+    return max(12, min(SAMPLES_PER_SPACING, 384 // max(tile_shape)))
+
+
 def view_tables(on_top_tile: np.ndarray, radius_m: float, spacing_m: float, thickness_m: float,
-                elevations: int = ELEVATIONS, azimuths: int = AZIMUTHS, samples: int = SAMPLES_PER_SPACING,
+                elevations: int = ELEVATIONS, azimuths: int = AZIMUTHS, samples: int | None = None,
                 bins: int = NORMAL_BINS) -> tuple[np.ndarray, np.ndarray]:
     """(shares, normals): shares (elevations, azimuths, 2) float32, the weft and warp shares seen from
     each table direction; normals (elevations, azimuths, 2, 2, bins) float32: [..., 0, family, :] each
@@ -164,16 +177,18 @@ def view_tables(on_top_tile: np.ndarray, radius_m: float, spacing_m: float, thic
     sin(elevation) = (e + 1) / elevations (the last row straight above); column a: azimuth a /
     azimuths x 180 degrees."""
     tile = np.ascontiguousarray(on_top_tile, dtype=np.bool_)
+    samples = samples_per_spacing(tile.shape) if samples is None else int(samples)
     r = float(radius_m) / float(spacing_m)
     half_t = 0.5 * float(thickness_m) / float(spacing_m)
-    span = _yarn_field(tile, r, half_t, int(samples))
+    span = _yarn_field(tile, r, half_t, samples)
+    stride = max(1, math.ceil(math.sqrt(span.shape[0] * span.shape[1] / RAY_BUDGET)))
     shares = np.zeros((elevations, azimuths, 2), dtype=np.float32)
     normals = np.zeros((elevations, azimuths, 2, 2, bins), dtype=np.float32)
     seen = np.zeros((2, 2, bins))
     for e in range(elevations):
         s = (e + 1.0) / elevations
         for a in range(azimuths):
-            shares[e, a] = _cast(span, int(samples), s, math.pi * a / azimuths, -r - half_t - 1e-6,
+            shares[e, a] = _cast(span, samples, stride, s, math.pi * a / azimuths, -r - half_t - 1e-6,
                                  r + half_t + 1e-6, seen)
             normals[e, a] = seen
     return shares, normals
@@ -186,6 +201,6 @@ def bin_angles(bins: int = NORMAL_BINS) -> np.ndarray:
 
 def visibility_table(on_top_tile: np.ndarray, radius_m: float, spacing_m: float, thickness_m: float,
                      elevations: int = ELEVATIONS, azimuths: int = AZIMUTHS,
-                     samples: int = SAMPLES_PER_SPACING) -> np.ndarray:
+                     samples: int | None = None) -> np.ndarray:
     """The shares of `view_tables` alone: (elevations, azimuths, 2) float32."""
     return view_tables(on_top_tile, radius_m, spacing_m, thickness_m, elevations, azimuths, samples)[0]
