@@ -398,22 +398,34 @@ def test_surface_depth_and_alpha(gl_ctx, flat):
 
 
 def test_a_dolly_through_the_band_does_not_pop(gl_ctx, flat):
-    """A camera moving away until the yarns go from 4 px to 0.9 px apart crosses the blend band; the
-    largest blurred frame-to-frame change is no larger than when the same move is drawn with yarns only
-    (no switch at all)."""
+    """A camera moving away until the yarns go from 4 px to 0.9 px apart crosses the blend band. Each
+    frame-to-frame change is measured beyond the true one, the change of the same two frames drawn at 4x
+    and box-filtered (mean absolute difference of the blurred steps): a pop or a flicker is that excess.
+    With the far field it is at most 1.1 times the yarns-only draw's at every step (the first steps are
+    still all yarns, whose own flicker it inherits), and every frame is nearer its 4x picture than the
+    yarns-only frame is."""
     size = (160, 90)
     footprints = np.geomspace(4.0, 0.9, 14)
 
-    def largest_step(far_field: bool) -> float:
-        frames = []
+    def frames(kind: str) -> list:
+        out = []
         for fp in footprints:
-            spec = _with(_view(flat.spec, 55.0, 30.0, float(fp), size[1]), far_field=far_field)
-            img, _, _ = _draw(gl_ctx, spec, flat, flat.rest, size)
-            frames.append(gaussian_blur(img.astype(float)))
-        return max(float(np.abs(b - a).mean()) for a, b in zip(frames, frames[1:]))
+            spec = _view(flat.spec, 55.0, 30.0, float(fp), size[1])
+            img = _reference(gl_ctx, spec, flat, flat.rest, size) if kind == "ref" else \
+                _draw(gl_ctx, _with(spec, far_field=kind == "band"), flat, flat.rest, size)[0]
+            out.append(gaussian_blur(img.astype(float)))
+        return out
 
-    with_band, yarns_only = largest_step(True), largest_step(False)
-    assert with_band <= yarns_only * 1.05, (with_band, yarns_only)
+    ref, band, yarns = frames("ref"), frames("band"), frames("yarns")
+
+    def excess(f: list) -> np.ndarray:
+        return np.array([np.abs((f[k + 1] - f[k]) - (ref[k + 1] - ref[k])).mean() for k in range(len(f) - 1)])
+
+    def error(f: list) -> np.ndarray:
+        return np.array([np.sqrt(((a - b) ** 2).mean()) for a, b in zip(f, ref)])
+
+    assert (excess(band) <= 1.1 * excess(yarns)).all(), (excess(band), excess(yarns))
+    assert (error(band) <= error(yarns)).all(), (error(band), error(yarns))
 
 
 def test_sewn_panels_far_away_keep_their_seam_and_colours(gl_ctx):
