@@ -94,10 +94,10 @@ MUTATIONS = [
       ("tests/test_magnitudes.py", "tests/test_self_collision.py")),
     # -- rigid contact
     M("rigid contact", "friction limit doubled", "fraytool/sim/kernels/rigid_contact.py",
-      "        limit = friction * (-d)", "        limit = 2.0 * friction * (-d)",
+      "nx, ny, nz, friction * (-d))", "nx, ny, nz, 2.0 * friction * (-d))",
       ("tests/test_rigid_bodies.py", "tests/test_pinned_figures.py")),
     M("rigid contact", "contact margin 10 % thinner", "fraytool/sim/stages/core.py",
-      "bodies_in(m, state), 0.5 * m.thickness_m, dt_s", "bodies_in(m, state), 0.45 * m.thickness_m, dt_s",
+      "bodies_in(m, state, self.collide), 0.5 * m.thickness_m, dt_s", "bodies_in(m, state, self.collide), 0.45 * m.thickness_m, dt_s",
       ("tests/test_rigid_bodies.py", "tests/test_pinned_figures.py")),
     M("rigid contact", "reaction on dynamic bodies halved", "fraytool/sim/rigid.py",
       "state.body_velocity_m_s[dyn] -= body_impulse_ns[dyn] / model.body_mass_kg[dyn, None]",
