@@ -10,8 +10,9 @@
 // Shading: yarn.frag's model (Lambert on the tube normal mixed with Kajiya-Kay's sin(T, L), the
 // Kajiya-Kay highlight faded on the shaded side, the fill light) averaged over the part of each
 // family's yarn the view sees: the same table holds, per view, how the seen normals spread around the
-// yarn (8 bins of the angle phi from the cloth's normal, positive towards the eye's side of the yarn;
-// ray cast as the shares), and the model is evaluated at each bin's normal, weighted by its share.
+// yarn (8 bins of the angle phi from the cloth's normal, positive towards the eye's side of the yarn,
+// and the normals' mean tilt along the yarn where it rises and falls; ray cast as the shares), and
+// the model is evaluated at each bin's normal, weighted by its share.
 // The yarn nearer the light shades all but the upper 1 / k_L of the next as the light sees it (k_L:
 // the family's cover seen from the light), so a grazing light leaves the yarns' flanks in shadow.
 
