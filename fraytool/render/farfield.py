@@ -141,6 +141,17 @@ def _grid_pass(centre, normal, exists, panel, weft_ok, warp_ok, view, vertices_o
             else:
                 sx[j, i] = 0.0
                 sy[j, i] = 0.0
+    # projected length of every grid edge between two crossings ahead of the eye, once each
+    weft_px = np.empty((H, max(W - 1, 0)))
+    for j in range(H):
+        for a in range(W - 1):
+            dx, dy = sx[j, a + 1] - sx[j, a], sy[j, a + 1] - sy[j, a]
+            weft_px[j, a] = np.sqrt(dx * dx + dy * dy)
+    warp_px = np.empty((max(H - 1, 0), W))
+    for b in range(H - 1):
+        for i in range(W):
+            dx, dy = sx[b + 1, i] - sx[b, i], sy[b + 1, i] - sy[b, i]
+            warp_px[b, i] = np.sqrt(dx * dx + dy * dy)
     for j in range(H):
         for i in range(W):
             k = j * W + i
@@ -154,7 +165,7 @@ def _grid_pass(centre, normal, exists, panel, weft_ok, warp_ok, view, vertices_o
                 if a < 0 or a + 1 >= W or not weft_ok[j, a]:
                     continue
                 if ahead[j, a] and ahead[j, a + 1]:
-                    fi = min(fi, np.hypot(sx[j, a + 1] - sx[j, a], sy[j, a + 1] - sy[j, a]))
+                    fi = min(fi, weft_px[j, a])
                 else:
                     behind = True
                 ex += centre[j, a + 1, 0] - centre[j, a, 0]
@@ -167,7 +178,7 @@ def _grid_pass(centre, normal, exists, panel, weft_ok, warp_ok, view, vertices_o
                 if b < 0 or b + 1 >= H or not warp_ok[b, i]:
                     continue
                 if ahead[b, i] and ahead[b + 1, i]:
-                    fj = min(fj, np.hypot(sx[b + 1, i] - sx[b, i], sy[b + 1, i] - sy[b, i]))
+                    fj = min(fj, warp_px[b, i])
                 else:
                     behind = True
                 vx += centre[b + 1, i, 0] - centre[b, i, 0]
@@ -185,16 +196,24 @@ def _grid_pass(centre, normal, exists, panel, weft_ok, warp_ok, view, vertices_o
             footprint_out[k] = f
             w = _band(f, near_px, far_px) if exists[j, i] else 0.0
             weight_out[k] = w
-            v = vertices_out[k]
-            v[0], v[1], v[2] = centre[j, i, 0], centre[j, i, 1], centre[j, i, 2]
-            v[3], v[4], v[5] = normal[j, i, 0], normal[j, i, 1], normal[j, i, 2]
             en = max(en, 1)
             vn = max(vn, 1)
-            v[6], v[7], v[8] = ex / en, ey / en, ez / en
-            v[9], v[10], v[11] = vx / vn, vy / vn, vz / vn
-            v[12], v[13] = i, j
-            v[14] = w
-            v[15] = panel[j, i]
+            vertices_out[k, 0] = centre[j, i, 0]
+            vertices_out[k, 1] = centre[j, i, 1]
+            vertices_out[k, 2] = centre[j, i, 2]
+            vertices_out[k, 3] = normal[j, i, 0]
+            vertices_out[k, 4] = normal[j, i, 1]
+            vertices_out[k, 5] = normal[j, i, 2]
+            vertices_out[k, 6] = ex / en
+            vertices_out[k, 7] = ey / en
+            vertices_out[k, 8] = ez / en
+            vertices_out[k, 9] = vx / vn
+            vertices_out[k, 10] = vy / vn
+            vertices_out[k, 11] = vz / vn
+            vertices_out[k, 12] = i
+            vertices_out[k, 13] = j
+            vertices_out[k, 14] = w
+            vertices_out[k, 15] = panel[j, i]
 
 
 def grid_pass(camera: Camera, image_size: tuple[int, int], centre: np.ndarray, normal: np.ndarray,
@@ -299,17 +318,23 @@ def grid_arrays(topology: Mapping[str, np.ndarray], centre_c: np.ndarray, normal
     H = int(np.asarray(topology["weft_yarns"]).item())
     places = crossing_places(topology)
     C = places.size
-    centre = np.zeros((H * W, 3))
-    normal = np.zeros((H * W, 3))
-    centre[places] = centre_c
-    normal[places] = normal_c
-    exists = np.zeros(H * W, dtype=bool)
-    exists[places] = True
-    base = np.zeros(H * W, dtype=bool)
-    base[places] = ~np.asarray(yarn_level, dtype=bool)
     panel_c = np.asarray(topology["crossing_panel"]) if "crossing_panel" in topology else np.zeros(C, np.int32)
-    panel = np.full(H * W, -1, np.int64)
-    panel[places] = panel_c
+    if C == H * W and (places == np.arange(C)).all():  # every place its own crossing: no copies
+        centre, normal = np.asarray(centre_c, np.float64), np.asarray(normal_c, np.float64)
+        exists = np.ones(C, dtype=bool)
+        base = ~np.asarray(yarn_level, dtype=bool)
+        panel = np.asarray(panel_c, np.int64)
+    else:
+        centre = np.zeros((H * W, 3))
+        normal = np.zeros((H * W, 3))
+        centre[places] = centre_c
+        normal[places] = normal_c
+        exists = np.zeros(H * W, dtype=bool)
+        exists[places] = True
+        base = np.zeros(H * W, dtype=bool)
+        base[places] = ~np.asarray(yarn_level, dtype=bool)
+        panel = np.full(H * W, -1, np.int64)
+        panel[places] = panel_c
     alive = np.asarray(spring_alive, dtype=bool)
     weft_s = np.asarray(topology["weft_structural_spring"]).reshape(H, W - 1)
     warp_s = np.asarray(topology["warp_structural_spring"]).reshape(W, H - 1)

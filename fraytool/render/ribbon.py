@@ -71,20 +71,33 @@ def across(points: np.ndarray, tangents: np.ndarray, eye_m=None, direction=None)
 def ribbon_vertices(points: np.ndarray, tangents: np.ndarray, radius_m: float, alpha: np.ndarray,
                     warp: np.ndarray, eye_m: np.ndarray) -> np.ndarray:
     """Interleaved vertices (2 M, VERTEX_FLOATS) float32 of strips facing `eye_m` (module docstring)."""
-    X = np.asarray(points, dtype=np.float64)
-    S = across(X, tangents, eye_m=eye_m)
+    X = np.ascontiguousarray(points, dtype=np.float64)
+    T = np.ascontiguousarray(tangents, dtype=np.float64)
+    S = across(X, T, eye_m=eye_m)
     out = np.empty((2 * len(X), VERTEX_FLOATS), dtype=np.float32)
-    out[0::2, 0:3] = X - radius_m * S
-    out[1::2, 0:3] = X + radius_m * S
-    out[0::2, 3:6] = -S
-    out[1::2, 3:6] = S
-    out[0::2, 6:9] = tangents
-    out[1::2, 6:9] = tangents
-    out[0::2, 9] = alpha
-    out[1::2, 9] = alpha
-    out[0::2, 10] = warp
-    out[1::2, 10] = warp
+    if len(X):
+        _fill_ribbon_vertices(X, T, S, float(radius_m), np.ascontiguousarray(alpha, dtype=np.float32),
+                              np.ascontiguousarray(warp, dtype=np.float32), out)
     return out
+
+
+@numba.njit(cache=True)
+def _fill_ribbon_vertices(X, T, S, radius_m, alpha, warp, out_out):  # pragma: no cover - numba
+    """The two vertices of every sample (module docstring's layout), positions X -+ radius S rounded
+    to float32 from float64."""
+    for k in range(X.shape[0]):
+        left, right = out_out[2 * k], out_out[2 * k + 1]
+        for c in range(3):
+            left[c] = X[k, c] - radius_m * S[k, c]
+            right[c] = X[k, c] + radius_m * S[k, c]
+            left[3 + c] = -S[k, c]
+            right[3 + c] = S[k, c]
+            left[6 + c] = T[k, c]
+            right[6 + c] = T[k, c]
+        left[9] = alpha[k]
+        right[9] = alpha[k]
+        left[10] = warp[k]
+        right[10] = warp[k]
 
 
 def ribbon_shadow_positions(points: np.ndarray, tangents: np.ndarray, radius_m: float,
@@ -130,23 +143,61 @@ def shadow_casters(points: np.ndarray, tangents: np.ndarray, offsets: np.ndarray
     positions (2 M', 3) float32 as ribbon_shadow_positions, and the opaque triangles over them
     (F', 3) uint32 -- a strip between two kept samples is left out when any sample from the one to
     the other fades (alpha < 1), as fading ends cast no shadow."""
-    off = np.asarray(offsets, dtype=np.int64)
+    off = np.ascontiguousarray(offsets, dtype=np.int64)
     M = int(off[-1]) if len(off) else 0
     if M == 0:
         return np.zeros((0, 3), np.float32), np.zeros((0, 3), np.uint32)
-    piece = np.repeat(np.arange(len(off) - 1), np.diff(off))
-    local = np.arange(M) - off[:-1][piece]
-    last = np.zeros(M, dtype=bool)
-    last[off[1:] - 1] = True
-    X = np.asarray(points, dtype=np.float64)
-    inner = np.nonzero((local % 2 == 1) & ~last)[0]               # an odd sample has both neighbours
-    off_chord = np.linalg.norm(X[inner] - 0.5 * (X[inner - 1] + X[inner + 1]), axis=1)
-    bent = np.zeros(M, dtype=bool)
-    bent[inner] = off_chord > CASTER_SAGITTA_RADII * radius_m
-    keep = np.nonzero((local % 2 == 0) | last | bent)[0]
-    kept_off = np.concatenate([[0], np.cumsum(np.bincount(piece[keep], minlength=len(off) - 1))])
-    positions = ribbon_shadow_positions(np.asarray(points)[keep], np.asarray(tangents)[keep], radius_m, light_dir)
-    fading = np.concatenate([[0], np.cumsum(np.asarray(alpha) < 1.0)])   # fading samples before each
-    r = body_pairs(kept_off)                                              # strips: kept r -> r + 1
-    see_through = fading[keep[r + 1] + 1] - fading[keep[r]] > 0
-    return positions, ribbon_triangles(kept_off)[~np.repeat(see_through, 2)]
+    X = np.ascontiguousarray(points, dtype=np.float64)
+    keep = np.empty(M, dtype=np.int64)
+    kept = _caster_samples(X, off, CASTER_SAGITTA_RADII * radius_m, keep)
+    keep = keep[:kept]
+    positions = ribbon_shadow_positions(X[keep], np.asarray(tangents)[keep], radius_m, light_dir)
+    triangles = np.empty((2 * kept, 3), dtype=np.uint32)
+    count = _caster_triangles(keep, off, np.ascontiguousarray(np.asarray(alpha) < 1.0), triangles)
+    return positions, triangles[:count]
+
+
+@numba.njit(cache=True)
+def _caster_samples(X, off, sagitta_m, keep_out):  # pragma: no cover - numba
+    """Indices of the samples shadow_casters keeps into keep_out (in order); returns how many: each
+    piece's even samples and its last, and an odd one farther than `sagitta_m` from the chord between
+    its neighbours."""
+    kept = 0
+    for p in range(off.shape[0] - 1):
+        first, last = off[p], off[p + 1] - 1
+        for k in range(first, last + 1):
+            use = (k - first) % 2 == 0 or k == last
+            if not use:
+                d0 = X[k, 0] - 0.5 * (X[k - 1, 0] + X[k + 1, 0])
+                d1 = X[k, 1] - 0.5 * (X[k - 1, 1] + X[k + 1, 1])
+                d2 = X[k, 2] - 0.5 * (X[k - 1, 2] + X[k + 1, 2])
+                use = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2) > sagitta_m
+            if use:
+                keep_out[kept] = k
+                kept += 1
+    return kept
+
+
+@numba.njit(cache=True)
+def _caster_triangles(keep, off, fading, tri_out):  # pragma: no cover - numba
+    """The strips between consecutive kept samples of a piece (ribbon_triangles over the kept samples),
+    left out where a sample from the one to the other fades; returns how many triangles."""
+    count = 0
+    a = 0                                               # kept index of the strip's first sample
+    for p in range(off.shape[0] - 1):
+        end = off[p + 1]
+        while a + 1 < keep.shape[0] and keep[a + 1] < end:
+            see_through = False
+            for k in range(keep[a], keep[a + 1] + 1):
+                if fading[k]:
+                    see_through = True
+                    break
+            if not see_through:
+                v = 2 * a
+                tri_out[count, 0], tri_out[count, 1], tri_out[count, 2] = v, v + 1, v + 2
+                tri_out[count + 1, 0], tri_out[count + 1, 1], tri_out[count + 1, 2] = v + 1, v + 3, v + 2
+                count += 2
+            a += 1
+        if a < keep.shape[0] and keep[a] < end:     # the piece's last kept sample starts no strip
+            a += 1
+    return count

@@ -118,25 +118,44 @@ def fade_alpha(points: np.ndarray, offsets: np.ndarray, broken_start: np.ndarray
                fade_length_m: float) -> np.ndarray:
     """Per-sample alpha: 1, falling linearly to 0 over the last `fade_length_m` of arc length
     towards each broken (cut) end; ends at the cloth border stay opaque. Shape (M,), float32."""
-    X = np.asarray(points, dtype=np.float64)
-    off = np.asarray(offsets, dtype=np.int64)
+    X = np.ascontiguousarray(points, dtype=np.float64)
+    off = np.ascontiguousarray(offsets, dtype=np.int64)
     M = len(X)
     alpha = np.ones(M, dtype=np.float32)
     if M == 0 or fade_length_m <= 0:
         return alpha
-    seg = np.zeros(M)
-    seg[1:] = np.linalg.norm(X[1:] - X[:-1], axis=1)
-    seg[off[:-1]] = 0.0                                  # no length across piece boundaries
-    s = np.cumsum(seg)
-    piece = np.repeat(np.arange(len(off) - 1), np.diff(off))
-    s_from_start = s - s[off[:-1]][piece]
-    s_to_end = s[off[1:] - 1][piece] - s
-    a = np.ones(M)
-    bs = np.asarray(broken_start, dtype=bool)[piece]
-    be = np.asarray(broken_end, dtype=bool)[piece]
-    a = np.where(bs, np.minimum(a, s_from_start / fade_length_m), a)
-    a = np.where(be, np.minimum(a, s_to_end / fade_length_m), a)
-    return np.clip(a, 0.0, 1.0).astype(np.float32)
+    _fade(X, off, np.ascontiguousarray(broken_start, dtype=np.bool_), np.ascontiguousarray(broken_end, dtype=np.bool_),
+          float(fade_length_m), alpha)
+    return alpha
+
+
+@numba.njit(cache=True)
+def _fade(X, off, broken_start, broken_end, fade_length_m, alpha_out):  # pragma: no cover - numba
+    """fade_alpha into alpha_out (all ones on entry): the arc length s as a running sum over all samples
+    (no length across piece boundaries), then, in each piece with a broken end, the share of the fade
+    length to that end, clipped to [0, 1]."""
+    M = X.shape[0]
+    s = np.empty(M)
+    total = 0.0
+    p = 0
+    for k in range(M):
+        while k >= off[p + 1]:
+            p += 1
+        if k > off[p]:
+            dx, dy, dz = X[k, 0] - X[k - 1, 0], X[k, 1] - X[k - 1, 1], X[k, 2] - X[k - 1, 2]
+            total += np.sqrt(dx * dx + dy * dy + dz * dz)
+        s[k] = total
+    for p in range(off.shape[0] - 1):
+        if not (broken_start[p] or broken_end[p]):
+            continue
+        first, last = off[p], off[p + 1] - 1
+        for k in range(first, last + 1):
+            a = 1.0
+            if broken_start[p]:
+                a = min(a, (s[k] - s[first]) / fade_length_m)
+            if broken_end[p]:
+                a = min(a, (s[last] - s[k]) / fade_length_m)
+            alpha_out[k] = min(max(a, 0.0), 1.0)
 
 
 VERTEX_FLOATS = 11

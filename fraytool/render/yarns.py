@@ -19,6 +19,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from typing import Mapping
 
+import numba
 import numpy as np
 
 from fraytool.grid import base_yarn_points, crossing_normals, yarn_neighbours
@@ -74,16 +75,26 @@ def yarn_points(topology: Mapping[str, np.ndarray], particle_position_m: np.ndar
     W = int(_scalar(topology, "warp_yarns"))
     H = int(_scalar(topology, "weft_yarns"))
     T = float(_scalar(topology, "thickness_m"))
-    pos = np.asarray(particle_position_m, dtype=np.float64)
-    level = np.asarray(crossing_yarn_level, dtype=bool)
-    weft_mass, warp_mass = pos[:C], pos[C:2 * C]
+    pos = np.ascontiguousarray(particle_position_m, dtype=np.float64)
+    level = np.ascontiguousarray(crossing_yarn_level, dtype=np.bool_)
     # The crossing's centre: its base mass, or the middle of its couple.
-    centre = np.where(level[:, None], 0.5 * (weft_mass + warp_mass), weft_mass)
+    centre = np.empty((C, 3))
+    _centres(pos, level, centre)
     n = crossing_normals(centre, W, H, _neighbours(topology, C, W, H))
-    weft_pt, warp_pt = base_yarn_points(centre, n, np.asarray(topology["crossing_weft_on_top"], bool), T)
-    weft_pt = np.where(level[:, None], weft_mass, weft_pt)
-    warp_pt = np.where(level[:, None], warp_mass, warp_pt)
+    weft_pt, warp_pt = base_yarn_points(centre, n, np.asarray(topology["crossing_weft_on_top"]), T)
+    couple = np.flatnonzero(level)                     # yarn level: the couple's own masses
+    weft_pt[couple] = pos[couple]
+    warp_pt[couple] = pos[C + couple]
     return weft_pt, warp_pt, n
+
+
+@numba.njit(cache=True)
+def _centres(pos, level, centre_out):  # pragma: no cover - numba
+    """Crossing c's centre: its weft (base) mass, or the middle of its couple where it is at yarn level."""
+    C = centre_out.shape[0]
+    for c in range(C):
+        for k in range(3):
+            centre_out[c, k] = 0.5 * (pos[c, k] + pos[C + c, k]) if level[c] else pos[c, k]
 
 
 def _neighbours(topology: Mapping[str, np.ndarray], C: int, W: int, H: int):
