@@ -637,7 +637,7 @@ class Renderer:
         if geom.surface is not None and self._far_prog is not None:  # the far field casts as one sheet
             surface = (self._surface_vbo, self._surface_shadow_ibo, geom.surface.triangles.size, SURFACE_FLOATS)
             sheet = geom.surface.vertices[geom.surface.used, :3]
-            positions = sheet if positions is None else np.concatenate([positions, sheet])
+            positions = sheet if positions is None else (positions, sheet)  # bounded together, not joined
         light = self._light = self.shadow.draw(self._light_dir, positions, casters, triangles if have_yarns else None,
                                                count, self.bodies, geom, packed=packed, surface=surface)
         for prog in (*self._yarn_progs, self._body_prog, self._ground_prog) + (

@@ -60,7 +60,7 @@ class ShadowPass:
             self._yarn_vao = (key, vao)
         return self._yarn_vao[1]
 
-    def draw(self, light_dir: np.ndarray, yarn_positions: Optional[np.ndarray], yarn_vbo, opaque_ibo,
+    def draw(self, light_dir: np.ndarray, yarn_positions, yarn_vbo, opaque_ibo,
              opaque_count: int, bodies: BodySet, geom, packed: bool = False, surface=None) -> Optional[LightFrame]:
         """Fit the light to this frame's casters and draw them; None when nothing casts. `packed`: the
         yarn buffer holds positions only (ribbons turned to the light), not the interleaved vertices.
