@@ -72,15 +72,16 @@ def _raw_normals(x, W, H, neighbours, n_out):  # pragma: no cover - numba
 
 
 @numba.njit(cache=True)
-def _normalise_rows(n):  # pragma: no cover - numba
-    """Rows of n made unit in place where their length exceeds 1e-300; returns how many did not."""
+def _normalise_rows(n_inout):  # pragma: no cover - numba
+    """Rows of n_inout made unit in place where their length exceeds 1e-300; returns how many did not."""
     bad = 0
-    for c in range(n.shape[0]):
-        length = math.sqrt(n[c, 0] * n[c, 0] + n[c, 1] * n[c, 1] + n[c, 2] * n[c, 2])
+    for c in range(n_inout.shape[0]):
+        x, y, z = n_inout[c, 0], n_inout[c, 1], n_inout[c, 2]
+        length = math.sqrt(x * x + y * y + z * z)
         if length > 1e-300:
-            n[c, 0] /= length
-            n[c, 1] /= length
-            n[c, 2] /= length
+            n_inout[c, 0] /= length
+            n_inout[c, 1] /= length
+            n_inout[c, 2] /= length
         else:
             bad += 1
     return bad
