@@ -67,11 +67,20 @@ def draw(spec, topology, record, size, samples, target="srgb8", repeat=1):
 
 
 def reference(spec, topology, record, size, samples, factor: int = REF_FACTOR) -> np.ndarray:
-    """The frame at `factor` x the size, yarns only, box-filtered in linear light: (H, W, 3) uint8 sRGB."""
+    """The frame at `factor` x the size, yarns only, box-filtered in linear light: (H, W, 3) uint8 sRGB.
+    Ribbons there are sampled as tubes are (no straight steps over 4 px, fraytool.render.lod): the
+    reference does not take the shortcut it is measuring."""
+    from fraytool.render import lod
+
     W, H = size
     f = int(factor)
     ref_spec = with_render(spec, far_field=False)
-    linear, _ = draw(ref_spec, topology, record, (W * f, H * f), samples, target="float")
+    ribbon_straight = lod.RIBBON_STRAIGHT_PX
+    lod.RIBBON_STRAIGHT_PX = lod.STRAIGHT_PX
+    try:
+        linear, _ = draw(ref_spec, topology, record, (W * f, H * f), samples, target="float")
+    finally:
+        lod.RIBBON_STRAIGHT_PX = ribbon_straight
     return box_downsample(linear, f)
 
 

@@ -38,6 +38,11 @@ uniform mat4 u_view_proj;
 uniform vec3 u_eye;
 uniform float u_yarn_radius;     // [m]
 in vec3 v_tangent;
+// Straight steps (fraytool.render.ribbon; yarn.vert): the tangent and Kajiya-Kay terms along a step
+// are its ends' blend plus 4 t (1 - t) times its middle's departure from it, t = fract(v_step).
+in float v_step;
+flat in vec3 v_step_bend;
+flat in vec2 v_step_kajiya;
 #endif
 
 in vec3 v_normal;
@@ -69,25 +74,36 @@ vec3 tube_entry(vec3 position, vec3 across, vec3 tangent, out vec3 n) {
 }
 #endif
 
+#ifdef RIBBON
+float step_bump(float step) {
+    float t = fract(step);
+    return 4.0 * t * (1.0 - t);
+}
+#endif
+
 void main() {
 #ifdef RIBBON
+    float bump = step_bump(v_step);
+    vec2 kajiya = v_kajiya + bump * v_step_kajiya;
     vec3 n;
-    vec3 surface = tube_entry(v_position, v_normal, v_tangent, n);
+    vec3 surface = tube_entry(v_position, v_normal, v_tangent + bump * v_step_bend, n);
     vec3 N = dot(n, n) > 1e-12 ? normalize(n) : normalize(u_eye - v_position);  // seen exactly end-on: face the eye
     vec3 unused;
     vec3 covered = tube_entry(interpolateAtCentroid(v_position), interpolateAtCentroid(v_normal),
-                              interpolateAtCentroid(v_tangent), unused);
+                              interpolateAtCentroid(v_tangent)
+                              + step_bump(interpolateAtCentroid(v_step)) * v_step_bend, unused);
     vec4 clip = u_view_proj * vec4(covered, 1.0);
     gl_FragDepth = clamp(0.5 * clip.z / clip.w + 0.5, 0.0, 1.0);
 #else
     vec3 N = normalize(v_normal);
+    vec2 kajiya = v_kajiya;
 #endif
 #if defined(SHADOWS) && !defined(RIBBON)
     vec3 surface = v_position;
 #endif
     float n_l = dot(N, u_light_dir);
-    float diffuse = mix(max(n_l, 0.0), v_kajiya.x, u_kajiya_weight);
-    float highlight = u_specular * v_kajiya.y * smoothstep(-0.2, 0.3, n_l);
+    float diffuse = mix(max(n_l, 0.0), kajiya.x, u_kajiya_weight);
+    float highlight = u_specular * kajiya.y * smoothstep(-0.2, 0.3, n_l);
     float key = u_light_intensity;
 #ifdef SHADOWS
     key *= key_light_visibility(surface, N);

@@ -115,3 +115,46 @@ def test_shadow_casters_match_the_even_and_bent_samples_rule():
     assert see_through.sum() == 2                      # the strips either side of sample 4
     assert np.array_equal(positions, ribbon_shadow_positions(x[keep], t[keep], radius, light))
     assert np.array_equal(triangles, ribbon_triangles(kept_off)[~np.repeat(see_through, 2)])
+
+
+def test_ribbon_curves_drop_the_straight_steps_middles():
+    """ribbon_curves against its statement in NumPy: the spline sampled with every one-sample segment
+    split in two, those middles within a quarter radius of their chord left out of the drawn samples
+    (a tight bend keeps its middle), their tangents handed to the end of their step, and each sample's
+    previous drawn tangent and index along its piece."""
+    from fraytool.render.ribbon import ribbon_curves
+    from fraytool.render.spline import catmull_rom, polyline_tangents
+
+    rng = np.random.default_rng(6)
+    x, _, off = _pieces(rng, [6, 2, 9])
+    x[11] += [0.0, 0.003, 0.0]                        # a kink in the third piece
+    radius = 0.0004
+    m = rng.integers(1, 4, size=len(x) - 3)
+    m[:3] = 1                                          # a run of straight steps from a piece's start
+    m[4] = 1                                           # the second piece's only segment
+    m[6:10] = 1                                        # steps around the kink
+    curves, tangents, steps = ribbon_curves(x, off, m, radius)
+    fine = catmull_rom(x, off, np.where(m == 1, 2, m))
+    fine_t = polyline_tangents(fine.points, fine.offsets)
+    first = np.ones(len(x), bool)
+    first[off[1:] - 1] = False
+    middle = fine.control_index[np.flatnonzero(first)][m == 1] + 1
+    chord = 0.5 * (fine.points[middle - 1] + fine.points[middle + 1])
+    bent = np.linalg.norm(fine.points[middle] - chord, axis=1) > CASTER_SAGITTA_RADII * radius
+    assert 0 < bent.sum() < len(middle) - 3
+    middle = middle[~bent]
+    keep = np.ones(len(fine.points), bool)
+    keep[middle] = False
+    row = np.cumsum(keep) - 1
+    assert np.array_equal(curves.points, fine.points[keep])
+    assert np.array_equal(tangents, fine_t[keep])
+    assert np.array_equal(curves.control_index, row[fine.control_index])
+    assert np.array_equal(curves.offsets, np.concatenate([[0], row[fine.offsets[1:] - 1] + 1]))
+    want = np.zeros((len(tangents), 7), np.float32)
+    starts = curves.offsets[:-1]
+    want[:, 0:3] = np.roll(tangents, 1, axis=0)
+    want[starts, 0:3] = tangents[starts]
+    want[row[middle + 1], 3:6] = fine_t[middle]
+    want[:, 6] = np.arange(len(tangents)) - np.repeat(starts, np.diff(curves.offsets))
+    assert np.array_equal(steps[0::2], want) and np.array_equal(steps[1::2], want)
+    assert (np.abs(steps[:, 3:6]).sum(axis=1) > 0).sum() == 2 * len(middle)

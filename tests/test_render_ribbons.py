@@ -168,3 +168,60 @@ def test_small_ribbons_keep_their_depth_at_the_silhouette(gl_ctx):
         one = draw(size, "srgb8")
         ref = box_downsample(draw((size[0] * FACTOR, size[1] * FACTOR), "float"))
         assert blurred_rms(one, ref) <= 5.6, (elevation, azimuth, blurred_rms(one, ref))
+
+
+def test_straight_steps_keep_the_yarns_tilt_between_crossings(gl_ctx, monkeypatch):
+    """The flat weave 6 px apart, lit: ribbons drawn with one straight step per segment
+    (lod.RIBBON_STRAIGHT_PX) against the same yarns sampled at every segment's middle too (the straight
+    steps off), with a third fewer triangles: within 3.0 levels (RMS after the 2 px blur,
+    fraytool.render.aliasing; measured 2.3). A straight step carries its middle's tangent to the pixels
+    (fraytool.render.ribbon, "Straight steps"); without it (the middles' tangents left out) the step
+    keeps only its ends' tangents, the weave's tilt between crossings is lost and the frame is over 4.5
+    levels off (measured 5.2)."""
+    import math
+    from pathlib import Path
+
+    import fraytool.render.geometry as geometry
+    import fraytool.render.lod as lod
+    from conftest import PosedCloth
+    from fraytool.render import ribbon as ribbon_module
+    from fraytool.render.aliasing import blurred_rms
+
+    flat = PosedCloth(Path(__file__).parent / "scenes" / "flat_weave.toml")
+    size = (320, 180)
+    spec = flat.spec
+    d = spec.cloth.spacing_m * size[1] / (2.0 * math.tan(math.radians(spec.camera.fov_deg) / 2.0) * 6.0)
+    e, a = math.radians(50.0), math.radians(30.0)
+    camera = dataclasses.replace(spec.camera, position_m=(d * math.cos(e) * math.cos(a), d * math.sin(e),
+                                                          d * math.cos(e) * math.sin(a)),
+                                 target_m=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0))
+    render = dataclasses.replace(spec.render, far_field=False)
+
+    def draw():
+        r = Renderer(gl_ctx, size, render.samples, render, camera, flat.topology)
+        try:
+            b = GeometryBuilder(flat.topology, YarnStyle.from_spec(render, flat.topology), r.camera, size[1],
+                                image_width=r.shaded_width)
+            geom = b.build(flat.rest)
+            r.draw(geom)
+            return r.read().copy(), len(geom.yarns.opaque)
+        finally:
+            r.release()
+
+    steps, tri_steps = draw()
+    full_curves = ribbon_module.ribbon_curves
+
+    def without_middles(*args):
+        curves, tangents, steps = full_curves(*args)
+        steps[:, 3:6] = 0.0
+        return curves, tangents, steps
+
+    monkeypatch.setattr(geometry, "ribbon_curves", without_middles)
+    ends_only, _ = draw()
+    monkeypatch.setattr(geometry, "ribbon_curves", full_curves)
+    monkeypatch.setattr(lod, "RIBBON_STRAIGHT_PX", 0.0)
+    reference, tri_reference = draw()
+    assert tri_steps * 4 < tri_reference * 3, (tri_steps, tri_reference)
+    with_middles, ends = blurred_rms(steps, reference), blurred_rms(ends_only, reference)
+    assert with_middles <= 3.0, with_middles
+    assert ends > 4.5, ends

@@ -16,8 +16,9 @@ import numpy as np
 from fraytool.io.frame_record import FrameRecord
 from fraytool.render.camera import Camera
 from fraytool.render.farfield import FAR_PX, NEAR_PX, FarField, far_field, grid_arrays
-from fraytool.render.lod import Detail, choose_detail, segment_samples
-from fraytool.render.ribbon import (ribbon_triangles, ribbon_vertices, shadow_casters,
+from fraytool.render.lod import (Detail, choose_detail, projected_lengths_px, ribbon_steps, samples_for_lengths,
+                                 segment_lengths_px)
+from fraytool.render.ribbon import (ribbon_curves, ribbon_triangles, ribbon_vertices, shadow_casters,
                                     translucent_ribbon_triangles)
 from fraytool.render.spline import catmull_rom, polyline_tangents
 from fraytool.render.tube import VERTEX_FLOATS, fade_alpha, sweep_tubes, translucent_triangles, tube_triangles
@@ -93,6 +94,9 @@ class YarnMesh:
     far: Optional[np.ndarray] = None
     """Far weight of each vertex, (V,) float32, where yarns blend into the far-field surface (the blend
     band, fraytool.render.farfield); None: no vertex does."""
+    steps: Optional[np.ndarray] = None
+    """Ribbons only: the straight-step data of each vertex, (V, STEP_FLOATS) float32 (fraytool.render.ribbon,
+    "Straight steps"); None: no step is straight (the shaders then read zeros)."""
 
 
 @dataclass(frozen=True)
@@ -167,9 +171,14 @@ class GeometryBuilder:
             return Detail(st.sides, st.samples_per_segment)
         frame = choose_detail(self.camera, self.image_height, pieces.points, st.radius_m, st.spacing_m,
                               st.sides, st.samples_per_segment)
-        per_segment = segment_samples(self.camera, self.image_height, pieces.points, pieces.offsets, st.spacing_m,
-                                  frame.samples_per_segment)
-        return Detail(frame.sides, frame.samples_per_segment, per_segment)
+        length_px = segment_lengths_px(self.camera, self.image_height, pieces.points, pieces.offsets, st.spacing_m)
+        per_segment = samples_for_lengths(length_px, frame.samples_per_segment)
+        tilted = None
+        if st.shape == "ribbon":
+            width = self.image_width if self.image_width is not None else int(round(self.image_height * 16 / 9))
+            drawn_px = projected_lengths_px(self.camera, (width, self.image_height), pieces.points, pieces.offsets)
+            per_segment, tilted = ribbon_steps(length_px, drawn_px, per_segment)
+        return Detail(frame.sides, frame.samples_per_segment, per_segment, tilted)
 
     def _triangles(self, offsets: np.ndarray, sides: int) -> np.ndarray:
         key = (self.style.shape, sides, np.diff(offsets).tobytes())
@@ -210,8 +219,8 @@ class GeometryBuilder:
     def _ribbon_mesh(self, pieces: YarnPieces, detail: Detail, point_far: Optional[np.ndarray] = None) -> YarnMesh:
         """View-facing strips (fraytool.render.ribbon); the eye is the camera's (its origin without one)."""
         st = self.style
-        curves = catmull_rom(pieces.points, pieces.offsets, _samples(detail))
-        tangents = polyline_tangents(curves.points, curves.offsets)
+        curves, tangents, steps = ribbon_curves(pieces.points, pieces.offsets, _samples(detail), st.radius_m,
+                                                detail.tilted)
         alpha = fade_alpha(curves.points, curves.offsets, pieces.broken_start, pieces.broken_end,
                            st.fade_length_m)
         warp = np.repeat(pieces.color_index, np.diff(curves.offsets))  # palette index (fraytool.render.color)
@@ -230,8 +239,8 @@ class GeometryBuilder:
                     else np.zeros((0, 3), np.float32))
         sample_far = _sample_far_weight(curves, point_far)
         return YarnMesh(vertices, opaque, translucent, centroid, pieces.count,
-                        Detail(2, detail.samples_per_segment, detail.segment_samples),
-                        shadow_positions=shadow, shadow_triangles=shadow_tri,
+                        Detail(2, detail.samples_per_segment, detail.segment_samples, detail.tilted),
+                        shadow_positions=shadow, shadow_triangles=shadow_tri, steps=steps,
                         far=None if sample_far is None else np.repeat(sample_far, 2).astype(np.float32))
 
     def build(self, record: FrameRecord, yarns: bool = True, lines: bool = False) -> FrameGeometry:

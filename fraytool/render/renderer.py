@@ -62,6 +62,7 @@ from fraytool.errors import RunError
 from fraytool.render.context import check_gl_error
 from fraytool.render.farfield import SURFACE_FLOATS
 from fraytool.render.geometry import FrameGeometry
+from fraytool.render.ribbon import STEP_FLOATS
 from fraytool.render.shadow import LightFrame, shadow_footprint
 from fraytool.render.shadow_pass import ShadowPass
 from fraytool.render.weave_texture import coverage_tile, texels_per_crossing, weave_tiles
@@ -281,6 +282,8 @@ class Renderer:
         self._yarn_vbo = _Stream(ctx)
         self._far_vbo = _Stream(ctx)
         """Far weight of each yarn vertex in the blend band (YarnMesh.far)."""
+        self._step_vbo = _Stream(ctx)
+        """Ribbons: the straight-step data of each yarn vertex (YarnMesh.steps, fraytool.render.ribbon)."""
         self._surface_vbo = _Stream(ctx)
         self._surface_ibo = _Stream(ctx)
         self._surface_shadow_ibo = _Stream(ctx)
@@ -427,13 +430,17 @@ class Renderer:
         self._yarn_vbo.write(mesh.vertices)
         if mesh.far is not None:
             self._far_vbo.write(mesh.far)
+        if self.ribbons:  # no straight step: zeros (the shaders then blend the two ends alone)
+            self._step_vbo.write(mesh.steps if mesh.steps is not None
+                                 else np.zeros((len(mesh.vertices), STEP_FLOATS), np.float32))
         if mesh.opaque is not self._opaque_uploaded:
             self._opaque_ibo.write(mesh.opaque)
             self._opaque_uploaded = mesh.opaque
 
     def _yarn_vao(self, which: str, ibo: _Stream, band: bool = False) -> moderngl.VertexArray:
         """The yarn vertices with `ibo`; `band`: through the blend band's program, with the far weights."""
-        key = (self._yarn_vbo.generation, ibo.generation) + ((self._far_vbo.generation,) if band else ())
+        key = (self._yarn_vbo.generation, ibo.generation, self._step_vbo.generation) + \
+            ((self._far_vbo.generation,) if band else ())
         which = which + ("_band" if band else "")
         have = self._yarn_vaos.get(which)
         if have is None or have[0] != key:
@@ -441,6 +448,8 @@ class Renderer:
                 have[1].release()
             content = [(self._yarn_vbo.buffer, "3f 3f 3f 1f 1f", "in_position", "in_normal", "in_tangent",
                         "in_alpha", "in_warp")]
+            if self.ribbons:
+                content.append((self._step_vbo.buffer, "3f 3f 1f", "in_step_start", "in_step_middle", "in_step"))
             if band:
                 content.append((self._far_vbo.buffer, "1f", "in_far"))
             vao = self.ctx.vertex_array(self._yarn_band_prog if band else self._yarn_prog, content, ibo.buffer, 4)
@@ -759,7 +768,8 @@ class Renderer:
             self._ground_lit_vao.release()
             self._ground_lit_prog.release()
         for s in (self._yarn_vbo, self._shadow_vbo, self._shadow_ibo, self._opaque_ibo, self._translucent_ibo,
-                  self._line_vbo, self._far_vbo, self._surface_vbo, self._surface_ibo, self._surface_shadow_ibo):
+                  self._line_vbo, self._far_vbo, self._step_vbo, self._surface_vbo, self._surface_ibo,
+                  self._surface_shadow_ibo):
             s.release()
         if self._surface_vao is not None:
             self._surface_vao[1].release()

@@ -19,12 +19,26 @@ other sample where the yarn runs nearly straight (`shadow_casters`): about half 
 sample is skipped only when it lies within CASTER_SAGITTA_RADII yarn radii of the chord between its
 neighbours (about a texel of the figure scenes' maps); at kinks and tight bends every sample casts,
 so the shadow's edge follows the drawn yarn there.
+
+Straight steps: where a segment between two crossings is short on screen (fraytool.render.lod,
+RIBBON_STRAIGHT_PX), the strip runs straight from one crossing to the next (2 triangles, not 4). Its
+shape is then within a pixel of the spline, but interpolating the two crossings' tangents would lose
+the yarn's tilt between them (the weave lifts it over one yarn and under the next: up to about 8 degrees in
+the tablecloth's, and the highlights follow the tangent). So the spline is sampled at the step's middle
+as well (`ribbon_curves`), the middle's tangent T_m goes to the step's end vertices with the start's
+tangent T_0 (`step` columns), and yarn.vert/yarn.frag rebuild the tangent and the Kajiya-Kay terms
+along the step as the linear blend of its ends plus 4 t (1 - t) times the middle's departure from it:
+exact at both ends and the middle. The per-step values are `flat` outputs of the step's provoking
+vertex, the last of both its triangles (vertex 2 k + 2, the end sample's left edge). A segment whose
+middle lies off its chord by more than the shadow casters' CASTER_SAGITTA_RADII (a tight bend at a tear
+or over a body, not the weave) keeps its middle as a drawn sample.
 """
 from __future__ import annotations
 
 import numba
 import numpy as np
 
+from fraytool.render.spline import SampledCurves, catmull_rom, polyline_tangents
 from fraytool.render.tube import VERTEX_FLOATS, body_pairs
 
 
@@ -98,6 +112,86 @@ def _fill_ribbon_vertices(X, T, S, radius_m, alpha, warp, out_out):  # pragma: n
         right[9] = alpha[k]
         left[10] = warp[k]
         right[10] = warp[k]
+
+
+STEP_FLOATS = 7
+"""Straight-step layout per ribbon vertex: the start tangent T_0 (3) and middle tangent T_m (3; zero where
+it is not a straight step) of the step that ends at the vertex's sample, the sample's index along its
+piece (1)."""
+
+
+def ribbon_curves(points: np.ndarray, offsets: np.ndarray, samples, radius_m: float,
+                  tilted: np.ndarray | None = None) -> tuple[SampledCurves, np.ndarray, np.ndarray]:
+    """(curves, tangents, steps) of the pieces sampled `samples` per segment (a number or one per segment,
+    as catmull_rom), a segment of one sample where `tilted` (bool per segment; None: every one-sample
+    segment) drawn as a straight step (module docstring): its middle is
+    sampled to find its tangent, then left out of the drawn samples -- unless it lies farther than
+    CASTER_SAGITTA_RADII x `radius_m` from the chord (a tight bend, not the weave's rise and fall: the
+    step then keeps its middle as a sample). tangents (M, 3): the drawn samples' unit tangents as with
+    the middles in (polyline_tangents); steps (2 M, STEP_FLOATS) float32, per ribbon vertex (both of a
+    sample alike), the data of the step that ends at the sample."""
+    off = np.ascontiguousarray(offsets, dtype=np.int64)
+    segments = int(off[-1]) - (len(off) - 1) if len(off) > 1 else 0
+    m = np.broadcast_to(np.asarray(samples, dtype=np.int64), (segments,))
+    straight = np.ascontiguousarray((m == 1) if tilted is None else (m == 1) & np.asarray(tilted, dtype=bool))
+    fine = catmull_rom(points, off, np.where(straight, 2, m))
+    fine_t = polyline_tangents(fine.points, fine.offsets)
+    n = len(fine.points)
+    curves_points, tangents = np.empty((n, 3)), np.empty((n, 3))
+    curves_offsets = np.zeros(len(off), dtype=np.int64)
+    control_index = np.empty(len(fine.control_index), dtype=np.int64)
+    steps = np.zeros((2 * n, STEP_FLOATS), dtype=np.float32)
+    M = _drop_middles(fine.points, fine_t, fine.offsets, fine.control_index, straight,
+                      CASTER_SAGITTA_RADII * float(radius_m), curves_points, tangents, curves_offsets, control_index,
+                      steps)
+    return SampledCurves(curves_points[:M], curves_offsets, control_index), tangents[:M], steps[:2 * M]
+
+
+@numba.njit(cache=True)
+def _drop_middles(fine, fine_t, fine_off, fine_control, straight, sagitta_m, points_out, tangents_out, offsets_out,
+                  control_out, steps_out):  # pragma: no cover - numba
+    """ribbon_curves' samples: the fine samples but the middle of each straight segment within
+    `sagitta_m` of its chord, whose tangent goes to the step data of the segment's end sample (and the
+    previous drawn sample's tangent to every sample's, and its index along the piece). Returns how many."""
+    row = 0
+    seg = 0
+    c = 0                                               # control point
+    for p in range(fine_off.shape[0] - 1):
+        first_row = row
+        k = fine_off[p]
+        end = fine_off[p + 1]
+        while k < end:
+            at_control = k == fine_control[c]
+            if at_control:
+                control_out[c] = row
+                c += 1
+            middle = -1
+            if at_control and k + 1 < end:              # a segment starts here
+                if straight[seg]:
+                    d0 = fine[k + 1, 0] - 0.5 * (fine[k, 0] + fine[k + 2, 0])
+                    d1 = fine[k + 1, 1] - 0.5 * (fine[k, 1] + fine[k + 2, 1])
+                    d2 = fine[k + 1, 2] - 0.5 * (fine[k, 2] + fine[k + 2, 2])
+                    if np.sqrt(d0 * d0 + d1 * d1 + d2 * d2) <= sagitta_m:
+                        middle = k + 1
+                seg += 1
+            for d in range(3):
+                points_out[row, d] = fine[k, d]
+                tangents_out[row, d] = fine_t[k, d]
+            for v in range(2):
+                steps_out[2 * row + v, 6] = row - first_row
+                for d in range(3):
+                    steps_out[2 * row + v, d] = tangents_out[row - 1 if row > first_row else row, d]
+            if middle >= 0:
+                # the step ends at the next drawn sample, the fine one after the middle
+                for v in range(2):
+                    for d in range(3):
+                        steps_out[2 * (row + 1) + v, 3 + d] = fine_t[middle, d]
+                k += 2
+            else:
+                k += 1
+            row += 1
+        offsets_out[p + 1] = row
+    return row
 
 
 def ribbon_shadow_positions(points: np.ndarray, tangents: np.ndarray, radius_m: float,
