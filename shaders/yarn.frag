@@ -39,8 +39,10 @@ uniform vec3 u_eye;
 uniform float u_yarn_radius;     // [m]
 in vec3 v_tangent;
 // Straight steps (fraytool.render.ribbon; yarn.vert): the tangent and Kajiya-Kay terms along a step
-// are its ends' blend plus 4 t (1 - t) times its middle's departure from it, t = fract(v_step).
+// are its ends' blend plus 4 t (1 - t) times its middle's departure from it, t from 0 at the step's
+// start to 1 at its end (clamped: MSAA evaluates at a pixel's centre, which may lie past the step).
 in float v_step;
+flat in float v_step_start;
 flat in vec3 v_step_bend;
 flat in vec2 v_step_kajiya;
 #endif
@@ -76,7 +78,7 @@ vec3 tube_entry(vec3 position, vec3 across, vec3 tangent, out vec3 n) {
 
 #ifdef RIBBON
 float step_bump(float step) {
-    float t = fract(step);
+    float t = clamp(step - v_step_start, 0.0, 1.0);
     return 4.0 * t * (1.0 - t);
 }
 #endif

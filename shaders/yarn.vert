@@ -38,6 +38,7 @@ in vec3 in_step_start;
 in vec3 in_step_middle;
 in float in_step;
 out float v_step;
+flat out float v_step_start;     // the step's start sample index (its end's minus one)
 flat out vec3 v_step_bend;
 flat out vec2 v_step_kajiya;
 #endif
@@ -65,6 +66,7 @@ void main() {
 #ifdef RIBBON
     v_tangent = T;
     v_step = in_step;
+    v_step_start = in_step - 1.0;
     v_step_bend = vec3(0.0);
     v_step_kajiya = vec2(0.0);
     if (dot(in_step_middle, in_step_middle) > 0.0) {

@@ -35,8 +35,7 @@ def test_crossing_normals_and_base_points_match_the_numpy_formula(seed):
     W, H = 7, 5
     j, i = np.divmod(np.arange(W * H), W)
     x = np.stack([i * 0.01, j * 0.01, np.zeros(W * H)], axis=1) + rng.normal(0, 0.002, (W * H, 3))
-    x[W + 2] = 0.5 * (x[W + 1] + x[W + 3])          # collinear neighbours along i ...
-    x[2] = x[2 * W + 2] = x[W + 2]                   # ... and along j: a degenerate crossing
+    x[2] = x[2 * W + 2]                              # the j neighbours of crossing W + 2 coincide: degenerate
     n = crossing_normals(x, W, H)
     assert np.array_equal(n, _normals_reference(x.copy(), W, H))
     assert np.allclose(np.linalg.norm(n, axis=1), 1.0)
@@ -158,3 +157,51 @@ def test_ribbon_curves_drop_the_straight_steps_middles():
     want[:, 6] = np.arange(len(tangents)) - np.repeat(starts, np.diff(curves.offsets))
     assert np.array_equal(steps[0::2], want) and np.array_equal(steps[1::2], want)
     assert (np.abs(steps[:, 3:6]).sum(axis=1) > 0).sum() == 2 * len(middle)
+
+
+def test_ribbon_curves_tilt_only_the_steps_asked_for():
+    """With `tilted` given, only those one-sample segments get a middle (and its tangent); the others
+    stay one plain step, sampled as catmull_rom samples them."""
+    from fraytool.render.ribbon import ribbon_curves
+    from fraytool.render.spline import catmull_rom
+
+    rng = np.random.default_rng(7)
+    x, _, off = _pieces(rng, [7])
+    m = np.ones(6, dtype=np.int64)
+    tilted = np.array([True, False, False, True, True, False])
+    curves, _, steps = ribbon_curves(x, off, m, 0.0004, tilted)
+    assert np.array_equal(curves.points, catmull_rom(x, off, m).points)        # no middle is drawn
+    has_middle = np.abs(steps[0::2, 3:6]).sum(axis=1) > 0
+    assert np.array_equal(np.flatnonzero(has_middle), np.flatnonzero(tilted) + 1)  # at each tilted step's end
+
+
+def test_ribbon_steps_and_the_drawn_length_on_screen():
+    """lod.ribbon_steps: 4-8 px segments become tilted one-sample steps where drawn at least half their
+    length; projected_lengths_px measures the chord on screen (inf behind the near plane)."""
+    from fraytool.render import lod
+    from fraytool.render.camera import Camera
+    from fraytool.scene.spec import CameraSpec
+
+    length = np.array([3.0, 5.0, 7.0, 7.0, 9.0])
+    drawn = np.array([3.0, 5.0, 3.0, 4.0, 9.0])
+    samples = lod.samples_for_lengths(length, 4)
+    assert samples.tolist() == [1, 2, 2, 2, 2]
+    new, tilted = lod.ribbon_steps(length, drawn, samples)
+    assert new.tolist() == [1, 1, 2, 1, 2] and tilted.tolist() == [False, True, False, True, False]
+    cam = Camera(CameraSpec(position_m=(0.0, 0.0, 1.0), target_m=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0), fov_deg=90.0))
+    # at 1 m with a 90 degree field of view, 1 m spans half the image's height on screen: 100 px of 200
+    pts = np.array([[0.0, 0.0, 0.0], [0.5, 0.0, 0.0], [0.5, 0.0, 2.0]])
+    got = lod.projected_lengths_px(cam, (200, 200), pts, np.array([0, 3]))
+    assert got[0] == pytest.approx(50.0) and got[1] == np.inf
+
+
+def test_caster_points_bound_a_tuple_as_its_concatenation():
+    from fraytool.render.shadow import caster_points
+
+    rng = np.random.default_rng(8)
+    a, b = rng.normal(size=(50, 3)).astype(np.float32), rng.normal(size=(7, 3)).astype(np.float32)
+    none = np.zeros(0, np.int8), np.zeros((0, 3)), np.zeros(0), np.zeros((0, 3))
+    together = caster_points(np.concatenate([a, b]).astype(np.float64), *none)
+    apart = caster_points((a, b), *none)
+    assert np.array_equal(together[0], apart[0]) and np.array_equal(together[1], apart[1])
+    assert apart[0].min(axis=0) == pytest.approx(np.concatenate([a, b]).min(axis=0))

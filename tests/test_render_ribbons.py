@@ -173,7 +173,7 @@ def test_small_ribbons_keep_their_depth_at_the_silhouette(gl_ctx):
 def test_straight_steps_keep_the_yarns_tilt_between_crossings(gl_ctx, monkeypatch):
     """The flat weave 6 px apart, lit: ribbons drawn with one straight step per segment
     (lod.RIBBON_STRAIGHT_PX) against the same yarns sampled at every segment's middle too (the straight
-    steps off), with a third fewer triangles: within 3.0 levels (RMS after the 2 px blur,
+    steps off), with at least a quarter fewer triangles: within 3.0 levels (RMS after the 2 px blur,
     fraytool.render.aliasing; measured 2.3). A straight step carries its middle's tangent to the pixels
     (fraytool.render.ribbon, "Straight steps"); without it (the middles' tangents left out) the step
     keeps only its ends' tangents, the weave's tilt between crossings is lost and the frame is over 4.5

@@ -175,8 +175,8 @@ class GeometryBuilder:
         per_segment = samples_for_lengths(length_px, frame.samples_per_segment)
         tilted = None
         if st.shape == "ribbon":
-            width = self.image_width if self.image_width is not None else int(round(self.image_height * 16 / 9))
-            drawn_px = projected_lengths_px(self.camera, (width, self.image_height), pieces.points, pieces.offsets)
+            drawn_px = projected_lengths_px(self.camera, (self.image_width, self.image_height), pieces.points,
+                                            pieces.offsets)
             per_segment, tilted = ribbon_steps(length_px, drawn_px, per_segment)
         return Detail(frame.sides, frame.samples_per_segment, per_segment, tilted)
 

@@ -7,7 +7,8 @@ So for each frame we take the closest crossing to the camera (where yarns look b
 - sides: enough that one facet of the tube spans at most FACET_PX pixels (at least 3);
 - samples per segment: enough that one spline sample spans at most SAMPLE_PX pixels (at least 2,
   so the curve stays a spline, unless the scene asks for 1 or the segment spans at most STRAIGHT_PX
-  pixels).
+  pixels; ribbons also draw segments of up to RIBBON_STRAIGHT_PX as one step where they are not seen
+  nearly end-on, `ribbon_steps`).
 Samples are then chosen per segment (`segment_samples`), from the nearer of its two control points,
 at most the frame's count: in a wide shot the far half of the cloth is drawn with fewer triangles
 than the near half, each sample step still at most SAMPLE_PX pixels.
@@ -37,8 +38,8 @@ and fall over one spacing (the thickness, about a sixth of the spacing) is then 
 RIBBON_STRAIGHT_PX = 8.0
 """The same for ribbons not seen end-on (ribbon_steps), which carry the spline's tangent at a straight
 step's middle to the pixels (fraytool.render.ribbon, "Straight steps"): the step's shape is then a pixel
-off at most, and its shading keeps the yarn's tilt between two crossings. About a third fewer
-triangles on the tablecloth."""
+off at most, and its shading keeps the yarn's tilt between two crossings. A fifth to a quarter fewer
+yarn triangles on the tablecloth."""
 
 
 @dataclass(frozen=True)

@@ -28,7 +28,8 @@ the tablecloth's, and the highlights follow the tangent). So the spline is sampl
 as well (`ribbon_curves`), the middle's tangent T_m goes to the step's end vertices with the start's
 tangent T_0 (`step` columns), and yarn.vert/yarn.frag rebuild the tangent and the Kajiya-Kay terms
 along the step as the linear blend of its ends plus 4 t (1 - t) times the middle's departure from it:
-exact at both ends and the middle. The per-step values are `flat` outputs of the step's provoking
+the tangent exact at both ends and the middle, the Kajiya-Kay terms nearly (the step's three are
+evaluated with the eye direction of its end vertex). The per-step values are `flat` outputs of the step's provoking
 vertex, the last of both its triangles (vertex 2 k + 2, the end sample's left edge). A segment whose
 middle lies off its chord by more than the shadow casters' CASTER_SAGITTA_RADII (a tight bend at a tear
 or over a body, not the weave) keeps its middle as a drawn sample.
@@ -96,22 +97,22 @@ def ribbon_vertices(points: np.ndarray, tangents: np.ndarray, radius_m: float, a
 
 
 @numba.njit(cache=True)
-def _fill_ribbon_vertices(X, T, S, radius_m, alpha, warp, out_out):  # pragma: no cover - numba
+def _fill_ribbon_vertices(X, T, S, radius_m, alpha, warp, vertices_out):  # pragma: no cover - numba
     """The two vertices of every sample (module docstring's layout), positions X -+ radius S rounded
     to float32 from float64."""
     for k in range(X.shape[0]):
-        left, right = out_out[2 * k], out_out[2 * k + 1]
+        left, right = 2 * k, 2 * k + 1
         for c in range(3):
-            left[c] = X[k, c] - radius_m * S[k, c]
-            right[c] = X[k, c] + radius_m * S[k, c]
-            left[3 + c] = -S[k, c]
-            right[3 + c] = S[k, c]
-            left[6 + c] = T[k, c]
-            right[6 + c] = T[k, c]
-        left[9] = alpha[k]
-        right[9] = alpha[k]
-        left[10] = warp[k]
-        right[10] = warp[k]
+            vertices_out[left, c] = X[k, c] - radius_m * S[k, c]
+            vertices_out[right, c] = X[k, c] + radius_m * S[k, c]
+            vertices_out[left, 3 + c] = -S[k, c]
+            vertices_out[right, 3 + c] = S[k, c]
+            vertices_out[left, 6 + c] = T[k, c]
+            vertices_out[right, 6 + c] = T[k, c]
+        vertices_out[left, 9] = alpha[k]
+        vertices_out[right, 9] = alpha[k]
+        vertices_out[left, 10] = warp[k]
+        vertices_out[right, 10] = warp[k]
 
 
 STEP_FLOATS = 7

@@ -57,8 +57,8 @@ def caster_points(yarn_positions: np.ndarray | tuple | None, body_shape: np.ndar
                   body_radius_m: np.ndarray, body_half_extents_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Points and their radii that bound everything casting a shadow: the corners of the yarn vertices'
     bounding box (radius 0) and the spheres and boxes (their bounding spheres). Returns ((N, 3), (N,)).
-    `yarn_positions`: (V, 3), or a tuple of such arrays (the yarns' and the far-field sheet's), in their
-    own precision (the box is taken before widening: a float32 array is not copied)."""
+    `yarn_positions`: (V, 3), or a tuple of such arrays (the yarns' and the far-field sheet's), bounded in
+    their own precision (min and max are exact: float32 vertices are not widened to float64 first)."""
     pts, rad = [], []
     parts = [] if yarn_positions is None else (
         [yarn_positions] if isinstance(yarn_positions, np.ndarray) else list(yarn_positions))

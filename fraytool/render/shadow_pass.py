@@ -60,13 +60,14 @@ class ShadowPass:
             self._yarn_vao = (key, vao)
         return self._yarn_vao[1]
 
-    def draw(self, light_dir: np.ndarray, yarn_positions, yarn_vbo, opaque_ibo,
+    def draw(self, light_dir: np.ndarray, yarn_positions: Optional[np.ndarray | tuple], yarn_vbo, opaque_ibo,
              opaque_count: int, bodies: BodySet, geom, packed: bool = False, surface=None) -> Optional[LightFrame]:
         """Fit the light to this frame's casters and draw them; None when nothing casts. `packed`: the
         yarn buffer holds positions only (ribbons turned to the light), not the interleaved vertices.
         `surface`: (vertex stream, index stream, index count, floats per vertex) of the far-field
         surface (fraytool.render.farfield), which casts as an opaque sheet; its positions are then
-        among `yarn_positions` (the light is fitted to them)."""
+        among `yarn_positions`, a tuple (the yarns', the sheet's) the light is fitted to
+        (fraytool.render.shadow.caster_points)."""
         points, radii = caster_points(yarn_positions, self.body_shape, geom.body_position_m,
                                       self.body_radius, self.body_half)
         light = fit_light(light_dir, points, radii, self.size)

@@ -12,7 +12,7 @@ crossings (0, j), (1, j), ...; warp yarn i through (i, 0), (i, 1), ....
   cloth border (they do not), and so are the ends at a spring cut before the shot (`spring_precut`,
   a [[cuts]] snip: scissors leave a clean edge).
 Pieces of a single point (a crossing cut off on both sides) are dropped: there is no yarn to draw.
-Everything is vectorised over all yarns of the frame.
+One numba loop per family (`_family_pieces`) walks every yarn of the frame and cuts its pieces.
 """
 from __future__ import annotations
 
@@ -114,20 +114,6 @@ def crossing_places(topology: Mapping[str, np.ndarray]) -> np.ndarray:
     return np.asarray(topology["crossing_grid_j"], np.int64) * W + np.asarray(topology["crossing_grid_i"], np.int64)
 
 
-def _runs(link_alive: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Split rows of points at dead links. link_alive: (Y, n - 1) per yarn. Returns the start
-    index (into the flattened (Y * n) points) of every run and its length."""
-    Y, n1 = link_alive.shape
-    n = n1 + 1
-    # Flattened "link to next point": dead at each yarn's last point.
-    link = np.zeros((Y, n), dtype=bool)
-    link[:, :-1] = link_alive
-    flat = link.ravel()
-    starts = np.nonzero(np.concatenate([[True], ~flat[:-1]]))[0]
-    ends = np.nonzero(~flat)[0]                 # inclusive end of each run
-    return starts, ends - starts + 1
-
-
 def _on_grid(points: np.ndarray, places: np.ndarray, size: int) -> np.ndarray:
     out = np.zeros((size, 3))
     out[places] = points
@@ -172,52 +158,77 @@ def yarn_pieces(topology: Mapping[str, np.ndarray], particle_position_m: np.ndar
         hw, hv = (np.asarray(h, dtype=bool).reshape(s.shape) for h, s in zip(hidden, (weft_s, warp_s)))
         weft_link, warp_link = weft_link & ~hw, warp_link & ~hv
         weft_clean, warp_clean = weft_clean | hw, warp_clean | hv
-    rows = [
-        (WEFT, weft_pt.reshape(H, W, 3), crossing, weft_link.reshape(H, W - 1), weft_clean.reshape(H, W - 1)),
-        (WARP, warp_pt.reshape(H, W, 3).transpose(1, 0, 2), crossing.T, warp_link.reshape(W, H - 1),
-         warp_clean.reshape(W, H - 1)),
-    ]
-    pts, offs, kinds, yarns, firsts, bstart, bend, normals, point_places = [], [], [], [], [], [], [], [], []
-    base = 0
-    for kind, p, cross, link, snipped in rows:
-        Y, n = p.shape[:2]
-        starts, lengths = _runs(link)
-        keep = lengths >= 2
-        starts, lengths = starts[keep], lengths[keep]
-        idx = np.repeat(starts - np.cumsum(np.concatenate([[0], lengths[:-1]])), lengths) + np.arange(lengths.sum())
-        pts.append(p.reshape(-1, 3)[idx])
-        if with_places:  # idx is j * W + i along a weft row, i * H + j along a warp column
-            point_places.append(idx if kind == WEFT else (idx % H) * W + idx // H)
-        offs.append(base + np.concatenate([[0], np.cumsum(lengths)])[:-1])
-        base += int(lengths.sum())
-        kinds.append(np.full(len(starts), kind, dtype=np.int8))
-        yarns.append((starts // n).astype(np.int32))
-        first = cross.reshape(-1)[starts]
-        firsts.append(first.astype(np.int32))
-        # Each point's link to the next, flattened as in _runs: True where a [[cuts]] snip ends the piece.
-        clean = np.zeros((Y, n), dtype=bool)
-        clean[:, :-1] = snipped
-        clean = clean.ravel()
-        ends = starts + lengths - 1
-        bstart.append((starts % n != 0) & ~clean[np.maximum(starts - 1, 0)])
-        bend.append((ends % n != n - 1) & ~clean[ends])
-        normals.append(normal[first])
-    offsets = np.concatenate(offs + [[base]]).astype(np.int64)
+    families = []
+    for kind, grid_pt, link, snipped in ((WEFT, weft_pt, weft_link.reshape(H, W - 1), weft_clean.reshape(H, W - 1)),
+                                         (WARP, warp_pt, warp_link.reshape(W, H - 1), warp_clean.reshape(W, H - 1))):
+        Y, n = link.shape[0], link.shape[1] + 1
+        out_points = np.empty((Y * n, 3))
+        out_place = np.empty(Y * n, np.int64)
+        out_offsets = np.empty(Y * n // 2 + 1, np.int64)
+        out_yarn = np.empty(Y * n // 2, np.int32)
+        out_first = np.empty(Y * n // 2, np.int32)
+        out_broken = np.empty((Y * n // 2, 2), np.bool_)
+        count = _family_pieces(np.ascontiguousarray(grid_pt, dtype=np.float64), kind == WEFT, W,
+                               np.ascontiguousarray(link), np.ascontiguousarray(snipped), crossing.reshape(-1),
+                               out_points, out_place, out_offsets, out_yarn, out_first, out_broken)
+        m = out_offsets[count]
+        families.append((kind, count, out_points[:m], out_place[:m], out_offsets[:count], out_yarn[:count],
+                         out_first[:count], out_broken[:count, 0], out_broken[:count, 1]))
+    base = int(families[0][2].shape[0])
+    offsets = np.concatenate([families[0][4], base + families[1][4], [base + families[1][2].shape[0]]]).astype(np.int64)
+    first = np.concatenate([f[6] for f in families])
     pieces = YarnPieces(
-        points=np.concatenate(pts),
+        points=np.concatenate([f[2] for f in families]),
         offsets=offsets,
-        kind=np.concatenate(kinds),
-        yarn=np.concatenate(yarns),
-        first_crossing=np.concatenate(firsts),
-        broken_start=np.concatenate(bstart),
-        broken_end=np.concatenate(bend),
-        normal=np.concatenate(normals),
-        place=np.concatenate(point_places).astype(np.int64) if with_places else None,
+        kind=np.concatenate([np.full(f[1], f[0], dtype=np.int8) for f in families]),
+        yarn=np.concatenate([f[5] for f in families]),
+        first_crossing=first,
+        broken_start=np.concatenate([f[7] for f in families]),
+        broken_end=np.concatenate([f[8] for f in families]),
+        normal=normal[first],
+        place=np.concatenate([f[3] for f in families]) if with_places else None,
     )
     if "crossing_panel" not in topology or int(np.asarray(topology["crossing_panel"]).max(initial=0)) == 0:
         if not (np.asarray(topology["spring_kind"]) == STITCH).any():
             return pieces  # one panel, no seams: colours by kind, as always
     return _with_panels_and_stitches(pieces, topology, particle_position_m, alive, normal)
+
+
+@numba.njit(cache=True)
+def _family_pieces(grid_pt, weft, W, link, clean, crossing, points_out, place_out, offsets_out, yarn_out, first_out,
+                   broken_out):  # pragma: no cover - numba
+    """The pieces of one family (module docstring): yarn y (a weft row j, or a warp column i) runs through
+    its n points, split where `link` (Y, n - 1) is dead; runs of one point are dropped. grid_pt (W H, 3):
+    points by grid place j W + i; crossing (W H,): the crossing at each place. A piece's start (end) is
+    broken unless it is the yarn's first (last) point or `clean` says the link before (after) it was
+    snipped (broken_out[p]: start, end). Returns the piece count; offsets_out[p] is piece p's first row,
+    offsets_out[count] the rows."""
+    Y, n = link.shape[0], link.shape[1] + 1
+    count = 0
+    row = 0
+    for y in range(Y):
+        k = 0
+        while k < n:
+            e = k
+            while e < n - 1 and link[y, e]:
+                e += 1
+            if e > k:
+                offsets_out[count] = row
+                yarn_out[count] = y
+                first_out[count] = crossing[y * W + k] if weft else crossing[k * W + y]
+                broken_out[count, 0] = k != 0 and not clean[y, k - 1]
+                broken_out[count, 1] = e != n - 1 and not clean[y, e]
+                for q in range(k, e + 1):
+                    place = y * W + q if weft else q * W + y
+                    place_out[row] = place
+                    points_out[row, 0] = grid_pt[place, 0]
+                    points_out[row, 1] = grid_pt[place, 1]
+                    points_out[row, 2] = grid_pt[place, 2]
+                    row += 1
+                count += 1
+            k = e + 1
+    offsets_out[count] = row
+    return count
 
 
 def _with_panels_and_stitches(pieces: YarnPieces, topology: Mapping[str, np.ndarray], particle_position_m: np.ndarray,
