@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from fraytool.render.camera import Camera
+from fraytool.render.tube import body_pairs
 
 FACET_PX = 2.0
 """Largest on-screen width of one tube facet [pixels]."""
@@ -87,13 +88,10 @@ def segment_lengths_px(camera: Camera, image_height: int, points: np.ndarray, of
                        spacing_m: float) -> np.ndarray:
     """On-screen length [px] of each segment of the pieces (segment_samples), a yarn spacing seen at the
     nearer of its two control points."""
-    off = np.asarray(offsets, dtype=np.int64)
     if len(points) == 0:
         return np.zeros(0)
     depth = -camera.view_depth(points)                                # behind the eye: as near as can be
-    starts = np.ones(len(points), dtype=bool)
-    starts[off[1:] - 1] = False                                       # a piece's last point starts no segment
-    i = np.nonzero(starts)[0]
+    i = body_pairs(offsets)                                           # each segment's first point
     nearest = np.minimum(depth[i], depth[i + 1])
     return spacing_m * pixels_per_metre(camera, image_height, nearest)
 
@@ -111,18 +109,15 @@ def projected_lengths_px(camera: Camera, image_size: tuple[int, int], points: np
                          offsets: np.ndarray) -> np.ndarray:
     """Each segment's chord as drawn [px]: the distance on screen between its two control points
     (segments as segment_samples'); inf where one is behind the near plane."""
-    off = np.asarray(offsets, dtype=np.int64)
     if len(points) == 0:
         return np.zeros(0)
     W, H = image_size
-    p = np.asarray(points, dtype=np.float64)
-    clip = p @ camera.view_proj(W / H)[:, :3].T + camera.view_proj(W / H)[:, 3]
+    view_proj = camera.view_proj(W / H)
+    clip = np.asarray(points, dtype=np.float64) @ view_proj[:, :3].T + view_proj[:, 3]
     ahead = clip[:, 3] > camera.near
     w = np.where(ahead, clip[:, 3], 1.0)
     x, y = 0.5 * W * clip[:, 0] / w, 0.5 * H * clip[:, 1] / w
-    starts = np.ones(len(p), dtype=bool)
-    starts[off[1:] - 1] = False
-    i = np.nonzero(starts)[0]
+    i = body_pairs(offsets)                                           # each segment's first point
     length = np.hypot(x[i + 1] - x[i], y[i + 1] - y[i])
     return np.where(ahead[i] & ahead[i + 1], length, np.inf)
 

@@ -115,6 +115,15 @@ def _fill_ribbon_vertices(X, T, S, radius_m, alpha, warp, vertices_out):  # prag
         vertices_out[right, 10] = warp[k]
 
 
+@numba.njit(cache=True, inline="always")
+def _off_chord(X, k):  # pragma: no cover - numba
+    """Distance of sample k from the middle of the chord between its neighbours k - 1 and k + 1 [m]."""
+    d0 = X[k, 0] - 0.5 * (X[k - 1, 0] + X[k + 1, 0])
+    d1 = X[k, 1] - 0.5 * (X[k - 1, 1] + X[k + 1, 1])
+    d2 = X[k, 2] - 0.5 * (X[k - 1, 2] + X[k + 1, 2])
+    return np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+
+
 STEP_FLOATS = 7
 """Straight-step layout per ribbon vertex: the start tangent T_0 (3) and middle tangent T_m (3; zero where
 it is not a straight step) of the step that ends at the vertex's sample, the sample's index along its
@@ -168,12 +177,8 @@ def _drop_middles(fine, fine_t, fine_off, fine_control, straight, sagitta_m, poi
                 c += 1
             middle = -1
             if at_control and k + 1 < end:              # a segment starts here
-                if straight[seg]:
-                    d0 = fine[k + 1, 0] - 0.5 * (fine[k, 0] + fine[k + 2, 0])
-                    d1 = fine[k + 1, 1] - 0.5 * (fine[k, 1] + fine[k + 2, 1])
-                    d2 = fine[k + 1, 2] - 0.5 * (fine[k, 2] + fine[k + 2, 2])
-                    if np.sqrt(d0 * d0 + d1 * d1 + d2 * d2) <= sagitta_m:
-                        middle = k + 1
+                if straight[seg] and _off_chord(fine, k + 1) <= sagitta_m:
+                    middle = k + 1
                 seg += 1
             for d in range(3):
                 points_out[row, d] = fine[k, d]
@@ -263,10 +268,7 @@ def _caster_samples(X, off, sagitta_m, keep_out):  # pragma: no cover - numba
         for k in range(first, last + 1):
             use = (k - first) % 2 == 0 or k == last
             if not use:
-                d0 = X[k, 0] - 0.5 * (X[k - 1, 0] + X[k + 1, 0])
-                d1 = X[k, 1] - 0.5 * (X[k - 1, 1] + X[k + 1, 1])
-                d2 = X[k, 2] - 0.5 * (X[k - 1, 2] + X[k + 1, 2])
-                use = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2) > sagitta_m
+                use = _off_chord(X, k) > sagitta_m
             if use:
                 keep_out[kept] = k
                 kept += 1

@@ -95,12 +95,31 @@ def coverage_tile(on_top_tile: np.ndarray, cover: float, texels: int = TEXELS_PE
     return np.round(np.stack([r, g], axis=-1) * 255.0).astype(np.uint8)
 
 
+_last_tiles: list = [None, None]
+"""weave_tiles' last (key, result): a render asks twice for the same cloth (YarnStyle.from_spec, to
+decide whether the far field can stand for it, and the Renderer's textures), about 60 ms each on a
+512 x 512 cloth."""
+
+
 def weave_tiles(topology: Mapping[str, np.ndarray]) -> Optional[np.ndarray]:
     """Each panel's on-top repeat on one common period, (P, py, px) bool, True where the weft is on
     top seen from the front (the side the crossing normals point to), phased on the full grid (the
     texture is looked up by grid place); None when a panel has no repeat of at most MAX_PERIOD or the
     panels' periods have no common multiple that short (the far field cannot stand for that cloth:
-    YarnStyle turns it off, and every yarn is drawn)."""
+    YarnStyle turns it off, and every yarn is drawn). Read-only; the last cloth's is kept (by the
+    bytes of the arrays it is made from)."""
+    key = tuple((k, np.asarray(topology[k]).tobytes()) for k in
+                ("warp_yarns", "weft_yarns", "crossing_weft_on_top", "crossing_panel", "crossing_grid_i",
+                 "crossing_grid_j") if k in topology)
+    if _last_tiles[0] != key:
+        tiles = _weave_tiles(topology)
+        if tiles is not None:
+            tiles.flags.writeable = False
+        _last_tiles[:] = [key, tiles]
+    return _last_tiles[1]
+
+
+def _weave_tiles(topology: Mapping[str, np.ndarray]) -> Optional[np.ndarray]:
     from math import lcm
 
     from fraytool.render.yarns import crossing_places

@@ -158,40 +158,42 @@ def yarn_pieces(topology: Mapping[str, np.ndarray], particle_position_m: np.ndar
         hw, hv = (np.asarray(h, dtype=bool).reshape(s.shape) for h, s in zip(hidden, (weft_s, warp_s)))
         weft_link, warp_link = weft_link & ~hw, warp_link & ~hv
         weft_clean, warp_clean = weft_clean | hw, warp_clean | hv
-    families = []
-    for kind, grid_pt, link, snipped in ((WEFT, weft_pt, weft_link.reshape(H, W - 1), weft_clean.reshape(H, W - 1)),
-                                         (WARP, warp_pt, warp_link.reshape(W, H - 1), warp_clean.reshape(W, H - 1))):
-        Y, n = link.shape[0], link.shape[1] + 1
-        out_points = np.empty((Y * n, 3))
-        out_place = np.empty(Y * n, np.int64)
-        out_offsets = np.empty(Y * n // 2 + 1, np.int64)
-        out_yarn = np.empty(Y * n // 2, np.int32)
-        out_first = np.empty(Y * n // 2, np.int32)
-        out_broken = np.empty((Y * n // 2, 2), np.bool_)
-        count = _family_pieces(np.ascontiguousarray(grid_pt, dtype=np.float64), kind == WEFT, W,
-                               np.ascontiguousarray(link), np.ascontiguousarray(snipped), crossing.reshape(-1),
-                               out_points, out_place, out_offsets, out_yarn, out_first, out_broken)
-        m = out_offsets[count]
-        families.append((kind, count, out_points[:m], out_place[:m], out_offsets[:count], out_yarn[:count],
-                         out_first[:count], out_broken[:count, 0], out_broken[:count, 1]))
-    base = int(families[0][2].shape[0])
-    offsets = np.concatenate([families[0][4], base + families[1][4], [base + families[1][2].shape[0]]]).astype(np.int64)
-    first = np.concatenate([f[6] for f in families])
+    weft = _cut_family(WEFT, weft_pt, weft_link.reshape(H, W - 1), weft_clean.reshape(H, W - 1), crossing, W, normal)
+    warp = _cut_family(WARP, warp_pt, warp_link.reshape(W, H - 1), warp_clean.reshape(W, H - 1), crossing, W, normal)
     pieces = YarnPieces(
-        points=np.concatenate([f[2] for f in families]),
-        offsets=offsets,
-        kind=np.concatenate([np.full(f[1], f[0], dtype=np.int8) for f in families]),
-        yarn=np.concatenate([f[5] for f in families]),
-        first_crossing=first,
-        broken_start=np.concatenate([f[7] for f in families]),
-        broken_end=np.concatenate([f[8] for f in families]),
-        normal=normal[first],
-        place=np.concatenate([f[3] for f in families]) if with_places else None,
+        points=np.concatenate([weft.points, warp.points]),
+        offsets=np.concatenate([weft.offsets[:-1], len(weft.points) + warp.offsets]),
+        kind=np.concatenate([weft.kind, warp.kind]),
+        yarn=np.concatenate([weft.yarn, warp.yarn]),
+        first_crossing=np.concatenate([weft.first_crossing, warp.first_crossing]),
+        broken_start=np.concatenate([weft.broken_start, warp.broken_start]),
+        broken_end=np.concatenate([weft.broken_end, warp.broken_end]),
+        normal=np.concatenate([weft.normal, warp.normal]),
+        place=np.concatenate([weft.place, warp.place]) if with_places else None,
     )
     if "crossing_panel" not in topology or int(np.asarray(topology["crossing_panel"]).max(initial=0)) == 0:
         if not (np.asarray(topology["spring_kind"]) == STITCH).any():
             return pieces  # one panel, no seams: colours by kind, as always
     return _with_panels_and_stitches(pieces, topology, particle_position_m, alive, normal)
+
+
+def _cut_family(kind: int, grid_pt: np.ndarray, link: np.ndarray, clean: np.ndarray, crossing: np.ndarray, W: int,
+                normal: np.ndarray) -> YarnPieces:
+    """The pieces of the wefts (kind WEFT: link, clean (H, W - 1)) or the warps (WARP: (W, H - 1)), with
+    their places (_family_pieces). grid_pt: points by grid place; crossing (H, W): the crossing at each
+    place; normal: per crossing."""
+    Y, n = link.shape[0], link.shape[1] + 1
+    most = Y * n // 2                                           # a piece has at least 2 points
+    points, place = np.empty((Y * n, 3)), np.empty(Y * n, np.int64)
+    offsets, yarn, first = np.empty(most + 1, np.int64), np.empty(most, np.int32), np.empty(most, np.int32)
+    broken = np.empty((most, 2), np.bool_)
+    count = _family_pieces(np.ascontiguousarray(grid_pt, dtype=np.float64), kind == WEFT, W, np.ascontiguousarray(link),
+                           np.ascontiguousarray(clean), crossing.reshape(-1), points, place, offsets, yarn, first,
+                           broken)
+    rows = offsets[count]
+    return YarnPieces(points=points[:rows], offsets=offsets[:count + 1], kind=np.full(count, kind, dtype=np.int8),
+                      yarn=yarn[:count], first_crossing=first[:count], broken_start=broken[:count, 0],
+                      broken_end=broken[:count, 1], normal=normal[first[:count]], place=place[:rows])
 
 
 @numba.njit(cache=True)
