@@ -179,6 +179,17 @@ void main() {
     family(normalize(in_weft_edge), E, N, share, along, lf, u_yarn_colors[2 * panel], v_weft_ambient, v_weft_key);
     normal_bins(at, bins + 2 * NORMAL_BINS / 4, share, along);
     family(normalize(in_warp_edge), E, N, share, along, lw, u_yarn_colors[2 * panel + 1], v_warp_ambient, v_warp_key);
+#ifdef SHADOWS
+    // The cloth is opaque: with the key light behind its plane only the yarns' tops still catch it, a
+    // few degrees on flat cloth, further where the cloth curves away from the light. The shadow map
+    // holds that horizon, but not smoothly: the surface casts as quads of SURFACE_STEP crossings
+    // (fraytool.render.farfield), and a receiver the light grazes stretches each map texel along it,
+    // so the shadow's edge there ran in stairs. The key part fades out instead, from 3 to 15 degrees
+    // behind the plane (N.L from -0.05 to -0.25), where the map's edge then falls.
+    float facing = smoothstep(-0.25, -0.05, dot(N, u_light_dir));
+    v_weft_key *= facing;
+    v_warp_key *= facing;
+#endif
     v_position = in_position;
     v_normal = N;
     v_grid = in_grid;

@@ -59,6 +59,8 @@ quads with a corner on screen (the shadow map draws them all)."""
 SURFACE_FLOATS = 16
 """Surface vertex layout: position (3), normal (3), weft edge (3), warp edge (3), grid (i, j) (2), far
 weight (1), panel (1). The edges are the grid's local spacing vectors [m] along the weft and warp yarns."""
+SURFACE_FAR_WEIGHT = 14
+"""The far weight's place in a surface vertex (SURFACE_FLOATS)."""
 
 
 @dataclass(frozen=True)
@@ -212,7 +214,7 @@ def _grid_pass(centre, normal, exists, panel, weft_ok, warp_ok, view, vertices_o
             vertices_out[k, 11] = vz / vn
             vertices_out[k, 12] = i
             vertices_out[k, 13] = j
-            vertices_out[k, 14] = w
+            vertices_out[k, 14] = w                                    # SURFACE_FAR_WEIGHT
             vertices_out[k, 15] = panel[j, i]
 
 
@@ -268,44 +270,52 @@ def far_field(camera: Camera, image_size: tuple[int, int], centre: np.ndarray, n
     warp_link_t = warp_link.T                                         # (H - 1, W)
     cell = (base[:-1, :-1] & base[:-1, 1:] & base[1:, :-1] & base[1:, 1:]
             & weft_link[:-1, :] & weft_link[1:, :] & warp_link_t[:, :-1] & warp_link_t[:, 1:])  # (H - 1, W - 1)
-    Hb, Wb = (H - 1) // c, (W - 1) // c                               # whole blocks
-    block = cell[:Hb * c, :Wb * c].reshape(Hb, c, Wb, c).all(axis=(1, 3))
-    wmax = wg[:Hb * c + 1, :Wb * c + 1]
+    # blocks of c x c cells from the grid's first crossing; the last row and column of blocks take what
+    # is left (1 to c cells), so the surface reaches the cloth's border
+    Hb, Wb = -(-(H - 1) // c), -(-(W - 1) // c)
+    padded = np.ones((Hb * c, Wb * c), dtype=bool)
+    padded[:H - 1, :W - 1] = cell
+    block = padded.reshape(Hb, c, Wb, c).all(axis=(1, 3))
     # the largest weight over each block's crossings (its cells' corners)
-    wcell = np.maximum(np.maximum(wmax[:-1, :-1], wmax[:-1, 1:]), np.maximum(wmax[1:, :-1], wmax[1:, 1:]))
+    wcell = np.zeros((Hb * c, Wb * c))
+    wcell[:H - 1, :W - 1] = np.maximum(np.maximum(wg[:-1, :-1], wg[:-1, 1:]), np.maximum(wg[1:, :-1], wg[1:, 1:]))
     block &= wcell.reshape(Hb, c, Wb, c).max(axis=(1, 3)) > 0.0
     # A link is covered where the blocks on both its sides are surface. Weft link (j, i): in block
-    # column i // c, between block rows (j - 1) // c and j // c (one block inside it, two on a boundary).
-    qb = np.zeros((Hb + 2, Wb + 1), dtype=bool)                       # block rows -1 .. Hb, columns 0 .. Wb
-    qb[1:Hb + 1, :Wb] = block
-    j = np.arange(H)[:, None]
-    i = np.arange(W - 1)[None, :]
-    lo = np.clip((j - 1) // c, -1, Hb) + 1
-    hi = np.clip(j // c, -1, Hb) + 1
-    col = np.minimum(i // c, Wb)
-    covered_weft = qb[lo, col] & qb[hi, col]                          # (H, W - 1)
-    qt = np.zeros((Wb + 2, Hb + 1), dtype=bool)
-    qt[1:Wb + 1, :Hb] = block.T
-    ii = np.arange(W)[:, None]
-    jj = np.arange(H - 1)[None, :]
-    covered_warp = qt[np.clip((ii - 1) // c, -1, Wb) + 1, np.minimum(jj // c, Hb)] & \
-        qt[np.clip(ii // c, -1, Wb) + 1, np.minimum(jj // c, Hb)]     # (W, H - 1)
+    # column i // c, between the blocks of cell rows j - 1 and j (one block inside it, two on a
+    # boundary; no cell row -1 or H - 1: the grid's border)
+    covered_weft = _covered(block, H, W, c)                          # (H, W - 1)
+    covered_warp = _covered(block.T, W, H, c)                         # (W, H - 1)
     full = wg >= 1.0
     hidden_weft = covered_weft & full[:, :-1] & full[:, 1:]
     hidden_warp = covered_warp & (full[:-1, :] & full[1:, :]).T
-    # two triangles per block, corners (J c, I c), (J c, I c + c), (J c + c, I c + c), (J c + c, I c)
+    # two triangles per block, corners (j0, i0), (j0, i1), (j1, i1), (j1, i0): j0 = J c, j1 = min(j0 + c, H - 1)
     bj, bi = np.nonzero(block)
-    a = (bj * c * W + bi * c).astype(np.uint32)
+    j0, i0 = bj * c, bi * c
+    j1, i1 = np.minimum(j0 + c, H - 1), np.minimum(i0 + c, W - 1)
+    a, b, d, e = ((jj * W + ii).astype(np.uint32) for jj, ii in ((j0, i0), (j0, i1), (j1, i1), (j1, i0)))
     tri = np.empty((2 * a.size, 3), dtype=np.uint32)
-    tri[0::2, 0], tri[0::2, 1], tri[0::2, 2] = a, a + c, a + c * W + c
-    tri[1::2, 0], tri[1::2, 1], tri[1::2, 2] = a, a + c * W + c, a + c * W
+    tri[0::2, 0], tri[0::2, 1], tri[0::2, 2] = a, b, d
+    tri[1::2, 0], tri[1::2, 1], tri[1::2, 2] = a, d, e
     on = onscreen
-    seen = on[a] | on[a + c] | on[a + c * W + c] | on[a + c * W]
+    seen = on[a] | on[b] | on[d] | on[e]
     shown = np.repeat(seen, 2)
     used = np.zeros(H * W, dtype=bool)
     used[tri.ravel()] = True
     return FarField(vertices, tri, np.ascontiguousarray(tri[shown]), used, weight, footprint, hidden_weft,
                     hidden_warp, covered_weft, covered_warp)
+
+
+def _covered(block: np.ndarray, H: int, W: int, c: int) -> np.ndarray:
+    """(H, W - 1) bool: the links along grid rows (weft links; warp links with `block` transposed and
+    H, W swapped) with surface blocks (`block`, (ceil((H - 1) / c), ceil((W - 1) / c))) on both sides."""
+    Hb, Wb = block.shape
+    qb = np.zeros((Hb + 1, Wb), dtype=bool)                          # row 0: outside the grid
+    qb[1:] = block
+    row = np.arange(H)[:, None]
+    below = np.where(row >= 1, (row - 1) // c + 1, 0)                 # cell row j - 1
+    above = np.where(row <= H - 2, row // c + 1, 0)                   # cell row j
+    col = np.arange(W - 1)[None, :] // c
+    return qb[below, col] & qb[above, col]
 
 
 def grid_arrays(topology: Mapping[str, np.ndarray], centre_c: np.ndarray, normal_c: np.ndarray,

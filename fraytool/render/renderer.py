@@ -137,7 +137,7 @@ def _preprocess(source: str, defines: tuple[str, ...]) -> str:
 
 def load_program(ctx: moderngl.Context, vertex: str, fragment: str, defines: tuple[str, ...] = ()) -> moderngl.Program:
     """Compile a program from shader files in shaders/ (see fraytool.resources), with the optional
-    features named in `defines` (SHADOWS, FILL, SHADOW_ONE_TAP, RIBBON, ENCODE_SRGB) switched on; a missing file or a compile error is a
+    features named in `defines` (SHADOWS, FILL, SHADOW_ONE_TAP, RIBBON, ENCODE_SRGB, SURFACE) switched on; a missing file or a compile error is a
     RunError naming the files (a broken installation, not a user mistake)."""
     try:
         sources = _preprocess(shader_source(vertex), defines), _preprocess(shader_source(fragment), defines)
@@ -383,6 +383,8 @@ class Renderer:
         self._weave, self._mean_cover, self._weave_period, self._visibility = \
             self._weave_textures(ctx, render, self._far_topology)
         self._yarn_progs = (self._yarn_prog, self._yarn_band_prog)
+        if self.shadow is not None:
+            self.shadow.surface_program = load_program(ctx, "depth.vert", "depth.frag", ("SURFACE",))
         self._set_uniforms(render)
 
     def _weave_textures(self, ctx: moderngl.Context, r: RenderSpec, topology: Mapping[str, np.ndarray]):

@@ -14,6 +14,7 @@ import numpy as np
 from fraytool.kinds import SHAPE_MESH, SHAPE_SPHERE
 from fraytool.render.bodies import BodySet, body_bounding_radii
 from fraytool.render.camera import gl_matrix_bytes
+from fraytool.render.farfield import SURFACE_FAR_WEIGHT
 from fraytool.render.shadow import NORMAL_OFFSET_TEXELS, LightFrame, caster_points, fit_light
 
 SHADOW_UNIT = 0
@@ -26,10 +27,13 @@ class ShadowPass:
     """One shadow map of `size` x `size` texels, redrawn every frame."""
 
     def __init__(self, ctx: moderngl.Context, size: int, topology: Mapping[str, np.ndarray],
-                 program: moderngl.Program):
+                 program: moderngl.Program, surface_program: Optional[moderngl.Program] = None):
+        """`program`: shaders/depth.vert + depth.frag; `surface_program`: the same with SURFACE, for the
+        far-field surface (set by the renderer when it first draws one)."""
         self.ctx = ctx
         self.size = int(size)
         self.program = program
+        self.surface_program = surface_program
         self.texture = ctx.depth_texture((self.size, self.size))
         self.texture.compare_func = "<="
         self.texture.filter = (moderngl.LINEAR, moderngl.LINEAR)
@@ -65,7 +69,8 @@ class ShadowPass:
         """Fit the light to this frame's casters and draw them; None when nothing casts. `packed`: the
         yarn buffer holds positions only (ribbons turned to the light), not the interleaved vertices.
         `surface`: (vertex stream, index stream, index count, floats per vertex) of the far-field
-        surface (fraytool.render.farfield), which casts as an opaque sheet; its positions are then
+        surface (fraytool.render.farfield), which casts as an opaque sheet where its far weight is at
+        least a half (shaders/depth.frag); its positions are then
         among `yarn_positions`, a tuple (the yarns', the sheet's) the light is fitted to
         (fraytool.render.shadow.caster_points)."""
         points, radii = caster_points(yarn_positions, self.body_shape, geom.body_position_m,
@@ -90,7 +95,8 @@ class ShadowPass:
             prog["u_model"].write(gl_matrix_bytes(np.eye(4)))
             self._yarns(yarn_vbo, opaque_ibo, packed).render(moderngl.TRIANGLES, vertices=opaque_count)
         if surface is not None and surface[2]:
-            prog["u_model"].write(gl_matrix_bytes(np.eye(4)))
+            self.surface_program["u_light_view_proj"].write(gl_matrix_bytes(light.view_proj))
+            self.surface_program["u_model"].write(gl_matrix_bytes(np.eye(4)))
             self._surface(*surface).render(moderngl.TRIANGLES, vertices=surface[2])
         ctx.polygon_offset = (0.0, 0.0)
         return light
@@ -100,7 +106,8 @@ class ShadowPass:
         if self._surface_vao is None or self._surface_vao[0] != key:
             if self._surface_vao is not None:
                 self._surface_vao[1].release()
-            vao = self.ctx.vertex_array(self.program, [(vbo_stream.buffer, f"3f {4 * (floats - 3)}x", "in_position")],
+            layout = f"3f {4 * (SURFACE_FAR_WEIGHT - 3)}x 1f {4 * (floats - SURFACE_FAR_WEIGHT - 1)}x"
+            vao = self.ctx.vertex_array(self.surface_program, [(vbo_stream.buffer, layout, "in_position", "in_far")],
                                         ibo_stream.buffer, 4)
             self._surface_vao = (key, vao)
         return self._surface_vao[1]
@@ -128,5 +135,6 @@ class ShadowPass:
         for have in (self._yarn_vao, self._surface_vao):
             if have is not None:
                 have[1].release()
-        for obj in (self.fbo, self.texture, self.program):
-            obj.release()
+        for obj in (self.fbo, self.texture, self.program, self.surface_program):
+            if obj is not None:
+                obj.release()
