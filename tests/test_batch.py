@@ -255,8 +255,8 @@ def test_farm_tasks_write_16bit_alpha_pngs_and_exrs_when_asked(scene, tmp_path):
         raw = subprocess.run([imageio_ffmpeg.get_ffmpeg_exe(), "-v", "error", "-i", str(png), "-f", "rawvideo",
                               "-pix_fmt", "rgba64le", "-"], capture_output=True, check=True).stdout
         rgba = np.frombuffer(raw, "<u2").reshape(48, 64, 4)
-        # transparent background; the cloth covers (at 64 x 48 it is all far-field surface, whose alpha is
-        # the weave's coverage, about 0.6 here: the gaps between the yarns show the background)
+        # transparent background; the cloth covers (at 64 x 48 it is far-field surface but for the border
+        # yarns, and the surface's alpha is the weave's coverage, about 0.6 here: the gaps show through)
         assert rgba[..., 3].min() == 0 and rgba[..., 3].max() > 30000
         assert np.any(rgba[..., :3] % 257 != 0)                           # real 16-bit values, not 8-bit ones
         channels = read_exr(out / "exr" / f"frame_{k:06d}.exr")

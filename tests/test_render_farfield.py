@@ -17,7 +17,7 @@ from conftest import GOLDEN_SCENE, PosedCloth
 from fraytool.render.aliasing import FACTOR, blurred_rms, box_downsample, gaussian_blur
 from fraytool.render.camera import Camera
 from fraytool.render.color import srgb_to_linear
-from fraytool.render.farfield import FAR_PX, NEAR_PX, band_weight
+from fraytool.render.farfield import FAR_PX, NEAR_PX, _covered, band_weight
 from fraytool.render.geometry import GeometryBuilder, YarnStyle
 from fraytool.render.renderer import Renderer
 from fraytool.render.weave_texture import coverage_tile
@@ -90,6 +90,22 @@ def _centre_footprint(flat, elevation: float, azimuth: float, footprint: float, 
     d = float(np.linalg.norm(np.asarray(spec.camera.position_m)))
     spacing_px = flat.spec.cloth.spacing_m * H / (2.0 * d * math.tan(math.radians(spec.camera.fov_deg) / 2.0))
     return float(field.footprint_px[(flat.H // 2) * flat.W + flat.W // 2]), spacing_px
+
+
+def test_covered_links_are_those_with_surface_cells_on_both_sides():
+    """farfield._covered against a loop over the links: a link along grid row j between places i and
+    i + 1 lies between cell rows j - 1 and j (none beyond the grid's border); it is covered where both
+    cells exist and their blocks (c x c cells, the last row and column of blocks shorter) are surface."""
+    rng = np.random.default_rng(7)
+    for H, W, c in [(2, 2, 4), (5, 5, 4), (6, 7, 4), (9, 8, 4), (12, 12, 4), (7, 3, 2), (4, 6, 1), (13, 10, 5)]:
+        Hb, Wb = -(-(H - 1) // c), -(-(W - 1) // c)
+        block = rng.random((Hb, Wb)) < 0.7
+        slow = np.zeros((H, W - 1), dtype=bool)
+        for j in range(H):
+            for i in range(W - 1):
+                sides = [r for r in (j - 1, j) if 0 <= r <= H - 2]
+                slow[j, i] = len(sides) == 2 and all(block[r // c, i // c] for r in sides)
+        assert np.array_equal(_covered(block, H, W, c), slow), (H, W, c)
 
 
 def test_footprint_seen_head_on_is_the_spacing_in_pixels(flat):
