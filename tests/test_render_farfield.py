@@ -306,8 +306,8 @@ def _shares(ctx, pc, elevation: float, azimuth: float, monkeypatch):
     ref = _reference(ctx, spec, pc, pc.rest, size)
     middle = (slice(39, 51), slice(50, 110))
 
-    def shares(img):
-        return srgb_to_linear(img[middle].reshape(-1, 3).astype(float).mean(axis=0) / 255.0)
+    def shares(img):  # each pixel decoded, then averaged: a share is a mean in linear light
+        return srgb_to_linear(img[middle].reshape(-1, 3).astype(float) / 255.0).mean(axis=0)
 
     return shares(far), shares(ref)
 
