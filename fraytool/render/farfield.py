@@ -25,10 +25,13 @@ are still several pixels long across the view. Its far weight is 0 at NEAR_PX an
 only), 1 at FAR_PX and below (surface only), smoothstep between: the blend band (a crossing beside
 one behind the eye counts as 0 px: weight 1). Crossings outside the view keep their own weight, so
 the band never starts at the edge of the frame. The surface's quads are blocks of SURFACE_STEP x
-SURFACE_STEP grid cells, drawn where all their crossings are at base level (not mass couples), all
-their structural springs alive and one crossing has weight > 0. A yarn segment is left out of the
-yarn mesh where surface quads lie on both its sides and both its ends have weight 1; segments at the
-border, at a tear or beside a couple stay yarns (the surface covers only half their width).
+SURFACE_STEP grid cells (the last row and column of blocks take the 1 to SURFACE_STEP cells left
+over, so the surface reaches the border), drawn where all their crossings are at base level (not
+mass couples), all their structural springs alive and one crossing has weight > 0. The shadow map
+takes the surface where its weight is at least a half (shaders/depth.frag, fraytool.render.shadow_pass).
+A yarn segment is left out of the yarn mesh where surface quads lie on both its sides and both its
+ends have weight 1; segments at the border, at a tear or beside a couple stay yarns (the surface
+covers only half their width).
 In the band both are drawn and split each pixel's MSAA samples between them (gl_SampleMask): the
 surface takes n = floor(w S + dither) of the S samples, the yarns the rest, so the resolved pixel
 is the mix (1 - w) yarns + w surface of two complete pictures (each with its own coverage), with no
