@@ -13,6 +13,7 @@ on both images (fraytool.render.aliasing). Cost: median milliseconds per frame o
     python benchmarks/render_lod.py scenes/tablecloth_tear.toml OUT_DIR --frames 53,106
     python benchmarks/render_lod.py scenes/tablecloth_tear.toml OUT_DIR --frames 53 --scales 0.5,1,2 \\
         --modes tube,ribbon,far_field
+    python benchmarks/render_lod.py scenes/tablecloth_tear.toml OUT_DIR --frames 53 --reference-spread
 
 OUT_DIR holds (or receives) the scene's frame records. With --save DIR the images are written there.
 """
@@ -84,6 +85,48 @@ def reference(spec, topology, record, size, samples, factor: int = REF_FACTOR) -
     return box_downsample(linear, f)
 
 
+CONVERGED = {
+    # spline samples every 2 px and no straight segments (ribbons); 16-sided tubes with facets of a
+    # quarter pixel and samples every 4 px: the same yarns without the level of detail's shortcuts
+    "ribbon": (dict(SAMPLE_PX=2.0, STRAIGHT_PX=0.0, RIBBON_STRAIGHT_PX=0.0), dict(spline_samples=8)),
+    "tube": (dict(FACET_PX=0.25, SAMPLE_PX=4.0, STRAIGHT_PX=0.0, RIBBON_STRAIGHT_PX=0.0),
+             dict(yarn_shape="tube", tube_sides=16, spline_samples=8)),
+}
+
+
+def converged_reference(spec, topology, record, size, samples, shape: str, factor: int = REF_FACTOR) -> np.ndarray:
+    """As `reference`, but with the yarns drawn converged (CONVERGED[shape]): how far the reference's
+    own level of detail moves it (docs/rendering.md, "The reference is not converged either")."""
+    from fraytool.render import lod
+
+    W, H = size
+    f = int(factor)
+    limits, render = CONVERGED[shape]
+    saved = {name: getattr(lod, name) for name in limits}
+    for name, value in limits.items():
+        setattr(lod, name, value)
+    try:
+        linear, _ = draw(with_render(spec, far_field=False, **render), topology, record, (W * f, H * f), samples,
+                         target="float")
+    finally:
+        for name, value in saved.items():
+            setattr(lod, name, value)
+    return box_downsample(linear, f)
+
+
+def reference_spread(spec, topology, record, size, samples) -> dict:
+    """Blurred RMS [levels] between the reference and the two converged drawings, and of the shipped
+    frame (the far field on) against each."""
+    images = {"reference": reference(spec, topology, record, size, samples),
+              **{f"converged {shape}s": converged_reference(spec, topology, record, size, samples, shape)
+                 for shape in CONVERGED}}
+    shipped, _ = draw(with_render(spec, **MODES["far_field"]), topology, record, size, samples)
+    names = list(images)
+    out = {f"{a} / {b}": blurred_rms(images[a], images[b]) for k, a in enumerate(names) for b in names[k + 1:]}
+    out.update({f"shipped / {a}": blurred_rms(shipped, images[a]) for a in names})
+    return out
+
+
 def with_render(spec, **changes):
     return dataclasses.replace(spec, render=dataclasses.replace(spec.render, **changes))
 
@@ -103,6 +146,9 @@ def main(argv=None) -> None:
                     help="middle of the blend band [px] (default: the scene's [render] far_field_px)")
     ap.add_argument("--render-set", action="append", default=[], metavar="KEY=VALUE",
                     help="override a [render] key for every image, e.g. shadows=false (repeatable)")
+    ap.add_argument("--reference-spread", action="store_true",
+                    help="instead of the table: the reference against the same yarns drawn converged "
+                         "(CONVERGED), and the shipped frame against each, at the scene's size")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
     spec = load_scene(args.scene)
@@ -118,6 +164,19 @@ def main(argv=None) -> None:
         from fraytool.sim.run import simulate_to_disk
         simulate_to_disk(spec, Path(args.out_dir), frames=max(frames) + 1, progress=sys.stderr.isatty())
     topology = store.load_topology()
+    if args.reference_spread:
+        rows = []
+        for frame in frames:
+            spread = reference_spread(spec, topology, store.load_frame(frame), tuple(spec.render.resolution),
+                                      spec.render.samples)
+            rows.append(dict(frame=frame, **{k: round(v, 2) for k, v in spread.items()}))
+            if not args.json:
+                for k, v in spread.items():
+                    print(f"{spec.name} frame {frame}: {k:40s} {v:5.2f} sRGB levels RMS (blur {BLUR_SIGMA_PX:g} px)",
+                          flush=True)
+        if args.json:
+            print(json.dumps(rows))
+        return
     save = Path(args.save) if args.save else None
     if save:
         save.mkdir(parents=True, exist_ok=True)
