@@ -108,6 +108,21 @@ def test_covered_links_are_those_with_surface_cells_on_both_sides():
         assert np.array_equal(_covered(block, H, W, c), slow), (H, W, c)
 
 
+def test_weave_tiles_keeps_each_cloths_own(flat):
+    """weave_tiles keeps its last cloth's tiles: asked again for it, the same read-only array; asked for
+    another cloth in between (its weave turned over), that cloth's own, as computed afresh."""
+    from fraytool.render import weave_texture
+
+    topo = dict(flat.topology)
+    turned = dict(topo, crossing_weft_on_top=~np.asarray(topo["crossing_weft_on_top"], dtype=bool))
+    first = weave_texture.weave_tiles(topo)
+    assert weave_texture.weave_tiles(topo) is first and not first.flags.writeable
+    other = weave_texture.weave_tiles(turned)
+    assert np.array_equal(other, weave_texture._weave_tiles(turned)) and not np.array_equal(other, first)
+    again = weave_texture.weave_tiles(topo)
+    assert np.array_equal(again, weave_texture._weave_tiles(topo))
+
+
 def test_footprint_seen_head_on_is_the_spacing_in_pixels(flat):
     """Straight above, the centre crossing's footprint is its spacing in pixels."""
     got, spacing_px = _centre_footprint(flat, 90.0, 0.0, 1.7)

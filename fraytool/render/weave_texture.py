@@ -95,10 +95,11 @@ def coverage_tile(on_top_tile: np.ndarray, cover: float, texels: int = TEXELS_PE
     return np.round(np.stack([r, g], axis=-1) * 255.0).astype(np.uint8)
 
 
-_last_tiles: list = [None, None]
+_last_tiles: tuple = (None, None)
 """weave_tiles' last (key, result): a render asks twice for the same cloth (YarnStyle.from_spec, to
 decide whether the far field can stand for it, and the Renderer's textures), about 60 ms each on a
-512 x 512 cloth."""
+512 x 512 cloth. One tuple, read and replaced whole: renders in threads of one worker (the farm) see
+a key with its own result."""
 
 
 def weave_tiles(topology: Mapping[str, np.ndarray]) -> Optional[np.ndarray]:
@@ -111,12 +112,15 @@ def weave_tiles(topology: Mapping[str, np.ndarray]) -> Optional[np.ndarray]:
     key = tuple((k, np.asarray(topology[k]).tobytes()) for k in
                 ("warp_yarns", "weft_yarns", "crossing_weft_on_top", "crossing_panel", "crossing_grid_i",
                  "crossing_grid_j") if k in topology)
-    if _last_tiles[0] != key:
-        tiles = _weave_tiles(topology)
-        if tiles is not None:
-            tiles.flags.writeable = False
-        _last_tiles[:] = [key, tiles]
-    return _last_tiles[1]
+    global _last_tiles
+    last_key, last = _last_tiles
+    if last_key == key:
+        return last
+    tiles = _weave_tiles(topology)
+    if tiles is not None:
+        tiles.flags.writeable = False
+    _last_tiles = (key, tiles)
+    return tiles
 
 
 def _weave_tiles(topology: Mapping[str, np.ndarray]) -> Optional[np.ndarray]:
