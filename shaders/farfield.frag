@@ -28,8 +28,17 @@ in vec3 v_warp_key;
 
 out vec4 f_color;
 
+// Trilinear filtering takes the mip level from the longer axis of the pixel's footprint and blends it
+// with the next coarser one: the weave comes out about twice as blurred as the 1-pixel box a camera
+// (and the supersampled reference) integrates over, and the weave's pixel-scale contrast, which is
+// part of the cloth's look at 1-2 px per crossing, goes with it (a flat weave at 1.2-1.6 px: 45-55 %
+// of the box-filtered yarns' per-pixel spread). Half a level sharper keeps 62-70 % of it with no
+// visible beat; a whole level keeps 90 % but beats where the view grazes (docs/rendering.md,
+// "Coverage"). The cost is the same: one lookup.
+const float WEAVE_LOD_BIAS = -0.5;
+
 void main() {
-    vec4 texel = texture(u_weave, vec3((v_grid + 0.5) / u_weave_period, float(v_layer)));
+    vec4 texel = texture(u_weave, vec3((v_grid + 0.5) / u_weave_period, float(v_layer)), WEAVE_LOD_BIAS);
     vec2 share = (v_back == 1 ? texel.ba : texel.rg) * v_share;
     float cover = share.x + share.y;
     if (cover > 1.0) {
