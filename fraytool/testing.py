@@ -34,20 +34,22 @@ def assert_matches_golden(scene: str | os.PathLike, golden_dir: str | os.PathLik
     Returns the frame verdicts (fraytool.golden.compare.FrameVerdict); raises AssertionError on a regression."""
     from fraytool.golden.compare import FAIL
     from fraytool.golden.report import Report
-    from fraytool.golden.run import check_scene, load_for_golden, parse_frames, update_command_line, update_scene
+    from fraytool.golden.run import (check_scene, load_for_check, load_for_golden, parse_frames, update_command_line,
+                                     update_scene)
 
     scene, golden_dir = str(scene), Path(golden_dir)
-    spec = load_for_golden(scene, list(sets))
     if update is None:
         update = os.environ.get(UPDATE_ENV, "") not in ("", "0")
     work = Path(work_dir) if work_dir else None
     if update:
+        spec = load_for_golden(scene, list(sets))
         chosen = list(frames) if frames else parse_frames(None, spec)
         update_scene(spec, golden_dir, chosen, list(sets), work)
         return []
+    spec, checked_sets = load_for_check(scene, golden_dir, list(sets))
     result = check_scene(spec, golden_dir, list(frames) if frames else None,
                          update_command_line(scene, golden_dir, list(sets)) + "  (or pytest --update-goldens)",
-                         list(sets), work)
+                         checked_sets, work)
     failed = [v for v in result.verdicts if v.status == FAIL]
     if failed:
         report = Report(golden_dir / f"{spec.name}-report")

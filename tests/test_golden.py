@@ -83,6 +83,23 @@ def test_half_a_pixel_of_camera_fails_naming_frame_and_figure(drape_golden):
     assert "settings.camera" in run.stderr  # the report says what differs from the golden's metadata
 
 
+def test_a_golden_made_with_a_set_is_checked_with_it(tmp_path):
+    """docs/golden.md: `--set` is recorded, and the check applies it without being told again (a golden kept
+    at a smaller size is checked at that size); a --set given to the check goes on top of it."""
+    small = "render.resolution=[120,80]"
+    run = fraytool("golden", "update", DRAPE, "--dir", tmp_path / "g", "--work", tmp_path / "work",
+                   "--frames", "0,7", "--set", small)
+    assert run.returncode == 0, run.stderr
+    run = fraytool("golden", "check", DRAPE, "--dir", tmp_path / "g", "--work", tmp_path / "work")
+    assert run.returncode == 0 and "golden check: pass" in run.stderr, run.stderr
+    assert "differs from the golden's metadata" not in run.stderr, run.stderr
+    # a change given to the check still applies, and the metadata says which key moved, readably
+    run = fraytool("golden", "check", DRAPE, "--dir", tmp_path / "g", "--work", tmp_path / "work",
+                   "--set", "camera.fov_deg=41")
+    assert run.returncode == 1, run.stderr
+    assert "settings.camera.fov_deg: golden 40.0, now 41.0" in run.stderr, run.stderr
+
+
 def test_gravity_on_a_drape_fails_in_image_and_geometry(drape_golden):
     run = check(drape_golden, "--set", "world.gravity_m_s2=[0.0, -7.0, 0.0]")
     assert run.returncode == 1

@@ -7,22 +7,24 @@ from typing import Optional, TextIO
 
 from fraytool.golden.compare import FAIL, WARN
 from fraytool.golden.report import Report
-from fraytool.golden.run import check_scene, load_for_golden, parse_frames, update_command_line, update_scene
+from fraytool.golden.run import (check_scene, load_for_check, load_for_golden, parse_frames, update_command_line,
+                                 update_scene)
 
 
 def golden_command(args, stream: Optional[TextIO] = None) -> int:
     stream = stream or sys.stderr
-    specs = [(scene, load_for_golden(scene, args.sets)) for scene in args.scenes]  # every scene checked before any work
     if args.action == "update":
+        specs = [(scene, load_for_golden(scene, args.sets)) for scene in args.scenes]  # all checked before any work
         for scene, spec in specs:
             frames = parse_frames(args.frames, spec)
             out = update_scene(spec, args.dir, frames, args.sets, args.work, stream)
             print(f"fraytool: golden of {spec.name}: frames {', '.join(map(str, frames))} in {out}/", file=stream)
         return 0
+    checks = [(scene, *load_for_check(scene, args.dir, args.sets)) for scene in args.scenes]
     report = Report(args.report)
-    for scene, spec in specs:
+    for scene, spec, sets in checks:
         frames = parse_frames(args.frames, spec) if args.frames else None
-        result = check_scene(spec, args.dir, frames, update_command_line(scene, args.dir, args.sets), args.sets,
+        result = check_scene(spec, args.dir, frames, update_command_line(scene, args.dir, args.sets), sets,
                              args.work, stream)
         report.add(spec.name, result.golden_dir, result.verdicts, result.images, result.differences,
                    spec.golden.fail)

@@ -43,6 +43,34 @@ def load_for_golden(scene: str, sets: list[str]) -> SceneSpec:
     return spec
 
 
+def recorded_sets(golden_dir: Path, scene_name: str) -> list[str]:
+    """The --set overrides a scene's golden was made with (its golden.json); [] without a readable golden."""
+    import json
+
+    try:
+        meta = json.loads((Path(golden_dir) / scene_name / store.METADATA).read_text())
+        sets = meta["settings"]["set"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return []
+    return [str(s) for s in sets] if isinstance(sets, list) else []
+
+
+def sets_for_check(recorded: Sequence[str], sets: Sequence[str]) -> list[str]:
+    """A check applies the golden's recorded --set first, then its own on top (a later one wins), so a golden
+    made at `--set render.resolution=[640,360]` is checked at that size without repeating it."""
+    return list(recorded) + [s for s in sets if s not in recorded]
+
+
+def load_for_check(scene: str, golden_dir: Path, sets: Sequence[str]) -> tuple[SceneSpec, list[str]]:
+    """The scene as its golden check renders it, and the --set list that makes it (sets_for_check)."""
+    spec = load_for_golden(scene, list(sets))
+    recorded = recorded_sets(golden_dir, spec.name)
+    if not recorded:
+        return spec, list(sets)
+    effective = sets_for_check(recorded, sets)
+    return load_for_golden(scene, effective), effective
+
+
 def update_command_line(scene: str, golden_dir: Path, sets: list[str]) -> str:
     """The command that makes a missing golden (quoted for a shell)."""
     flags = "".join(f" --set {shlex.quote(s)}" for s in sets)
@@ -112,6 +140,12 @@ def farm_task(scene: str, sets: Sequence, golden_dir: str, work_root: Optional[s
     work = Path(work_root) if work_root else None
     try:
         spec = load_scene(scene, list(sets))
+        recorded = [] if update else recorded_sets(Path(golden_dir), spec.name)
+        if recorded:
+            from fraytool.scene.overrides import parse_assignment
+
+            text_sets = sets_for_check(recorded, text_sets)
+            spec = load_scene(scene, [parse_assignment(a) for a in text_sets])
         with open(os.devnull, "w") as quiet:  # a worker has no terminal: no progress
             if update:
                 update_scene(spec, Path(golden_dir), default_frames(spec), text_sets, work, stream=quiet)

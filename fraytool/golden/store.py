@@ -87,6 +87,10 @@ def settings_differences(meta: dict, spec: SceneSpec, sets: list[str], renderer:
     out = [f"{k}: golden {meta.get(k)!r}, now {v!r}" for k, v in now.items() if meta.get(k) != v]
     old = meta.get("settings", {})
     for k, v in settings_of(spec, sets).items():
-        if json.loads(json.dumps(v)) != old.get(k):
-            out.append(f"settings.{k}: golden {json.dumps(old.get(k))[:200]}, now {json.dumps(v)[:200]}")
+        v, was = json.loads(json.dumps(v)), old.get(k)
+        if isinstance(v, dict) and isinstance(was, dict):     # [render], [camera]: the keys that differ
+            out += [f"settings.{k}.{key}: golden {json.dumps(was.get(key))}, now {json.dumps(v.get(key))}"
+                    for key in sorted(set(v) | set(was)) if v.get(key) != was.get(key)]
+        elif v != was:
+            out.append(f"settings.{k}: golden {json.dumps(was)}, now {json.dumps(v)}")
     return out
