@@ -40,6 +40,19 @@ def scenes_dir() -> Path:
     return _package_dir("fraytool.scenes")
 
 
+def shipped_scene(name: str | Path) -> Path | None:
+    """The shipped scene a bare name (or a scenes/ path) stands for, or None."""
+    p = Path(name)
+    rel = p.parts[1:] if p.parts[:1] == ("scenes",) else p.parts
+    if not rel or p.is_absolute() or ".." in rel:
+        return None
+    shipped = scenes_dir().joinpath(*rel)
+    for c in (shipped, shipped.with_suffix(".toml")):
+        if c.is_file():
+            return c
+    return None
+
+
 def find_scene(path: str | Path) -> Path:
     """Resolve a scene argument: an existing file, else a shipped scene by name or scenes/ path."""
     p = Path(path)
@@ -48,15 +61,10 @@ def find_scene(path: str | Path) -> Path:
             return p
     except OSError as exc:  # a name too long for the file system, a path through a file, ...
         raise SceneError([f"{str(path)[:200]}: cannot read scene file: {exc.strerror}"]) from None
+    found = shipped_scene(p)
+    if found is not None:
+        return found
     shipped = scenes_dir()
-    candidates = []
-    rel = p.parts[1:] if p.parts[:1] == ("scenes",) else p.parts
-    if rel:
-        candidates.append(shipped.joinpath(*rel))
-        candidates.append(shipped.joinpath(*rel).with_suffix(".toml"))
-    for c in candidates:
-        if c.is_file():
-            return c
     names = sorted(q.relative_to(shipped).with_suffix("").as_posix() for q in shipped.rglob("*.toml"))
     import difflib
 

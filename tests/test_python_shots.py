@@ -134,6 +134,19 @@ def test_the_python_api_renders_and_exports_a_folder(tmp_path):
     assert stage.GetEndTimeCode() - stage.GetStartTimeCode() == 3
 
 
+def test_a_folder_named_like_a_shipped_scene(tmp_path):
+    """A folder in the working directory that holds no shot does not hide the shipped scene of its name
+    (`simulate` never let it); a shot's folder of that name is the shot, and refusing --set there says how to
+    name the shipped scene instead."""
+    (tmp_path / "drape").mkdir()
+    r = _cli("render", "drape", "--frames", "0:1", "--png", "--no-mp4", "--resolution", "160x90", "-o", "drape",
+             cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "drape" / "png" / "frame_000000.png").is_file()
+    r = _cli("render", "drape", "--set", "scene.seed=2", cwd=tmp_path)  # now ./drape is a shot
+    assert r.returncode == 2 and "whose scene is fixed" in r.stderr and "give scenes/drape.toml" in r.stderr, r.stderr
+
+
 def test_a_folder_refuses_set_and_an_old_folder_is_named(tmp_path):
     path, spec = _strip(tmp_path, frames=2)
     out = tmp_path / "shot"

@@ -32,17 +32,22 @@ class Target:
 def load_target(name: str, sets: Sequence[str] = (), force: bool = False) -> Target:
     """The scene file `name` with its --set overrides (refused, exit 2, when the machine lacks the memory
     unless `force`), or the shot in the output folder `name`."""
+    from fraytool.resources import shipped_scene
     from fraytool.sim.run import is_shot_folder, load_shot
 
+    shipped = shipped_scene(name)
     if is_shot_folder(name):
         if sets:
+            also = (f" (`{name}` is also a shipped scene's name: give scenes/{Path(shipped).name} to render that "
+                    "one with --set)" if shipped is not None else "")
             raise InputError(f"{name}: --set changes a scene file's keys; this is a simulated shot's folder, whose "
-                             "scene is fixed: render its scene file with --set instead, or re-simulate in Python")
+                             f"scene is fixed: render its scene file with --set instead, or re-simulate in Python{also}")
         spec, model, digest = load_shot(name)
         return Target(spec, model, Path(name), digest)
-    if Path(name).is_dir():
+    if Path(name).is_dir() and shipped is None:
         raise InputError(f"{name}: a folder without simulated frames (no frames/topology.npz): give a scene file, "
                          "a shipped scene's name, or the output folder of a simulated shot")
+    # a folder here that holds no shot does not hide the shipped scene of that name (as for `simulate`)
     from fraytool.scene import load_scene
     from fraytool.scene.overrides import parse_assignment
     from fraytool.sim.memory import admission_problems
