@@ -17,7 +17,9 @@ from __future__ import annotations
 import hashlib
 import os
 import sys
+from contextlib import contextmanager
 from pathlib import Path
+from typing import Callable
 
 _STAMP = "numba_sources.sha256"
 
@@ -35,6 +37,37 @@ def cold_start_note() -> str | None:
     COLD = False
     return ("fraytool: compiling the simulation kernels (the first run after installing or updating "
             "fraytool; about a minute, cached for later runs)")
+
+
+FIRST_USE_NOTE = ("fraytool: compiling kernels this run uses for the first time (a feature's first use after "
+                  "installing or updating fraytool: tearing, meshes, rendering...; up to a minute, cached for "
+                  "later runs)")
+
+
+@contextmanager
+def first_compile_notice(write: Callable[[str], None]):
+    """Within the block, call write(FIRST_USE_NOTE) once, when a fraytool kernel first compiles (a miss of
+    numba's on-disk cache): `cold_start_note` covers a cache with nothing of the simulation in it, this a cache
+    that holds some kernels but not the ones a scene's features need, which compile mid-run (fig7's tearing
+    after a drape: 20-40 s with no word, the progress line's ETA meanwhile meaningless). numba signals a
+    compilation with its "numba:compile" event (not sent for a load from the cache)."""
+    from numba.core import event
+
+    class _Listener(event.Listener):
+        said = False
+
+        def on_start(self, ev) -> None:
+            data = ev.data if isinstance(ev.data, dict) else {}
+            module = getattr(getattr(data.get("dispatcher"), "py_func", None), "__module__", "") or ""
+            if not self.said and module.startswith("fraytool."):
+                self.said = True
+                write(FIRST_USE_NOTE)
+
+        def on_end(self, ev) -> None:
+            pass
+
+    with event.install_listener("numba:compile", _Listener()):
+        yield
 
 
 def _user_cache_dir() -> Path | None:

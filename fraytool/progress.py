@@ -54,6 +54,7 @@ class Progress:
         self.last_log = self.start
         self.done = 0
         self.logged = -1
+        self.drawn = False
 
     def _rate_eta(self, done: int) -> tuple[float, float]:
         elapsed = time.perf_counter() - self.start
@@ -70,11 +71,19 @@ class Progress:
             bar = "#" * filled + "-" * (width - filled)
             self.stream.write(f"\r{self.label} [{bar}] {done}/{self.total} {rate:5.1f}/s ETA {eta:5.1f}s {extra}   ")
             self.stream.flush()
+            self.drawn = True
         elif self.mode == "log":
             now = time.perf_counter()
             if now - self.last_log >= LOG_EVERY_S:
                 self.last_log = now
                 self._log_line(done)
+
+    def message(self, text: str) -> None:
+        """A line of its own on the stream (in `bar` mode the bar goes on below it), in every mode: a message
+        is not progress."""
+        drawn = self.mode == "bar" and self.drawn
+        self.stream.write(("\n" if drawn else "") + text + "\n")
+        self.stream.flush()
 
     def _log_line(self, done: int) -> None:
         self.logged = done

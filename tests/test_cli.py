@@ -187,6 +187,33 @@ def test_a_cold_kernel_cache_is_announced_once(tmp_path, monkeypatch):
     assert "compiling" not in second.getvalue()
 
 
+def test_a_kernel_compiled_mid_run_is_announced_once():
+    """A cache that holds some kernels but not those a scene's features need (fig7's tearing after a drape)
+    compiles them mid-run: one line says so, the first time a fraytool kernel compiles; a kernel loaded
+    or compiled before, or one of another package, says nothing."""
+    import numba
+
+    from fraytool._numba_cache import FIRST_USE_NOTE, first_compile_notice
+
+    def kernel(module: str):
+        space = {"__name__": module}
+        exec("def f(x):\n    return x + 1\n", space)
+        return numba.njit(space["f"])
+
+    said = []
+    ours, other = kernel("fraytool.sim.kernels.probe"), kernel("elsewhere.probe")
+    with first_compile_notice(said.append):
+        other(1)
+        assert said == []
+        ours(1)
+        ours(2)
+        kernel("fraytool.render.probe")(1)
+    assert said == [FIRST_USE_NOTE]
+    with first_compile_notice(said.append):
+        ours(3)                                   # compiled already: nothing to say
+    assert said == [FIRST_USE_NOTE]
+
+
 def test_a_misspelled_flag_gets_one_line_and_a_suggestion(capsys):
     with pytest.raises(SystemExit) as exit_info:
         main(["render", "fig6_thrown_ball_plain", "--frmaes", "0:2"])

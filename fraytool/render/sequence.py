@@ -23,6 +23,7 @@ from typing import Optional, TextIO
 import moderngl
 import numpy as np
 
+from fraytool._numba_cache import first_compile_notice
 from fraytool.io.frame_record import sweep_temp_files
 from fraytool.io.frame_store import FrameStore
 from fraytool.progress import Progress
@@ -218,6 +219,8 @@ def render_job(job: RenderJob, ctx: moderngl.Context, store: FrameStore, stream:
     writer: Optional[VideoWriter] = None
     frames = job.frames.frames()
     bar = Progress(len(frames), job.spec.name, stream=stream, enabled=progress, stage="render")
+    notice = first_compile_notice(bar.message)  # the geometry's kernels compile on a first render
+    notice.__enter__()
     try:
         if job.video:
             writer = VideoWriter(job.video_path, job.size, job.spec.time.fps, crf=job.spec.output.crf,
@@ -288,6 +291,7 @@ def render_job(job: RenderJob, ctx: moderngl.Context, store: FrameStore, stream:
             result.stage_s["encode"] += time.perf_counter() - t3
             writer = None
     finally:
+        notice.__exit__(None, None, None)
         if writer is not None:
             writer.abort()
         bar.close()

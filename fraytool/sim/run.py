@@ -166,28 +166,15 @@ def _simulate_locked(spec: SceneSpec, store: FrameStore, frames: Optional[int], 
 
 def _advance(spec: SceneSpec, sim: Simulation, store: FrameStore, total: int, first_write: int,
              progress, stream) -> dict:
-    from fraytool._numba_cache import cold_start_note
+    from fraytool._numba_cache import cold_start_note, first_compile_notice
 
     note = cold_start_note()
     if note and sim.frame < total:
         print(note, file=stream)
     bar = Progress(total, spec.name, stream=stream, enabled=progress, stage="simulate")
-    t_last = time.perf_counter()
     try:
-        while sim.frame + 1 < total:
-            record = sim.advance_frame()
-            if not record_is_finite(record):  # the guard checks active masses; never write a NaN frame
-                raise SimulationUnstable("frame record holds a non-finite value",
-                                         {"step": sim.state.step_index, "time_s": sim.state.time_s,
-                                          "stage": "frame record", "stage_located": True,
-                                          "kernel": "frame_record"})
-            if sim.frame >= first_write:
-                store.write_frame(record, sim.checkpoint_arrays())
-            elif sim.frame == first_write - 1:  # the last kept frame: its checkpoint, for a later resume
-                store.write_frame(record, sim.checkpoint_arrays(), write_record=False)
-            now = time.perf_counter()
-            bar.update(sim.frame + 1, f"{1e3 * (now - t_last):6.1f} ms/frame")
-            t_last = now
+        with first_compile_notice(bar.message if not note else (lambda text: None)):
+            _frames(sim, store, total, first_write, bar)
     except SimulationUnstable as exc:
         bar.close()
         raise _unstable_run(sim, store, exc) from None
@@ -198,6 +185,25 @@ def _advance(spec: SceneSpec, sim: Simulation, store: FrameStore, total: int, fi
     if warning:
         print(f"fraytool: warning: {warning}", file=stream)
     return sim.summary()
+
+
+def _frames(sim: Simulation, store: FrameStore, total: int, first_write: int, bar: Progress) -> None:
+    """Advance and write frame by frame up to `total` (the frames before first_write only advance)."""
+    t_last = time.perf_counter()
+    while sim.frame + 1 < total:
+        record = sim.advance_frame()
+        if not record_is_finite(record):  # the guard checks active masses; never write a NaN frame
+            raise SimulationUnstable("frame record holds a non-finite value",
+                                     {"step": sim.state.step_index, "time_s": sim.state.time_s,
+                                      "stage": "frame record", "stage_located": True,
+                                      "kernel": "frame_record"})
+        if sim.frame >= first_write:
+            store.write_frame(record, sim.checkpoint_arrays())
+        elif sim.frame == first_write - 1:  # the last kept frame: its checkpoint, for a later resume
+            store.write_frame(record, sim.checkpoint_arrays(), write_record=False)
+        now = time.perf_counter()
+        bar.update(sim.frame + 1, f"{1e3 * (now - t_last):6.1f} ms/frame")
+        t_last = now
 
 
 def _unstable_run(sim: Simulation, store: FrameStore, exc: SimulationUnstable) -> SimulationUnstable:
