@@ -220,7 +220,7 @@ BAD_SHAPES = {
     "mask missing": ('mask = "nowhere.png"\nmask_size_m = [0.1, 0.1]', "no such file"),
     "mask without size": ('mask = "notes.png"', "mask_size_m"),
     "yarns with an outline": ("warp_yarns = 10\noutline_m = [[0.0, 0.0], [0.1, 0.0], [0.0, 0.1]]", "the shape sets the grid"),
-    "no shape no yarns": ("weft_yarns = 10", "missing required key `warp_yarns`"),
+    "no shape no yarns": ("weft_yarns = 10", "`warp_yarns` is missing or 0"),
 }
 
 

@@ -153,6 +153,9 @@ def test_a_folder_refuses_set_and_an_old_folder_is_named(tmp_path):
     simulate_to_disk(spec, out, progress=False)
     r = _cli("render", out, "--set", "scene.seed=2")
     assert r.returncode == 2 and "whose scene is fixed" in r.stderr
+    r = _cli("render", out, "--frames", "0:5")  # more frames than the shot has: not by --set here
+    assert r.returncode == 2 and "the shot has 2 frames: for more, simulate its scene file again with --set " \
+                                 "time.frames=5" in r.stderr, r.stderr
     r = _cli("export", tmp_path, "--usd", tmp_path / "x.usda")  # a folder, but no frames in it
     assert r.returncode == 2 and "a folder without simulated frames" in r.stderr
     # a folder written before the scene record existed: rewrite its topology without it

@@ -28,7 +28,7 @@ def export_command(args, stream: Optional[TextIO] = None) -> int:
     spec = target.spec
     _check_camera(spec)
     if getattr(args, "frames", None):
-        frames = parse_frame_range(args.frames, spec.time.frames)
+        frames = parse_frame_range(args.frames, spec.time.frames, shot_folder=target.out_dir is not None)
     else:
         frames = FrameRange(0, spec.time.frames, 1)
     out = target.output_dir(getattr(args, "out", None))

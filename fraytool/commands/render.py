@@ -77,7 +77,7 @@ def _render(args, stream: Optional[TextIO]) -> int:
     stream = stream or sys.stderr
     target = load_target(args.scene, getattr(args, "sets", None) or (), force=bool(getattr(args, "force", False)))
     spec = target.spec
-    job = build_job(spec, args, target.output_dir(getattr(args, "out", None)))
+    job = build_job(spec, args, target.output_dir(getattr(args, "out", None)), shot_folder=target.out_dir is not None)
     if job.exr:
         try:
             import OpenEXR  # noqa: F401  (a dependency of fraytool; missing only in a broken installation)

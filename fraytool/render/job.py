@@ -191,10 +191,11 @@ def parse_depth(value) -> int:
     raise InputError(f"--depth {value!r}: expected 8 or 16 (bits per channel of the PNGs)")
 
 
-def build_job(spec: SceneSpec, args, out: Path) -> RenderJob:
+def build_job(spec: SceneSpec, args, out: Path, shot_folder: bool = False) -> RenderJob:
     """Validate the `fraytool render` flags (an argparse namespace: png, no_mp4, resolution, samples,
     camera_position, camera_target, fov, frames, wireframe, alpha, depth, exr, codec, motion_blur,
-    motion_samples; missing ones take their defaults) against the scene and resolve them into a RenderJob writing to `out`."""
+    motion_samples; missing ones take their defaults) against the scene and resolve them into a RenderJob writing to `out`
+    (`shot_folder`: the scene is a simulated shot's, fixed; an error's hint then says so)."""
     png = bool(getattr(args, "png", False)) or spec.output.png
     video = spec.output.mp4 and not getattr(args, "no_mp4", False)
     exr = bool(getattr(args, "exr", False))
@@ -225,7 +226,7 @@ def build_job(spec: SceneSpec, args, out: Path) -> RenderJob:
                           camera_position=position, camera_target=target, fov=check_fov(args.fov),
                           fit=bool(getattr(args, "fit", False)))
     if args.frames:
-        frames, ranged = parse_frame_range(args.frames, spec.time.frames), True
+        frames, ranged = parse_frame_range(args.frames, spec.time.frames, shot_folder), True
     else:
         frames, ranged = FrameRange(0, spec.time.frames, 1), False
     from fraytool.render.camera import Camera

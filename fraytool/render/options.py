@@ -32,8 +32,9 @@ class FrameRange:
         return text + (f"_step{self.step}" if self.step != 1 else "")
 
 
-def parse_frame_range(text: str, scene_frames: int) -> FrameRange:
-    """START:END[:STEP], END exclusive; START defaults to 0 and END to the scene's frame count."""
+def parse_frame_range(text: str, scene_frames: int, shot_folder: bool = False) -> FrameRange:
+    """START:END[:STEP], END exclusive; START defaults to 0 and END to the scene's frame count (`shot_folder`:
+    the frames are a simulated shot's, whose scene --set cannot change: the hint for more says so)."""
     allowed = (f"expected START:END[:STEP] with 0 <= START < END <= {scene_frames} (the scene's "
                f"[time] frames; END is exclusive) and STEP >= 1, e.g. 0:{scene_frames} or 10:20:2")
     parts = text.split(":")
@@ -46,7 +47,9 @@ def parse_frame_range(text: str, scene_frames: int) -> FrameRange:
     except ValueError:
         raise InputError(f"--frames {text!r}: {allowed}") from None
     if not (0 <= start < end <= scene_frames) or step < 1:
-        longer = (f"; the scene has {scene_frames} frames: for more, add --set time.frames={end}"
+        more = (f"simulate its scene file again with --set time.frames={end}" if shot_folder
+                else f"add --set time.frames={end}")
+        longer = (f"; the {'shot' if shot_folder else 'scene'} has {scene_frames} frames: for more, {more}"
                   if end > scene_frames and 0 <= start < end and step >= 1 else "")
         raise InputError(f"--frames {text!r}: {allowed}{longer}")
     return FrameRange(start, end, step)

@@ -77,13 +77,14 @@ keys.SHOW_MAX_CHARS = 80 characters otherwise) at SHORT_SHOW_CHARS, so that the 
 SHORT_SHOW_CHARS = 24
 
 
-def allowed_keys(name: str, keys) -> str:
+def allowed_keys(name: str, keys, tables=()) -> str:
     """What an unknown key's message says of the allowed ones: all of a short table (at most 6), else the
-    closest one and where they are all listed (a message line stays under 200 characters)."""
+    closest one, a key's or a sub-table's (`tables`), and where they are all listed (a message line stays
+    under 200 characters)."""
     names = sorted(keys)
     if len(names) <= 6:
         return "allowed keys: " + ", ".join(names)
-    close = difflib.get_close_matches(str(name), names, n=1, cutoff=0.0)
+    close = difflib.get_close_matches(str(name), names + sorted(tables), n=1, cutoff=0.0)
     return f"did you mean {close[0]}? (docs/scene-format.md)"
 
 
@@ -97,7 +98,7 @@ def _read_table(doc: dict, where: str, keys: dict[str, Key], problems: _Problems
                 continue  # a sub-table, read on its own
             tables = sorted(t.split(".")[-1] for t in schema.TOP if t.startswith(where + ".") and
                             t.count(".") == where.count(".") + 1)
-            parts = [allowed_keys(name, keys)]
+            parts = [allowed_keys(name, keys, tables)]
             if tables:  # a table given where a key goes: the sub-tables first
                 sub = "sub-tables: " + ", ".join(tables)
                 parts = [sub] + parts if isinstance(value, dict) else parts + [sub]

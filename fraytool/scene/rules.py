@@ -55,8 +55,8 @@ def cloth_shape_problems(warp_yarns: int, weft_yarns: int, outline_m, mask: str,
         for k, v in (("warp_yarns", warp_yarns), ("weft_yarns", weft_yarns)):
             if v < 2:
                 out.append((k, v, "must be an integer >= 2 (or give outline_m or mask: the shape sets the grid)")
-                           if v else (None, None, f"missing required key `{k}`: an integer >= 2 (or give "
-                                                   "outline_m or mask: the shape sets the grid)"))
+                           if v else (None, None, f"`{k}` is missing or 0: a rectangle needs an integer >= 2 "
+                                                   "(or give outline_m or mask: the shape sets the grid)"))
         if grain_deg != 0.0:
             out.append(("grain_deg", grain_deg, "turns the weave of a shaped panel (outline_m or mask); a "
                                                 "rectangle turns with its plane"))

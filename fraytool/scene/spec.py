@@ -133,10 +133,11 @@ class ClothSpec:
                     "lines name their panel by it (default: cloth for the first panel, cloth<k> for panel k)")
     warp_yarns: int = key("int", 0, lo=0, hi=4096,
                           doc="number of warp yarns (columns, index i); they run along the cloth's second axis; "
-                              "at least 2; leave out with outline_m or mask (the shape sets the grid)")
+                              "2 or more for a rectangle; 0 or left out with outline_m or mask (the shape sets the "
+                              "grid)")
     weft_yarns: int = key("int", 0, lo=0, hi=4096,
                           doc="number of weft yarns (rows, index j); they run along the cloth's first axis; "
-                              "at least 2; leave out with outline_m or mask")
+                              "2 or more for a rectangle; 0 or left out with outline_m or mask")
     spacing_m: float = key("float", lo=1e-6, hi=1.0, doc="distance between neighbouring yarns at rest [m]")
     thickness_m: float = key("float", lo=1e-7, hi=0.1,
                              doc="cloth thickness T [m]: weft and warp masses of a couple are T apart")
