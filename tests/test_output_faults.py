@@ -586,6 +586,23 @@ def test_check_outputs_names_png_sets_of_two_renders_mixed(reference, tmp_path, 
     assert main(["check", "--outputs", str(out)]) == 1
     err = capsys.readouterr().err
     assert "mixed" in err and "3 of 16x12 8-bit RGB" in err and "2 of 16x12 16-bit RGBA" in err
+    assert "render every frame at one setting" in err                   # and what makes it one set again
+
+
+def test_a_render_that_leaves_two_sets_in_png_says_so(reference, tmp_path, capsys):
+    """Rendering a frame range at another size into a folder rendered before leaves PNGs of both sizes: the
+    render warns (it wrote only its frames), and rendering every frame at one size makes one set again."""
+    scene, good = reference
+    out = _copy(good, tmp_path / "out")
+    common = [str(scene), "-o", str(out), "--png", "--no-mp4"]
+    assert main(["render", *common, "--resolution", "32x24"]) == 0
+    capsys.readouterr()
+    assert main(["render", *common, "--resolution", "48x32", "--frames", "0:2"]) == 0
+    err = capsys.readouterr().err
+    assert "warning:" in err and "2 different renders mixed" in err and "2 of 48x32" in err, err
+    assert main(["render", *common, "--resolution", "48x32"]) == 0
+    assert "mixed" not in capsys.readouterr().err
+    assert main(["check", "--outputs", str(out)]) == 0
 
 
 def test_a_lock_from_another_host_is_stale_only_after_two_minutes_untouched(tmp_path):

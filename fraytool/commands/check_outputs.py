@@ -83,7 +83,7 @@ def folder_report(out_dir: Path, spec: Optional[SceneSpec]) -> dict:
     exrs = [p for d in exr_dirs for p in sorted(d.glob("*.exr"))]
     problems += [f"{p}: damaged PNG (unreadable or a chunk CRC fails)" for p in pngs if png_settings(p) is None]
     for d in png_dirs:
-        problems += _mixed_png_sets(d)
+        problems += mixed_png_sets(d)
     if exrs:
         from fraytool.render.exr import exr_settings
 
@@ -122,7 +122,7 @@ def png_header(path: Path) -> Optional[tuple[int, int, int, int]]:
     return width, height, depth, PNG_COLOUR_CHANNELS.get(colour, 0)
 
 
-def _mixed_png_sets(folder: Path) -> list[str]:
+def mixed_png_sets(folder: Path) -> list[str]:
     """One line when the PNGs of `folder` are of more than one size, bit depth or channel count (frames of
     two renders side by side), naming how many of each."""
     kinds: dict = {}
@@ -135,7 +135,12 @@ def _mixed_png_sets(folder: Path) -> list[str]:
     names = {1: "grey", 2: "grey+alpha", 3: "RGB", 4: "RGBA"}
     parts = [f"{len(v)} of {w}x{h} {d}-bit {names.get(c, f'{c}-channel')} (e.g. {v[0]})"
              for (w, h, d, c), v in sorted(kinds.items(), key=lambda kv: -len(kv[1]))]
-    return [f"{folder}: PNGs of {len(kinds)} different renders mixed: " + "; ".join(parts)]
+    return [f"{folder}: PNGs of {len(kinds)} different renders mixed: " + "; ".join(parts)
+            + f" ({MIXED_PNGS_FIX})"]
+
+
+MIXED_PNGS_FIX = ("a frame range rendered at other settings into the folder of an earlier render: render every "
+                  "frame at one setting, which replaces the others, or remove one set")
 
 
 def _video_problem(path: Path) -> Optional[str]:
