@@ -14,6 +14,7 @@ on both images (fraytool.render.aliasing). Cost: median milliseconds per frame o
     python benchmarks/render_lod.py scenes/tablecloth_tear.toml OUT_DIR --frames 53 --scales 0.5,1,2 \\
         --modes tube,ribbon,far_field
     python benchmarks/render_lod.py scenes/tablecloth_tear.toml OUT_DIR --frames 53 --reference-spread
+    python benchmarks/render_lod.py scenes/tablecloth_tear.toml OUT_DIR --frames 53 --reference-spread --ref-factor 8
 
 OUT_DIR holds (or receives) the scene's frame records. With --save DIR the images are written there.
 """
@@ -67,6 +68,23 @@ def draw(spec, topology, record, size, samples, target="srgb8", repeat=1):
     return image, 1e3 * statistics.median(times)
 
 
+FLOAT_TARGET_MAX_PX = 16_000_000
+"""Above this many pixels (5120x2880 is 14.7 M) a supersampled reference is drawn into the 8-bit sRGB target
+and decoded: llvmpipe refuses a multisampled float framebuffer of 8x the shipped 1280x720 (59 M pixels). The
+8-bit steps average out over the factor x factor block (under 0.1 level)."""
+
+
+def draw_linear(spec, topology, record, size, samples) -> np.ndarray:
+    """The frame as linear premultiplied RGBA (H, W, 4) float32, through the float target when it fits."""
+    from fraytool.render.color import srgb_to_linear
+
+    if size[0] * size[1] <= FLOAT_TARGET_MAX_PX:
+        return draw(spec, topology, record, size, samples, target="float")[0]
+    image, _ = draw(spec, topology, record, size, samples)
+    rgb = srgb_to_linear(image.astype(np.float32) / 255.0).astype(np.float32)
+    return np.concatenate([rgb, np.ones(rgb.shape[:2] + (1,), np.float32)], axis=-1)
+
+
 def reference(spec, topology, record, size, samples, factor: int = REF_FACTOR) -> np.ndarray:
     """The frame at `factor` x the size, yarns only, box-filtered in linear light: (H, W, 3) uint8 sRGB.
     Ribbons there are sampled as tubes are (no straight steps over 4 px, fraytool.render.lod): the
@@ -79,7 +97,7 @@ def reference(spec, topology, record, size, samples, factor: int = REF_FACTOR) -
     ribbon_straight = lod.RIBBON_STRAIGHT_PX
     lod.RIBBON_STRAIGHT_PX = lod.STRAIGHT_PX
     try:
-        linear, _ = draw(ref_spec, topology, record, (W * f, H * f), samples, target="float")
+        linear = draw_linear(ref_spec, topology, record, (W * f, H * f), samples)
     finally:
         lod.RIBBON_STRAIGHT_PX = ribbon_straight
     return box_downsample(linear, f)
@@ -106,19 +124,18 @@ def converged_reference(spec, topology, record, size, samples, shape: str, facto
     for name, value in limits.items():
         setattr(lod, name, value)
     try:
-        linear, _ = draw(with_render(spec, far_field=False, **render), topology, record, (W * f, H * f), samples,
-                         target="float")
+        linear = draw_linear(with_render(spec, far_field=False, **render), topology, record, (W * f, H * f), samples)
     finally:
         for name, value in saved.items():
             setattr(lod, name, value)
     return box_downsample(linear, f)
 
 
-def reference_spread(spec, topology, record, size, samples) -> dict:
-    """Blurred RMS [levels] between the reference and the two converged drawings, and of the shipped
-    frame (the far field on) against each."""
-    images = {"reference": reference(spec, topology, record, size, samples),
-              **{f"converged {shape}s": converged_reference(spec, topology, record, size, samples, shape)
+def reference_spread(spec, topology, record, size, samples, factor: int = REF_FACTOR) -> dict:
+    """Blurred RMS [levels] between the reference and the two converged drawings (all at `factor` x), and of
+    the shipped frame (the far field on) against each."""
+    images = {"reference": reference(spec, topology, record, size, samples, factor),
+              **{f"converged {shape}s": converged_reference(spec, topology, record, size, samples, shape, factor)
                  for shape in CONVERGED}}
     shipped, _ = draw(with_render(spec, **MODES["far_field"]), topology, record, size, samples)
     names = list(images)
@@ -148,7 +165,8 @@ def main(argv=None) -> None:
                     help="override a [render] key for every image, e.g. shadows=false (repeatable)")
     ap.add_argument("--reference-spread", action="store_true",
                     help="instead of the table: the reference against the same yarns drawn converged "
-                         "(CONVERGED), and the shipped frame against each, at the scene's size")
+                         "(CONVERGED), and the shipped frame against each, at the scene's size (with "
+                         "--ref-factor, all drawn at that factor)")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
     spec = load_scene(args.scene)
@@ -168,7 +186,7 @@ def main(argv=None) -> None:
         rows = []
         for frame in frames:
             spread = reference_spread(spec, topology, store.load_frame(frame), tuple(spec.render.resolution),
-                                      spec.render.samples)
+                                      spec.render.samples, args.ref_factor or REF_FACTOR)
             rows.append(dict(frame=frame, **{k: round(v, 2) for k, v in spread.items()}))
             if not args.json:
                 for k, v in spread.items():
