@@ -71,7 +71,9 @@ def draw(spec, topology, record, size, samples, target="srgb8", repeat=1):
 FLOAT_TARGET_MAX_PX = 16_000_000
 """Above this many pixels (5120x2880 is 14.7 M) a supersampled reference is drawn into the 8-bit sRGB target
 and decoded: llvmpipe refuses a multisampled float framebuffer of 8x the shipped 1280x720 (59 M pixels). The
-8-bit steps average out over the factor x factor block (under 0.1 level)."""
+8-bit steps average out over the factor x factor block (under 0.1 level), but the 8-bit target clips each
+sample at 1 where the float one keeps a highlight's excess: a 4x (float) and an 8x (8-bit) reference
+differ in that too."""
 
 
 def draw_linear(spec, topology, record, size, samples) -> np.ndarray:

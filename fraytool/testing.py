@@ -48,7 +48,7 @@ def assert_matches_golden(scene: str | os.PathLike, golden_dir: str | os.PathLik
         return []
     spec, checked_sets = load_for_check(scene, golden_dir, list(sets))
     result = check_scene(spec, golden_dir, list(frames) if frames else None,
-                         update_command_line(scene, golden_dir, list(sets)) + "  (or pytest --update-goldens)",
+                         update_command_line(scene, golden_dir, checked_sets) + "  (or pytest --update-goldens)",
                          checked_sets, work)
     failed = [v for v in result.verdicts if v.status == FAIL]
     if failed:

@@ -93,11 +93,24 @@ def test_a_golden_made_with_a_set_is_checked_with_it(tmp_path):
     run = fraytool("golden", "check", DRAPE, "--dir", tmp_path / "g", "--work", tmp_path / "work")
     assert run.returncode == 0 and "golden check: pass" in run.stderr, run.stderr
     assert "differs from the golden's metadata" not in run.stderr, run.stderr
+    # a frame the golden lacks: the command that makes it keeps the recorded --set
+    run = fraytool("golden", "check", DRAPE, "--dir", tmp_path / "g", "--work", tmp_path / "work", "--frames", "3")
+    assert run.returncode == 2 and "--set 'render.resolution=[120,80]' --frames 0,3,7" in run.stderr, run.stderr
     # a change given to the check still applies, and the metadata says which key moved, readably
     run = fraytool("golden", "check", DRAPE, "--dir", tmp_path / "g", "--work", tmp_path / "work",
                    "--set", "camera.fov_deg=41")
     assert run.returncode == 1, run.stderr
     assert "settings.camera.fov_deg: golden 40.0, now 41.0" in run.stderr, run.stderr
+
+
+def test_a_check_puts_its_own_sets_after_the_recorded_ones():
+    from fraytool.golden.run import sets_for_check
+
+    assert sets_for_check(["render.resolution=[120,80]"], []) == ["render.resolution=[120,80]"]
+    assert sets_for_check(["scene.seed=3"], ["scene.seed=3", "camera.fov_deg=41"]) == ["scene.seed=3",
+                                                                                      "camera.fov_deg=41"]
+    # the given value must win over the recorded list's last word on its key, even if recorded earlier
+    assert sets_for_check(["scene.seed=4", "scene.seed=3"], ["scene.seed=4"])[-1] == "scene.seed=4"
 
 
 def test_gravity_on_a_drape_fails_in_image_and_geometry(drape_golden):

@@ -24,7 +24,7 @@ def golden_command(args, stream: Optional[TextIO] = None) -> int:
     report = Report(args.report)
     for scene, spec, sets in checks:
         frames = parse_frames(args.frames, spec) if args.frames else None
-        result = check_scene(spec, args.dir, frames, update_command_line(scene, args.dir, args.sets), sets,
+        result = check_scene(spec, args.dir, frames, update_command_line(scene, args.dir, sets), sets,
                              args.work, stream)
         report.add(spec.name, result.golden_dir, result.verdicts, result.images, result.differences,
                    spec.golden.fail)

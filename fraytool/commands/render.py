@@ -47,17 +47,6 @@ def ensure_frames(spec: SceneSpec, out_dir: Path, needed: int, stream: TextIO = 
     return store
 
 
-def _shot_frames(target, out_dir: Path, needed: int) -> Optional[FrameStore]:
-    """A shot's own folder, when `render SHOT_FOLDER -o ELSEWHERE` can read its frames there: the first
-    `needed` frames of that shot, all verifying (nothing is written into it). None: simulate into out_dir."""
-    if target.out_dir is None or Path(target.out_dir).resolve() == Path(out_dir).resolve():
-        return None
-    shot = FrameStore(target.out_dir)
-    if not shot.matches(target.digest) or shot.frames_complete() < needed:
-        return None
-    return shot if shot.survey(target.digest, frames=needed).clean else None
-
-
 def _fmt(v) -> str:
     return "(" + ", ".join(f"{x:.4f}" for x in v) + ")"
 
@@ -120,8 +109,7 @@ def _render(args, stream: Optional[TextIO]) -> int:
                 print(f"fraytool: --fit: camera at {_fmt(cam.position_m)} looking at {_fmt(cam.target_m)}",
                       file=stream)
             else:
-                store = (_shot_frames(target, job.out_dir, frames_needed(job))
-                         or ensure_frames(spec, job.out_dir, frames_needed(job), stream, target.model, target.digest))
+                store = ensure_frames(spec, job.out_dir, frames_needed(job), stream, target.model, target.digest)
             result = render_job(job, ctx, store, stream=stream)
     finally:
         ctx.release()

@@ -32,14 +32,15 @@ class Target:
 def load_target(name: str, sets: Sequence[str] = (), force: bool = False) -> Target:
     """The scene file `name` with its --set overrides (refused, exit 2, when the machine lacks the memory
     unless `force`), or the shot in the output folder `name`."""
-    from fraytool.resources import shipped_scene
+    from fraytool.resources import scenes_dir, shipped_scene
     from fraytool.sim.run import is_shot_folder, load_shot
 
     shipped = shipped_scene(name)
     if is_shot_folder(name):
         if sets:
-            also = (f" (`{name}` is also a shipped scene's name: give scenes/{Path(shipped).name} to render that "
-                    "one with --set)" if shipped is not None else "")
+            also = (f" (`{name}` is also a shipped scene's name: give "
+                    f"scenes/{shipped.relative_to(scenes_dir()).as_posix()} to render that one with --set)"
+                    if shipped is not None else "")
             raise InputError(f"{name}: --set changes a scene file's keys; this is a simulated shot's folder, whose "
                              f"scene is fixed: render its scene file with --set instead, or re-simulate in Python{also}")
         spec, model, digest = load_shot(name)

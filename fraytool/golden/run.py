@@ -57,18 +57,34 @@ def recorded_sets(golden_dir: Path, scene_name: str) -> list[str]:
 
 def sets_for_check(recorded: Sequence[str], sets: Sequence[str]) -> list[str]:
     """A check applies the golden's recorded --set first, then its own on top (a later one wins), so a golden
-    made at `--set render.resolution=[640,360]` is checked at that size without repeating it."""
-    return list(recorded) + [s for s in sets if s not in recorded]
+    made at `--set render.resolution=[640,360]` is checked at that size without repeating it. A given set
+    that repeats the value the recorded ones leave its key at is not added again (the settings then match
+    the golden's)."""
+    def key(assignment: str) -> str:
+        return assignment.split("=", 1)[0].strip()
+
+    last = {key(a): a for a in recorded}
+    return list(recorded) + [a for a in sets if last.get(key(a)) != a]
 
 
 def load_for_check(scene: str, golden_dir: Path, sets: Sequence[str]) -> tuple[SceneSpec, list[str]]:
-    """The scene as its golden check renders it, and the --set list that makes it (sets_for_check)."""
-    spec = load_for_golden(scene, list(sets))
-    recorded = recorded_sets(golden_dir, spec.name)
-    if not recorded:
-        return spec, list(sets)
+    """The scene as its golden check renders it, and the --set list that makes it (sets_for_check). The
+    scene is admitted (memory, meshes) only as checked: a golden kept at a smaller --set size is checked
+    at that size on a machine that could not run the scene as written."""
+    from fraytool.errors import FraytoolError
+    from fraytool.scene.overrides import parse_assignment
+
+    name = load_scene(scene, [parse_assignment(a) for a in sets]).name
+    recorded = recorded_sets(golden_dir, name)
     effective = sets_for_check(recorded, sets)
-    return load_for_golden(scene, effective), effective
+    try:
+        return load_for_golden(scene, effective), effective
+    except FraytoolError as exc:
+        if not recorded:
+            raise
+        where = Path(golden_dir) / name / store.METADATA
+        raise InputError(f"{exc} (the golden's own --set {' '.join(recorded)}, recorded in {where}, applies "
+                         "first: make the golden again if a key was renamed)") from None
 
 
 def update_command_line(scene: str, golden_dir: Path, sets: list[str]) -> str:
@@ -110,9 +126,10 @@ def check_scene(spec: SceneSpec, golden_dir: Path, frames: Optional[Sequence[int
     chosen = sorted(golden) if not frames else list(frames)
     missing = [f for f in chosen if f not in golden]
     if missing:
+        keep = sorted(set(golden) | set(chosen))    # the update rewrites the golden: keep the frames it has
         raise InputError(f"{store.scene_dir(golden_dir, spec)}: the golden has no frame "
                          f"{', '.join(map(str, missing))}: make it with `{command} --frames "
-                         f"{','.join(map(str, chosen))}`")
+                         f"{','.join(map(str, keep))}`")
     captured = capture(spec, chosen, work_dir(work_root, spec), stream=stream)
     thickness = float(meta.get("thickness_m", spec.cloth.thickness_m))
     out = SceneCheck(spec.name, store.scene_dir(golden_dir, spec))

@@ -89,8 +89,14 @@ def settings_differences(meta: dict, spec: SceneSpec, sets: list[str], renderer:
     for k, v in settings_of(spec, sets).items():
         v, was = json.loads(json.dumps(v)), old.get(k)
         if isinstance(v, dict) and isinstance(was, dict):     # [render], [camera]: the keys that differ
-            out += [f"settings.{k}.{key}: golden {json.dumps(was.get(key))}, now {json.dumps(v.get(key))}"
+            out += [f"settings.{k}.{key}: golden {_shown(was.get(key))}, now {_shown(v.get(key))}"
                     for key in sorted(set(v) | set(was)) if v.get(key) != was.get(key)]
         elif v != was:
-            out.append(f"settings.{k}: golden {json.dumps(was)}, now {json.dumps(v)}")
+            out.append(f"settings.{k}: golden {_shown(was)}, now {_shown(v)}")
     return out
+
+
+def _shown(value, limit: int = 120) -> str:
+    """A setting's value in a difference line, as JSON, cut with an ellipsis past `limit` characters."""
+    text = json.dumps(value)
+    return text if len(text) <= limit else text[:limit - 3] + "..."

@@ -96,9 +96,9 @@ def _read_table(doc: dict, where: str, keys: dict[str, Key], problems: _Problems
             base = re.sub(r"^cloth\.\d+$", "cloth", where)  # panel k of [[cloth]] has [cloth]'s sub-tables
             if isinstance(value, dict) and f"{base}.{name}" in schema.TOP:
                 continue  # a sub-table, read on its own
-            tables = sorted(t.split(".")[-1] for t in schema.TOP if t.startswith(where + ".") and
-                            t.count(".") == where.count(".") + 1)
-            parts = [allowed_keys(name, keys, tables)]
+            tables = sorted(t.split(".")[-1] for t in schema.TOP if t.startswith(base + ".") and
+                            t.count(".") == base.count(".") + 1)
+            parts = [allowed_keys(name, keys, tables if isinstance(value, dict) else ())]
             if tables:  # a table given where a key goes: the sub-tables first
                 sub = "sub-tables: " + ", ".join(tables)
                 parts = [sub] + parts if isinstance(value, dict) else parts + [sub]
