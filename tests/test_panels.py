@@ -211,6 +211,8 @@ edge = "right"
 
 
 BAD_SHAPES = {
+    "a strip one yarn wide": ("outline_m = [[-0.001, -0.001], [0.041, -0.001], [0.041, 0.001], [-0.001, 0.001]]",
+                              "holds 11 crossings at spacing_m = 0.004 but no 2 x 2 cell"),
     "self-intersecting": ("outline_m = [[0.0, 0.0], [0.1, 0.1], [0.1, 0.0], [0.0, 0.1]]", "cross: a panel's outline must not cross itself"),
     "too small": ("outline_m = [[0.0, 0.0], [0.005, 0.0], [0.0, 0.005]]", "a panel needs at least 4"),
     "two points": ("outline_m = [[0.0, 0.0], [0.1, 0.0]]", "needs at least 3 points"),

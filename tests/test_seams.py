@@ -186,6 +186,21 @@ edge = "right"
     out = json.loads(run.stdout)
     assert out["stitches"] == 8 and 0 < out["broken_stitches"] <= 8  # a stitch at every crossing of the edge
     assert out["all_finite"]
+    # broken_springs counts the cloth's own springs (docs/panels.md): from the frame records, the springs
+    # alive at the start and not at the end, less the stitches
+    import numpy as np
+
+    from fraytool.io.frame_store import FrameStore
+    from fraytool.scene import load_scene
+    from fraytool.kinds import STITCH
+    from fraytool.sim.simulation import Simulation
+
+    store = FrameStore(tmp_path / "out")
+    first, last = store.load_frame(0).spring_alive, store.load_frame(store.frames_complete() - 1).spring_alive
+    gone = first & ~last
+    stitch = Simulation(load_scene(tmp_path / "s.toml")).model.spring_kind == STITCH
+    assert int(gone[stitch].sum()) == out["broken_stitches"]
+    assert out["broken_springs"] == int(gone[~stitch].sum()), (out, int(gone[~stitch].sum()))
 
 
 def test_panels_collide_with_each_other_through_self_collision():

@@ -190,6 +190,10 @@ def panel_shape(cloth, scene_file: str = "") -> PanelShape:
         key, value = ("mask", cloth.mask) if cloth.mask else ("outline_m", f"[... {len(outline)} points]")
         raise PanelShapeError([(key, value, f"holds {count} crossing(s) at spacing_m = {s:g}; a panel needs at "
                                             f"least {MIN_CROSSINGS} (one 2 x 2 cell)")])
+    if not (present[:-1, :-1] & present[1:, :-1] & present[:-1, 1:] & present[1:, 1:]).any():
+        key, value = ("mask", cloth.mask) if cloth.mask else ("outline_m", f"[... {len(outline)} points]")
+        raise PanelShapeError([(key, value, f"holds {count} crossings at spacing_m = {s:g} but no 2 x 2 cell of "
+                                            "them (a strip one yarn wide): a panel needs at least one")])
     # trim empty rows and columns at the border of the grid
     rows_used = np.flatnonzero(present.any(axis=1))
     cols_used = np.flatnonzero(present.any(axis=0))

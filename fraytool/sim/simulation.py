@@ -160,6 +160,12 @@ class Simulation:
         d = x[s.spring_particle_b[sel]] - x[s.spring_particle_a[sel]]
         return np.linalg.norm(d, axis=1) / s.spring_rest_length_m[sel] - 1.0
 
+    def broken_springs(self) -> int:
+        """Springs of the cloth broken so far: a seam's stitches are not counted (`broken_stitches`), nor
+        are springs cut by a scene's [[cuts]] (they are cut, not broken)."""
+        s = self.state
+        return int(s.spring_broken.sum() - s.spring_broken[self._stitches].sum())
+
     def summary(self) -> dict:
         """Figures of the current state (the `--json` summary of `fraytool simulate`)."""
         s = self.state
@@ -170,7 +176,7 @@ class Simulation:
             "time_s": s.time_s,
             "masses": int(s.particle_active.sum()),
             "springs": int(s.spring_alive.sum()),
-            "broken_springs": int(s.spring_broken.sum() - s.spring_broken[self._stitches].sum()),
+            "broken_springs": self.broken_springs(),
             "yarn_level_masses": int(2 * s.crossing_yarn_level.sum()),
             "max_strain": float(strain.max()) if strain.size else 0.0,
             "strain_iterations_max": max(self.shot.strain_iterations_max_before, self.solver.strain_iterations_max),

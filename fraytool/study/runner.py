@@ -178,7 +178,7 @@ def run_variant(spec: SceneSpec, frames: Optional[int] = None, record: bool = Fa
             if record:
                 out.positions[f] = sim.state.particle_position_m[:n]
             if tears:
-                out.tearing["broken_springs"].append(int(sim.state.spring_broken.sum()))
+                out.tearing["broken_springs"].append(sim.broken_springs())
                 out.tearing["torn_length_m"].append(torn_length_m(sim, structural))
     except SimulationUnstable as exc:
         out.status = "unstable"

@@ -266,8 +266,7 @@ class YarnTearing:
         m = self.model
         yarn_level = int(state.crossing_yarn_level.sum())
         connected = int(state.couple_connected.sum())
-        out = {
-            "broken_springs": int(state.spring_broken.sum()),
+        out = {   # (broken_springs is Simulation.summary's: the cloth's own, without a seam's stitches)
             "yarn_level_masses": 2 * yarn_level,
             "yarn_level_crossings": yarn_level,
             "connected_couples": connected,
