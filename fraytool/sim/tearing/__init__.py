@@ -22,7 +22,7 @@ import numpy as np
 from fraytool.sim.kernels.bodies import bodies_in
 from fraytool.sim.kernels.rigid_contact import place_outside_bodies
 from fraytool.sim.model import Model
-from fraytool.kinds import STRUCT_WARP, STRUCT_WEFT
+from fraytool.kinds import STITCH, STRUCT_WARP, STRUCT_WEFT
 from fraytool.sim.state import State
 from fraytool.sim.tearing.contact import disconnect_couple, project_couples, settle_crosses_yarns
 from fraytool.sim.tearing.cut import cut_overstrained, cut_structural
@@ -266,7 +266,9 @@ class YarnTearing:
         m = self.model
         yarn_level = int(state.crossing_yarn_level.sum())
         connected = int(state.couple_connected.sum())
-        out = {   # (broken_springs is Simulation.summary's: the cloth's own, without a seam's stitches)
+        out = {
+            # the cloth's own springs: a seam's broken stitches are `broken_stitches` (as Simulation.summary)
+            "broken_springs": int(np.count_nonzero(state.spring_broken & (m.spring_kind != STITCH))),
             "yarn_level_masses": 2 * yarn_level,
             "yarn_level_crossings": yarn_level,
             "connected_couples": connected,
