@@ -156,13 +156,10 @@ def farm_task(scene: str, sets: Sequence, golden_dir: str, work_root: Optional[s
     text_sets = [f"{k}={json.dumps(v)}" for k, v in sets]
     work = Path(work_root) if work_root else None
     try:
-        spec = load_scene(scene, list(sets))
-        recorded = [] if update else recorded_sets(Path(golden_dir), spec.name)
-        if recorded:
-            from fraytool.scene.overrides import parse_assignment
-
-            text_sets = sets_for_check(recorded, text_sets)
-            spec = load_scene(scene, [parse_assignment(a) for a in text_sets])
+        if update:
+            spec = load_scene(scene, list(sets))
+        else:   # the golden's recorded --set first, as `fraytool golden check`
+            spec, text_sets = load_for_check(scene, Path(golden_dir), text_sets)
         with open(os.devnull, "w") as quiet:  # a worker has no terminal: no progress
             if update:
                 update_scene(spec, Path(golden_dir), default_frames(spec), text_sets, work, stream=quiet)

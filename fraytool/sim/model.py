@@ -15,8 +15,14 @@ import math
 from dataclasses import MISSING, dataclass, field, fields
 import numpy as np
 
-from fraytool.kinds import SHEAR_TWIN
+from fraytool.kinds import SHEAR_TWIN, STITCH
 from fraytool.sim.state import State
+
+
+def broken_cloth_springs(spring_kind: np.ndarray, spring_broken: np.ndarray) -> int:
+    """The `broken_springs` figure: springs of the cloth broken so far. A seam's stitches are not the
+    cloth's (they are `broken_stitches`), and springs cut by a scene's [[cuts]] are cut, not broken."""
+    return int(np.count_nonzero(spring_broken & (spring_kind != STITCH)))
 
 
 def _empty_mesh(name: str) -> np.ndarray:

@@ -16,10 +16,10 @@ from typing import Iterator, Optional
 import numpy as np
 
 from fraytool.io.frame_record import FrameRecord
-from fraytool.kinds import STITCH, STRUCT_WARP, STRUCT_WEFT
+from fraytool.kinds import STRUCT_WARP, STRUCT_WEFT
 from fraytool.scene.spec import SceneSpec
 from fraytool.sim.builder import build_model
-from fraytool.sim.model import Model
+from fraytool.sim.model import Model, broken_cloth_springs
 from fraytool.sim.pieces import crossings_near_grips, piece_figures, woven_strain, woven_strain_away
 from fraytool.sim.record import frame_record
 from fraytool.sim.solver import SolverExplicitPBD
@@ -75,7 +75,6 @@ class Simulation:
         self.model = model if model is not None else build_model(spec)
         self.state = state if state is not None else self.model.state()
         self.solver = SolverExplicitPBD(self.model)
-        self._stitches = np.flatnonzero(self.model.spring_kind == STITCH)
         """Seam stitches: `broken_springs` counts the cloth's springs, the seams stage counts these."""
         self.frame = frame
         """Index of the frame the current state belongs to."""
@@ -161,10 +160,8 @@ class Simulation:
         return np.linalg.norm(d, axis=1) / s.spring_rest_length_m[sel] - 1.0
 
     def broken_springs(self) -> int:
-        """Springs of the cloth broken so far: a seam's stitches are not counted (`broken_stitches`), nor
-        are springs cut by a scene's [[cuts]] (they are cut, not broken)."""
-        s = self.state
-        return int(s.spring_broken.sum() - s.spring_broken[self._stitches].sum())
+        """Springs of the cloth broken so far (fraytool.sim.model.broken_cloth_springs)."""
+        return broken_cloth_springs(self.model.spring_kind, self.state.spring_broken)
 
     def summary(self) -> dict:
         """Figures of the current state (the `--json` summary of `fraytool simulate`)."""

@@ -21,8 +21,8 @@ import numpy as np
 
 from fraytool.sim.kernels.bodies import bodies_in
 from fraytool.sim.kernels.rigid_contact import place_outside_bodies
-from fraytool.sim.model import Model
-from fraytool.kinds import STITCH, STRUCT_WARP, STRUCT_WEFT
+from fraytool.sim.model import Model, broken_cloth_springs
+from fraytool.kinds import STRUCT_WARP, STRUCT_WEFT
 from fraytool.sim.state import State
 from fraytool.sim.tearing.contact import disconnect_couple, project_couples, settle_crosses_yarns
 from fraytool.sim.tearing.cut import cut_overstrained, cut_structural
@@ -267,8 +267,7 @@ class YarnTearing:
         yarn_level = int(state.crossing_yarn_level.sum())
         connected = int(state.couple_connected.sum())
         out = {
-            # the cloth's own springs: a seam's broken stitches are `broken_stitches` (as Simulation.summary)
-            "broken_springs": int(np.count_nonzero(state.spring_broken & (m.spring_kind != STITCH))),
+            "broken_springs": broken_cloth_springs(m.spring_kind, state.spring_broken),
             "yarn_level_masses": 2 * yarn_level,
             "yarn_level_crossings": yarn_level,
             "connected_couples": connected,
