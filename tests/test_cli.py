@@ -247,3 +247,22 @@ def test_model_builder_error_is_importable_where_the_readme_says():
     with pytest.raises(ModelBuilderError):
         ModelBuilder().add_cloth(warp_yarns=1, weft_yarns=3, spacing_m=0.01, thickness_m=0.001,
                                  mass_per_crossing_kg=1e-5, structural_n_per_m=1.0)
+
+
+def test_more_msaa_samples_than_the_driver_draws_is_said(tmp_path, capsys):
+    """[render] samples above the context's GL_MAX_SAMPLES (4 on llvmpipe) draws with the maximum and says
+    so, naming the key, the value asked and the count drawn, rather than dropping to it silently."""
+    from fraytool.render.context import create_context
+
+    ctx = create_context()
+    most = int(ctx.max_samples)
+    ctx.release()
+    scene = tmp_path / "s.toml"
+    scene.write_text(small_scene_text(frames=2))
+    assert main(["render", str(scene), "-o", str(tmp_path / "out"), "--frames", "0:1", "--resolution", "64x48",
+                 "--set", f"render.samples={2 * most}", "--png", "--no-mp4"]) == 0
+    err = capsys.readouterr().err
+    assert f"warning: [render] samples = {2 * most}:" in err and f"drawing with {most}" in err
+    assert main(["render", str(scene), "-o", str(tmp_path / "out2"), "--frames", "0:1", "--resolution", "64x48",
+                 "--set", f"render.samples={most}", "--png", "--no-mp4"]) == 0
+    assert "samples =" not in capsys.readouterr().err

@@ -453,6 +453,21 @@ def test_surface_depth_and_alpha(gl_ctx, flat):
     assert np.abs(z[middle] - d).max() < 1e-3 * d
 
 
+@pytest.mark.parametrize("samples", [2, 4])
+@pytest.mark.parametrize("footprint", [0.7, 2.2])
+def test_every_msaa_count_covers_the_weave(gl_ctx, flat, footprint, samples):
+    """Whatever MSAA count a scene asks for, the surface alone (0.7 px apart) and the band (2.2 px, yarns
+    and surface each on their share of the samples) cover the weave's 1 - (1 - a)^2 of each pixel. The
+    split takes the framebuffer's own count: llvmpipe gives 4 samples where 2 are asked, and a split
+    of 2 left half of each pixel undrawn (alpha 0.44, the floor showing through the cloth)."""
+    size = (160, 90)
+    spec = _with(_view(flat.spec, 90.0, 0.0, footprint, size[1]), samples=samples)
+    rgba, geom, _ = _draw(gl_ctx, spec, flat, flat.rest, size, target="float", alpha=True)
+    assert geom.surface is not None and (geom.yarns.far is not None) == (footprint > 1.0)
+    a = 2 * 0.00065 / 0.002
+    assert rgba[35:55, 60:100, 3].mean() == pytest.approx(1.0 - (1.0 - a) ** 2, abs=0.02)
+
+
 def test_a_dolly_through_the_band_does_not_pop(gl_ctx, flat):
     """A camera moving away until the yarns go from 4 px to 0.9 px apart crosses the blend band. Each
     frame-to-frame change is measured beyond the true one, the change of the same two frames drawn at 4x

@@ -95,6 +95,10 @@ def _render(args, stream: Optional[TextIO]) -> int:
         if getattr(args, "verbose", False):
             print(describe(ctx), file=stream)
             print(f"MSAA samples: {clamp_samples(ctx, job.samples)} (asked {job.samples})", file=stream)
+        if job.samples > 1 and clamp_samples(ctx, job.samples) < job.samples:
+            print(f"fraytool: warning: [render] samples = {job.samples}: this OpenGL driver "
+                  f"({ctx.info.get('GL_RENDERER', '?')}) draws at most {int(ctx.max_samples)} MSAA samples a "
+                  f"pixel; drawing with {clamp_samples(ctx, job.samples)}", file=stream)
         from fraytool.render.sequence import render_job
 
         with OutputLock(job.out_dir, "render", wait_stream=stream):

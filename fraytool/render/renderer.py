@@ -346,8 +346,6 @@ class Renderer:
             y["u_shininess"].value = r.shininess
             y["u_kajiya_weight"].value = KAJIYA_WEIGHT
             y["u_yarn_colors"].write(srgb_to_linear(self.palette).astype("f4").tobytes())
-            if "u_samples" in y:  # (band.glsl shifts 1 by it: at most 31)
-                y["u_samples"].value = min(max(1, self.samples), 31)
         if far:
             f = self._far_prog
             f["u_weave"].value = WEAVE_UNIT
