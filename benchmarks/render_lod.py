@@ -13,6 +13,7 @@ on both images (fraytool.render.aliasing). Cost: median milliseconds per frame o
     python benchmarks/render_lod.py scenes/tablecloth_tear.toml OUT_DIR --frames 53,106
     python benchmarks/render_lod.py scenes/tablecloth_tear.toml OUT_DIR --frames 53 --scales 0.5,1,2 \\
         --modes tube,ribbon,far_field
+    python benchmarks/render_lod.py scenes/tablecloth_tear.toml OUT_DIR --frames 53,106 --supersamples 1,2,3
     python benchmarks/render_lod.py scenes/tablecloth_tear.toml OUT_DIR --frames 53 --reference-spread
     python benchmarks/render_lod.py scenes/tablecloth_tear.toml OUT_DIR --frames 53 --reference-spread --ref-factor 8
 
@@ -33,7 +34,6 @@ import numpy as np
 from fraytool.io.frame_store import FrameStore
 from fraytool.render.aliasing import BLUR_SIGMA_PX, FACTOR, blurred_rms, box_downsample
 from fraytool.render.context import create_context
-from fraytool.render.geometry import GeometryBuilder, YarnStyle
 from fraytool.render.renderer import Renderer
 from fraytool.scene import load_scene, scene_hash
 
@@ -52,8 +52,7 @@ def draw(spec, topology, record, size, samples, target="srgb8", repeat=1):
     try:
         r = Renderer(ctx, size, samples, spec.render, spec.camera, topology, target=target,
                      panels_spec=spec.all_panels)
-        b = GeometryBuilder(topology, YarnStyle.from_spec(spec.render, topology), r.camera, size[1],
-                            image_width=r.shaded_width)
+        b = r.geometry_builder(topology)
         r.draw(b.build(record))  # warm-up (numba, shaders, buffers)
         ctx.finish()
         times = []
@@ -95,7 +94,7 @@ def reference(spec, topology, record, size, samples, factor: int = REF_FACTOR) -
 
     W, H = size
     f = int(factor)
-    ref_spec = with_render(spec, far_field=False)
+    ref_spec = with_render(spec, far_field=False, supersample=1)
     ribbon_straight = lod.RIBBON_STRAIGHT_PX
     lod.RIBBON_STRAIGHT_PX = lod.STRAIGHT_PX
     try:
@@ -126,7 +125,7 @@ def converged_reference(spec, topology, record, size, samples, shape: str, facto
     for name, value in limits.items():
         setattr(lod, name, value)
     try:
-        linear = draw_linear(with_render(spec, far_field=False, **render), topology, record, (W * f, H * f), samples)
+        linear = draw_linear(with_render(spec, far_field=False, supersample=1, **render), topology, record, (W * f, H * f), samples)
     finally:
         for name, value in saved.items():
             setattr(lod, name, value)
@@ -146,6 +145,16 @@ def reference_spread(spec, topology, record, size, samples, factor: int = REF_FA
     return out
 
 
+def render_sets(spec, items) -> dict:
+    """KEY=VALUE items as [render] changes, each value of its key's type."""
+    out = {}
+    for item in items:
+        key, value = item.split("=", 1)
+        kind = type(getattr(spec.render, key))
+        out[key] = (value.lower() in ("1", "true", "on")) if kind is bool else kind(value)
+    return out
+
+
 def with_render(spec, **changes):
     return dataclasses.replace(spec, render=dataclasses.replace(spec.render, **changes))
 
@@ -157,6 +166,8 @@ def main(argv=None) -> None:
     ap.add_argument("--frames", default="53,106")
     ap.add_argument("--scales", default="1")
     ap.add_argument("--modes", default="ribbon,far_field")
+    ap.add_argument("--supersamples", default="1",
+                    help="[render] supersample values to draw each mode at, e.g. 1,2 (the reference is unchanged)")
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--save", default=None)
     ap.add_argument("--ref-factor", type=int, default=None,
@@ -165,6 +176,8 @@ def main(argv=None) -> None:
                     help="middle of the blend band [px] (default: the scene's [render] far_field_px)")
     ap.add_argument("--render-set", action="append", default=[], metavar="KEY=VALUE",
                     help="override a [render] key for every image, e.g. shadows=false (repeatable)")
+    ap.add_argument("--image-set", action="append", default=[], metavar="KEY=VALUE",
+                    help="override a [render] key for the compared images only, not the reference, e.g. samples=0")
     ap.add_argument("--reference-spread", action="store_true",
                     help="instead of the table: the reference against the same yarns drawn converged "
                          "(CONVERGED), and the shipped frame against each, at the scene's size (with "
@@ -172,10 +185,8 @@ def main(argv=None) -> None:
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
     spec = load_scene(args.scene)
-    for item in args.render_set:
-        key, value = item.split("=", 1)
-        kind = type(getattr(spec.render, key))
-        spec = with_render(spec, **{key: (value.lower() in ("1", "true", "on")) if kind is bool else kind(value)})
+    spec = with_render(spec, **render_sets(spec, args.render_set))
+    image_sets = render_sets(spec, args.image_set)
     if args.far_field_px is not None:
         spec = with_render(spec, far_field_px=args.far_field_px)
     store = FrameStore(Path(args.out_dir))
@@ -212,17 +223,18 @@ def main(argv=None) -> None:
             if save:
                 from PIL import Image
                 Image.fromarray(ref).save(save / f"ref_{frame}_{scale:g}.png")
-            for mode in args.modes.split(","):
-                image, ms = draw(with_render(spec, **MODES[mode]), topology, record, (W, H), spec.render.samples,
-                                 repeat=args.repeat)
+            for mode, k in ((m, int(k)) for m in args.modes.split(",") for k in args.supersamples.split(",")):
+                image_spec = with_render(spec, **{**MODES[mode], "supersample": k, **image_sets})
+                image, ms = draw(image_spec, topology, record, (W, H), image_spec.render.samples, repeat=args.repeat)
                 err = blurred_rms(image, ref)
-                rows.append(dict(scale=scale, size=[W, H], frame=frame, mode=mode, rms_levels=round(err, 2),
-                                 ms=round(ms, 1)))
+                rows.append(dict(scale=scale, size=[W, H], frame=frame, mode=mode, supersample=k, **image_sets,
+                                 rms_levels=round(err, 2), ms=round(ms, 1)))
                 if save:
                     from PIL import Image
-                    Image.fromarray(image).save(save / f"{mode}_{frame}_{scale:g}.png")
+                    Image.fromarray(image).save(save / f"{mode}{'' if k == 1 else f'_ss{k}'}_{frame}_{scale:g}.png")
                 if not args.json:
-                    print(f"{spec.name} frame {frame} {W}x{H} (x{scale:g}) {mode:9s}: "
+                    print(f"{spec.name} frame {frame} {W}x{H} (x{scale:g}) {mode:9s}{f' supersample {k}' if k > 1 else ''}"
+                          f"{''.join(f' {key}={v}' for key, v in image_sets.items())}: "
                           f"error {err:5.2f} sRGB levels RMS (blur {BLUR_SIGMA_PX:g} px), {ms:7.1f} ms/frame",
                           flush=True)
     if args.json:

@@ -236,3 +236,23 @@ def test_the_farm_checks_many_shots_in_parallel_with_one_report(tmp_path):
     assert (tmp_path / "job" / "golden-report" / "report.html").is_file()
     suite = ET.parse(tmp_path / "junit.xml").getroot()
     assert suite.get("tests") == "6" and int(suite.get("failures")) >= 2
+
+
+def test_a_render_key_newer_than_the_golden_is_no_difference_at_its_default():
+    """A golden recorded before fraytool had a [render] key lacks it: at its default the key changes no
+    pixel and is not listed; set to anything else it is."""
+    import dataclasses
+
+    from fraytool.golden.capture import machine
+    from fraytool.golden.store import settings_differences, settings_of
+    from fraytool.scene import load_scene
+
+    spec = load_scene(DRAPE)
+    old = json.loads(json.dumps(settings_of(spec, []), default=list))
+    del old["render"]["supersample"]
+    meta = {"settings": old, "renderer": "r", "cpu": machine()}
+    lines = [d for d in settings_differences(meta, spec, [], "r") if d.startswith("settings.")]
+    assert lines == []
+    finer = dataclasses.replace(spec, render=dataclasses.replace(spec.render, supersample=2))
+    lines = [d for d in settings_differences(meta, finer, [], "r") if d.startswith("settings.")]
+    assert lines == ["settings.render.supersample: golden null, now 2"]

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import GOLDEN_SCENE, PosedCloth
+from conftest import PosedCloth
 from fraytool.render.aliasing import FACTOR, blurred_rms, box_downsample, gaussian_blur
 from fraytool.render.camera import Camera
 from fraytool.render.color import srgb_to_linear
@@ -52,9 +52,7 @@ def _draw(ctx, spec, pc, record, size, target="srgb8", alpha=False, depth=False,
     r = Renderer(ctx, size, spec.render.samples, spec.render, spec.camera, pc.topology, wireframe, alpha=alpha,
                  target=target, depth=depth)
     try:
-        b = GeometryBuilder(pc.topology, YarnStyle.from_spec(spec.render, pc.topology), r.camera, size[1],
-                            image_width=r.shaded_width)
-        geom = b.build(record, yarns=wireframe != "only", lines=wireframe != "off")
+        geom = r.geometry_builder(pc.topology).build(record, yarns=wireframe != "only", lines=wireframe != "off")
         r.draw(geom)
         out = r.read() if target == "srgb8" else r.read_linear()
         z = r.read_depth_m() if depth else None

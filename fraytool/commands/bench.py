@@ -140,6 +140,7 @@ def bench_command(args) -> int:
         result["render_draw_parts_ms_per_frame"] = parts
         result["render_resolution"] = list(spec.render.resolution)
         result["render_samples"] = spec.render.samples
+        result["render_supersample"] = spec.render.supersample
     if args.json:
         print(json.dumps({k: v for k, v in result.items() if k != "summary"}))
         return 0
@@ -161,7 +162,9 @@ def bench_command(args) -> int:
     if "render_stages_ms_per_frame" in result:
         W, H = result["render_resolution"]
         print(f"render: {result['render_ms_per_frame']:.2f} ms per frame at {W}x{H}, "
-              f"{result['render_samples']} MSAA samples ([render] resolution, samples)", file=out)
+              f"{result['render_samples']} MSAA samples" + (f", supersampled {result['render_supersample']}x"
+                                                            if result.get("render_supersample", 1) > 1 else "")
+              + " ([render] resolution, samples, supersample)", file=out)
         for name, ms in result["render_stages_ms_per_frame"].items():
             print(f"  {name:18s} {ms:8.2f} ms/frame", file=out)
             if name == "draw":

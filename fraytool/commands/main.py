@@ -151,6 +151,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--frames", metavar="START:END[:STEP]", help="frame range to render (END exclusive)")
     r.add_argument("--resolution", metavar="WxH", help="image size, e.g. 1280x720 (even numbers for H.264)")
     r.add_argument("--samples", type=int, help="MSAA samples (clamped to what the GL context supports)")
+    r.add_argument("--supersample", type=int, metavar="K", help="draw K x K pixels per output pixel and average "
+                   "them in linear light (1-4; [render] supersample): finer, about K^2 times the draw")
     r.add_argument("--png", action="store_true", help="also write a numbered PNG sequence in <out>/png/")
     r.add_argument("--depth", metavar="BITS", default="8",
                    help="bits per channel of the PNGs: 8 (default) or 16 (drawn in float; RGB, or RGBA with --alpha)")

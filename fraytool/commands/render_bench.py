@@ -32,7 +32,6 @@ from typing import Optional
 from fraytool.io.frame_store import FrameStore
 from fraytool.render.context import create_context
 from fraytool.render.encode import VideoWriter
-from fraytool.render.geometry import GeometryBuilder, YarnStyle
 from fraytool.render.renderer import Renderer
 from fraytool.scene import scene_hash
 from fraytool.scene.spec import SceneSpec
@@ -78,8 +77,7 @@ def render_stage_timings(spec: SceneSpec, out_dir: Optional[Path] = None, frames
         try:
             renderer = Renderer(ctx, (W, H), samples, spec.render, spec.camera, topology,
                                 panels_spec=spec.all_panels)
-            builder = GeometryBuilder(topology, YarnStyle.from_spec(spec.render, topology), renderer.camera, H,
-                                       image_width=renderer.shaded_width)
+            builder = renderer.geometry_builder(topology)
             renderer.render(builder.build(records[0]))  # warm-up: numba, shaders, buffers
             geometry_s, draw_s, read_s, images = [], [], [], []
             for record in records:

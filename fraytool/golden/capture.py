@@ -61,7 +61,6 @@ def capture(spec: SceneSpec, frames: Sequence[int], work_dir: Path, stream: Text
     `frames` with one renderer. `progress`: None follows --progress (a bar on a terminal, quiet otherwise)."""
     from fraytool.render.color import encode_premultiplied_linear
     from fraytool.render.context import create_context, gl_strings
-    from fraytool.render.geometry import GeometryBuilder, YarnStyle
     from fraytool.render.renderer import Renderer
     from fraytool.render.yarns import yarn_pieces
     from fraytool.sim.run import simulate_to_disk
@@ -82,8 +81,7 @@ def capture(spec: SceneSpec, frames: Sequence[int], work_dir: Path, stream: Text
         out.renderer = gl_strings(ctx)
         renderer = Renderer(ctx, tuple(spec.render.resolution), spec.render.samples, spec.render, spec.camera,
                             topology, target="float", panels_spec=spec.all_panels)
-        builder = GeometryBuilder(topology, YarnStyle.from_spec(spec.render, topology), renderer.camera,
-                                  int(spec.render.resolution[1]), image_width=renderer.shaded_width)
+        builder = renderer.geometry_builder(topology)
         try:
             for f in frames:
                 record = store.load_frame(f)

@@ -11,14 +11,14 @@ from __future__ import annotations
 
 import json
 import platform
-from dataclasses import asdict
+from dataclasses import asdict, fields
 from pathlib import Path
 
 import numpy as np
 
 from fraytool.errors import InputError
 from fraytool.golden.capture import Capture, machine
-from fraytool.scene.spec import SceneSpec
+from fraytool.scene.spec import CameraSpec, RenderSpec, SceneSpec
 
 METADATA = "golden.json"
 
@@ -89,11 +89,22 @@ def settings_differences(meta: dict, spec: SceneSpec, sets: list[str], renderer:
     for k, v in settings_of(spec, sets).items():
         v, was = json.loads(json.dumps(v)), old.get(k)
         if isinstance(v, dict) and isinstance(was, dict):     # [render], [camera]: the keys that differ
+            added = _new_at_default(k, was, v)
             out += [f"settings.{k}.{key}: golden {_shown(was.get(key))}, now {_shown(v.get(key))}"
-                    for key in sorted(set(v) | set(was)) if v.get(key) != was.get(key)]
+                    for key in sorted(set(v) | set(was)) if v.get(key) != was.get(key) and key not in added]
         elif v != was:
             out.append(f"settings.{k}: golden {_shown(was)}, now {_shown(v)}")
     return out
+
+
+def _new_at_default(table: str, was: dict, now: dict) -> set:
+    """Keys of [render] / [camera] that a golden's record lacks (fraytool gained them after it was made) and that
+    this check has at their default: they change no pixel, so they are no difference."""
+    cls = {"render": RenderSpec, "camera": CameraSpec}.get(table)
+    if cls is None:
+        return set()
+    defaults = json.loads(json.dumps({f.name: f.default for f in fields(cls)}, default=list))
+    return {key for key in now if key not in was and key in defaults and now[key] == defaults[key]}
 
 
 def _shown(value, limit: int = 120) -> str:

@@ -34,6 +34,7 @@ from fraytool.render.options import (
     FrameRange,
     check_fov,
     check_samples,
+    check_supersample,
     parse_frame_range,
     parse_resolution,
     parse_vec3,
@@ -165,7 +166,7 @@ class RenderJob:
 
 
 def with_overrides(spec: SceneSpec, *, resolution=None, samples=None, camera_position=None, camera_target=None,
-                   fov=None, fit=False) -> SceneSpec:
+                   fov=None, fit=False, supersample=None) -> SceneSpec:
     """The scene with command-line overrides applied (None keeps the scene's value)."""
     cam = spec.camera
     cam = dataclasses.replace(
@@ -180,6 +181,7 @@ def with_overrides(spec: SceneSpec, *, resolution=None, samples=None, camera_pos
         render,
         resolution=tuple(resolution) if resolution is not None else render.resolution,
         samples=int(samples) if samples is not None else render.samples,
+        supersample=int(supersample) if supersample is not None else render.supersample,
     )
     return dataclasses.replace(spec, camera=cam, render=render)
 
@@ -223,6 +225,7 @@ def build_job(spec: SceneSpec, args, out: Path, shot_folder: bool = False) -> Re
     position = parse_vec3("--camera-position", args.camera_position) if args.camera_position else None
     target = parse_vec3("--camera-target", args.camera_target) if args.camera_target else None
     spec = with_overrides(spec, resolution=resolution, samples=check_samples(args.samples),
+                          supersample=check_supersample(getattr(args, "supersample", None)),
                           camera_position=position, camera_target=target, fov=check_fov(args.fov),
                           fit=bool(getattr(args, "fit", False)))
     if args.frames:

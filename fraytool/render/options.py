@@ -90,6 +90,13 @@ def check_samples(samples: Optional[int]) -> Optional[int]:
     return samples
 
 
+def check_supersample(k: Optional[int]) -> Optional[int]:
+    if k is not None and not (1 <= k <= 4):
+        raise InputError(f"--supersample {k}: expected 1 to 4 (drawn pixels per output pixel along each axis; "
+                         "1 draws at the output size)")
+    return k
+
+
 def check_fov(fov: Optional[float]) -> Optional[float]:
     if fov is not None and not (math.isfinite(fov) and 1.0 <= fov <= 170.0):
         raise InputError(f"--fov {fov:g}: expected a vertical field of view from 1 to 170 degrees")

@@ -61,7 +61,7 @@ from fraytool.render.color import (
 from fraytool.errors import RunError
 from fraytool.render.context import check_gl_error
 from fraytool.render.farfield import SURFACE_FLOATS
-from fraytool.render.geometry import FrameGeometry
+from fraytool.render.geometry import FrameGeometry, GeometryBuilder, YarnStyle
 from fraytool.render.ribbon import STEP_FLOATS
 from fraytool.render.shadow import LightFrame, shadow_footprint
 from fraytool.render.shadow_pass import ShadowPass
@@ -81,6 +81,8 @@ WEAVE_UNIT = 1
 """Texture unit of the far field's weave texture (the shadow map is unit 0)."""
 VISIBILITY_UNIT = 2
 """Texture unit of the far field's view table (fraytool.render.weave_visibility)."""
+DOWNSAMPLE_UNIT = 3
+"""Texture unit of the resolved image in the supersample pass (shaders/downsample.frag)."""
 VISIBILITY_LAYERS = 1 + 2 * 2 * 2 * NORMAL_BINS // 4
 """Layers of the view table per panel: the shares, then the seen normals of the front's weft, its warp,
 the back's weft and warp, each their shares per bin and their mean part along the yarn, NORMAL_BINS / 4
@@ -195,28 +197,34 @@ class Renderer:
         self.alpha = bool(alpha)
         self.target = target
         self.size = (int(size[0]), int(size[1]))
+        """The output image's width and height [px]."""
+        self.supersample = int(getattr(render, "supersample", 1))
+        """Drawn pixels per output pixel along each axis ([render] supersample)."""
+        k = self.supersample
+        self.draw_size = (self.size[0] * k, self.size[1] * k)
+        """The drawn image's width and height [px]: what the level of detail measures yarns in."""
         self.samples = clamp_samples(ctx, samples)
         self.render_spec = render
         self.camera = Camera(camera)
         self.wireframe = wireframe
-        self.panels = panels(self.size[0], wireframe)
+        self.panels = [Panel(p.view, p.x * k, p.width * k) for p in panels(self.size[0], wireframe)]
+        """The views side by side, in drawn pixels."""
         self.part_s: Optional[dict[str, float]] = None
         """Seconds per part of the last draws when a dict (``_part``; fraytool bench --render)."""
 
-        W, H = self.size
-        if target == "float":
-            self._color_ms = ctx.texture((W, H), 4, samples=self.samples, dtype="f4")
-            self._resolved = ctx.texture((W, H), 4, dtype="f4")
-        else:
-            self._color_ms = ctx.texture((W, H), 4, samples=self.samples, internal_format=GL_SRGB8_ALPHA8)
-            self._resolved = ctx.texture((W, H), 4, internal_format=GL_SRGB8_ALPHA8)
-        self._depth_ms = ctx.depth_renderbuffer((W, H), samples=self.samples)
-        self._fbo_ms = ctx.framebuffer(color_attachments=[self._color_ms], depth_attachment=self._depth_ms)
-        # with a depth attachment here, the resolve blit copies depth too
-        self._depth_out = ctx.depth_texture((W, H)) if depth else None
-        self._fbo_out = ctx.framebuffer(color_attachments=[self._resolved], depth_attachment=self._depth_out)
+        W, H = self.draw_size
+        self._drawn = "float" if target == "float" or k > 1 else "srgb8"
+        """The drawn image's format: supersampled, float, so the mean of the drawn pixels keeps a highlight's
+        excess over 1 as a camera's pixel does (the 8-bit target clips each drawn pixel; frame 53 of
+        tablecloth_tear: 2.09 levels from the 4x reference that way, 1.86 through float)."""
+        try:
+            self._make_framebuffers(ctx, depth)
+        except moderngl.Error as exc:
+            raise RunError(f"[render] supersample = {k}, resolution = {self.size[0]}x{self.size[1]}: the GL context "
+                           f"cannot make a {W}x{H} framebuffer with {self.samples} MSAA samples ({exc}); lower "
+                           f"supersample, resolution or samples") from None
 
-        encode = ("ENCODE_SRGB",) if target == "srgb8" else ()
+        encode = ("ENCODE_SRGB",) if self._drawn == "srgb8" else ()
         features = (("SHADOWS",) if render.shadows else ()) + (("FILL",) if render.fill_intensity > 0 else ()) + encode
         self.ribbons = render.yarn_shape == "ribbon"
         yarn_features = features + (("SHADOW_ONE_TAP",) if render.shadows else ()) + (("RIBBON",) if self.ribbons else ())
@@ -303,10 +311,51 @@ class Renderer:
                               ground=self._ground())
         check_gl_error(ctx, "renderer set-up")
 
+    def _make_framebuffers(self, ctx: moderngl.Context, depth: bool) -> None:
+        """The multisampled framebuffer at the drawn size, its resolve target, and with supersampling the
+        output-sized target of the downsample pass."""
+        W, H = self.draw_size
+        k = self.supersample
+        self._color_ms = self._resolved = self._depth_ms = self._fbo_ms = self._depth_out = self._fbo_out = None
+        self._down = self._fbo_down = self._down_prog = self._down_vao = None
+        if self._drawn == "float":
+            self._color_ms = ctx.texture((W, H), 4, samples=self.samples, dtype="f4")
+            self._resolved = ctx.texture((W, H), 4, dtype="f4")
+        else:
+            self._color_ms = ctx.texture((W, H), 4, samples=self.samples, internal_format=GL_SRGB8_ALPHA8)
+            self._resolved = ctx.texture((W, H), 4, internal_format=GL_SRGB8_ALPHA8)
+        self._depth_ms = ctx.depth_renderbuffer((W, H), samples=self.samples)
+        self._fbo_ms = ctx.framebuffer(color_attachments=[self._color_ms], depth_attachment=self._depth_ms)
+        # with a depth attachment here, the resolve blit copies depth too
+        self._depth_out = ctx.depth_texture((W, H)) if depth else None
+        self._fbo_out = ctx.framebuffer(color_attachments=[self._resolved], depth_attachment=self._depth_out)
+        if k > 1:  # supersampling: the resolved image's k x k blocks averaged into the output (_downsample)
+            self._down = (ctx.texture(self.size, 4, dtype="f4") if self.target == "float" else
+                          ctx.texture(self.size, 4, internal_format=GL_SRGB8_ALPHA8))
+            self._fbo_down = ctx.framebuffer(color_attachments=[self._down])
+            self._down_prog = load_program(ctx, "downsample.vert", "downsample.frag")
+            self._down_prog["u_source"].value = DOWNSAMPLE_UNIT
+            self._down_prog["u_factor"].value = k
+            self._down_vao = ctx.vertex_array(self._down_prog, [])
+        self._fbo_read = self._fbo_down if k > 1 else self._fbo_out
+        """Where the output image is read from."""
+
     @property
     def shaded_width(self) -> int:
-        """Width [px] of the shaded view (the whole image, or its left panel beside the wireframe)."""
-        return next((p.width for p in self.panels if p.view == "shaded"), self.size[0])
+        """Width [drawn px] of the shaded view (the whole image, or its left panel beside the wireframe)."""
+        return next((p.width for p in self.panels if p.view == "shaded"), self.draw_size[0])
+
+    def geometry_builder(self, topology: Mapping[str, np.ndarray]) -> GeometryBuilder:
+        """The frames' geometry for this renderer: its camera, its drawn height and shaded width (the level of
+        detail's pixels) and the render table's yarn style."""
+        return GeometryBuilder(topology, YarnStyle.from_spec(self.render_spec, topology), self.camera, self.draw_height,
+                               image_width=self.shaded_width)
+
+    @property
+    def draw_height(self) -> int:
+        """Height [drawn px] of the image: the output's times [render] supersample (GeometryBuilder's
+        image height, which the level of detail measures yarns against)."""
+        return self.draw_size[1]
 
     # -- set-up -------------------------------------------------------------------------------
     def _scene_scale(self, topology: Mapping[str, np.ndarray]) -> float:
@@ -364,7 +413,7 @@ class Renderer:
             f["u_undulation"].value = float(np.pi * self._thickness_m / (2.0 * spacing)) if spacing > 0 else 0.0
         self._body_prog["u_color"].value = tuple(srgb_to_linear(r.body_color))
         self._background = tuple(srgb_to_linear(r.background))
-        stored = linear_to_srgb(self._background) if self.target == "srgb8" else np.asarray(self._background)
+        stored = linear_to_srgb(self._background) if self._drawn == "srgb8" else np.asarray(self._background)
         self._clear = (0.0, 0.0, 0.0, 0.0) if self.alpha else (*stored.tolist(), 1.0)
         self._line_prog["u_base_color"].value = tuple(srgb_to_linear(WIREFRAME_BASE_SRGB))
         self._line_prog["u_yarn_color"].value = tuple(srgb_to_linear(WIREFRAME_YARN_SRGB))
@@ -571,7 +620,7 @@ class Renderer:
         ctx = self.ctx
         ctx.enable(moderngl.BLEND)
         ctx.blend_func = (moderngl.SRC_ALPHA, moderngl.ONE_MINUS_SRC_ALPHA, moderngl.ONE, moderngl.ONE_MINUS_SRC_ALPHA)
-        encoded = self.target == "srgb8"
+        encoded = self._drawn == "srgb8"
         progs = (self._yarn_prog,) + ((self._far_prog,) if self._far_prog is not None else ())
         if encoded:
             for prog in progs:
@@ -628,7 +677,10 @@ class Renderer:
                                                       "in_yarn_level")])
             self._line_vao = (self._line_vbo.generation, vao)
         self._line_prog["u_view_proj"].write(view_proj)
+        # supersampled, lines k drawn pixels wide: one output pixel, as without (llvmpipe draws wide lines)
+        ctx.line_width = float(self.supersample)
         self._line_vao[1].render(moderngl.LINES, vertices=2 * lines.count)
+        ctx.line_width = 1.0
 
     def _draw_shadow_map(self, geom: FrameGeometry) -> None:
         """Render the key light's depth map of this frame and hand it to the shaded programs."""
@@ -676,7 +728,7 @@ class Renderer:
 
     def draw(self, geom: FrameGeometry) -> None:
         """Draw one frame into the multisampled framebuffer and resolve it (no read-back)."""
-        W, H = self.size
+        W, H = self.draw_size
         if geom.surface is not None or (geom.yarns is not None and geom.yarns.far is not None):
             self._ensure_far_field()
         self._fbo_ms.use()
@@ -715,6 +767,23 @@ class Renderer:
             self.ctx.enable_direct(GL_FRAMEBUFFER_SRGB)     # decode, average in linear light, encode
             self.ctx.copy_framebuffer(self._fbo_out, self._fbo_ms)
             self.ctx.disable_direct(GL_FRAMEBUFFER_SRGB)    # leave the context as we found it
+        if self._fbo_down is not None:
+            with self._part("downsample"):
+                self._downsample()
+
+    def _downsample(self) -> None:
+        """The output image from the resolved one: each pixel the mean of its k x k drawn pixels in linear
+        light (shaders/downsample.frag; GL encodes the 8-bit target's mean on the write)."""
+        ctx = self.ctx
+        ctx.disable(moderngl.DEPTH_TEST | moderngl.BLEND | moderngl.CULL_FACE)
+        self._fbo_down.viewport = (0, 0, *self.size)
+        self._fbo_down.use()
+        self._resolved.use(location=DOWNSAMPLE_UNIT)
+        if self.target == "srgb8":
+            ctx.enable_direct(GL_FRAMEBUFFER_SRGB)
+        self._down_vao.render(moderngl.TRIANGLES, vertices=3)
+        if self.target == "srgb8":
+            ctx.disable_direct(GL_FRAMEBUFFER_SRGB)
 
     def read(self) -> np.ndarray:
         """The presented image, top row first: (H, W, 3) uint8 sRGB, or with `alpha` (H, W, 4) uint8
@@ -723,7 +792,7 @@ class Renderer:
             return encode_premultiplied_linear(self.read_linear(), 8, self.alpha)
         W, H = self.size
         n = 4 if self.alpha else 3
-        raw = self._fbo_out.read(components=n, alignment=1)
+        raw = self._fbo_read.read(components=n, alignment=1)
         check_gl_error(self.ctx, "drawing a frame")
         image = np.frombuffer(raw, dtype=np.uint8).reshape(H, W, n)[::-1]
         return straight_alpha_srgb(image) if self.alpha else image
@@ -734,19 +803,24 @@ class Renderer:
         if self.target != "float":
             raise ValueError("read_linear() needs a renderer made with target='float'")
         W, H = self.size
-        raw = self._fbo_out.read(components=4, dtype="f4", alignment=1)
+        raw = self._fbo_read.read(components=4, dtype="f4", alignment=1)
         check_gl_error(self.ctx, "drawing a frame")
         return np.frombuffer(raw, dtype=np.float32).reshape(H, W, 4)[::-1]
 
     def read_depth_m(self) -> np.ndarray:
         """Distance along the view axis [m] of what each pixel shows, top row first, (H, W) float32;
-        +inf where nothing was drawn."""
+        +inf where nothing was drawn. Supersampled, the nearest of each pixel's k x k drawn depths (as MSAA's
+        resolve keeps one sample's, a depth is never averaged across an edge)."""
         if self._depth_out is None:
             raise ValueError("read_depth_m() needs a renderer made with depth=True")
-        W, H = self.size
+        W, H = self.draw_size
         raw = self._depth_out.read(alignment=1)
         check_gl_error(self.ctx, "reading the depth")
-        return self.camera.view_distance(np.frombuffer(raw, dtype=np.float32).reshape(H, W)[::-1])
+        depth = np.frombuffer(raw, dtype=np.float32).reshape(H, W)[::-1]
+        k = self.supersample
+        if k > 1:
+            depth = depth.reshape(H // k, k, W // k, k).min(axis=(1, 3))
+        return self.camera.view_distance(depth)
 
     def render(self, geom: FrameGeometry) -> np.ndarray:
         """Draw, resolve, present and read back one frame: (H, W, 3) uint8, top row first."""
@@ -783,6 +857,9 @@ class Renderer:
             obj.release()
         if self._depth_out is not None:
             self._depth_out.release()
+        for obj in (self._down_vao, self._down_prog, self._fbo_down, self._down):
+            if obj is not None:
+                obj.release()
 
 
 def clamp_samples(ctx: moderngl.Context, samples: int) -> int:

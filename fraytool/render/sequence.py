@@ -31,7 +31,7 @@ from fraytool.render.color import encode_premultiplied_linear
 from fraytool.render.context import gl_strings
 from fraytool.render.encode import PNG_SETTINGS_KEY, VideoWriter, png_settings, read_png, write_png
 from fraytool.render.exr import exr_settings, read_exr_rgba, write_exr
-from fraytool.render.geometry import GeometryBuilder, YarnStyle
+from fraytool.render.geometry import GeometryBuilder
 from fraytool.render.job import RenderJob
 from fraytool.render.motion_blur import neighbour, sub_frame_records
 from fraytool.render.png16 import read_png16, write_png16
@@ -197,8 +197,7 @@ def render_job(job: RenderJob, ctx: moderngl.Context, store: FrameStore, stream:
     renderer = Renderer(ctx, job.size, job.samples, job.spec.render, job.spec.camera, topology, job.wireframe,
                         alpha=job.alpha, target=job.target, depth=job.exr, panels_spec=job.spec.all_panels)
     digest = job.digest(renderer.samples, gl_strings(ctx))
-    builder = GeometryBuilder(topology, YarnStyle.from_spec(job.spec.render, topology), renderer.camera, H,
-                               image_width=renderer.shaded_width)
+    builder = renderer.geometry_builder(topology)
     want_yarns = job.wireframe != "only"
     want_lines = job.wireframe != "off"
     build_kw = dict(yarns=want_yarns, lines=want_lines)

@@ -324,6 +324,9 @@ class RenderSpec:
 
     resolution: tuple[int, int] = key("int2", (640, 360), lo=2, hi=8192, doc="image width and height [pixels]")
     samples: int = key("int", 4, lo=0, hi=64, doc="MSAA samples")
+    supersample: int = key("int", 1, lo=1, hi=4,
+                           doc="pixels drawn per output pixel along each axis, averaged in linear light (SSAA: "
+                               "slower by about its square; the level of detail measures yarns in drawn pixels)")
     warp_color: Vec3 = key("color", (0.80, 0.30, 0.25), doc="sRGB colour of warp yarns")
     weft_color: Vec3 = key("color", (0.90, 0.85, 0.70), doc="sRGB colour of weft yarns")
     background: Vec3 = key("color", (0.08, 0.09, 0.11), doc="sRGB background colour")
