@@ -227,7 +227,7 @@ def main(argv=None) -> None:
                 image_spec = with_render(spec, **{**MODES[mode], "supersample": k, **image_sets})
                 image, ms = draw(image_spec, topology, record, (W, H), image_spec.render.samples, repeat=args.repeat)
                 err = blurred_rms(image, ref)
-                rows.append(dict(scale=scale, size=[W, H], frame=frame, mode=mode, supersample=k, **image_sets,
+                rows.append(dict(scale=scale, size=[W, H], frame=frame, mode=mode, **{"supersample": k, **image_sets},
                                  rms_levels=round(err, 2), ms=round(ms, 1)))
                 if save:
                     from PIL import Image

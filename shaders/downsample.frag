@@ -1,9 +1,8 @@
 #version 330 core
 // Supersampling ([render] supersample = k, fraytool.render.renderer): each output pixel is the mean of
-// the k x k drawn pixels it covers, a box filter. Fetched from the resolved image: an sRGB texture is
-// decoded to linear light by the fetch (the mean is taken in linear light, of colour premultiplied by
-// alpha, and alpha), a float one holds linear light already; GL_FRAMEBUFFER_SRGB encodes the mean on
-// the write into an sRGB target.
+// the k x k drawn pixels it covers, a box filter, taken in linear light (the resolved image is drawn in
+// float when supersampled: colour premultiplied by alpha, unclamped, and alpha). Into an 8-bit sRGB
+// output GL_FRAMEBUFFER_SRGB encodes the mean on the write.
 uniform sampler2D u_source;
 uniform int u_factor;
 out vec4 f_color;

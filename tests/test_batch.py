@@ -426,3 +426,24 @@ def test_a_contact_sheet_has_readable_labels_and_no_empty_tile():
     assert not (sheet == 0).all(axis=-1)[th:, :].all(axis=0).any()    # no black column in the last row
     box = ImageDraw.Draw(Image.new("RGB", (10, 10))).textbbox((0, 0), "seed=3", font=label_font(th))
     assert box[3] - box[1] >= 0.05 * th
+
+
+def test_job_file_and_command_line_supersample(tmp_path, scene):
+    """`supersample` in a job file's [render] table (or a shot's) and --supersample reach each shot's render job
+    (the command line winning), and a value outside 1-4 is refused naming the table."""
+    from fraytool.farm.shots import RenderOptions
+    from fraytool.farm.tasks import render_job_for
+    from fraytool.render.options import FrameRange
+
+    job = tmp_path / "job.toml"
+    job.write_text(f'[render]\nsupersample = 2\n[[shots]]\nscene = "{scene}"\n[[shots]]\nscene = "{scene}"\n'
+                   f'name = "finer"\nrender = {{ supersample = 3 }}\n')
+    shots = load_job(job).shots
+    assert [s.render.supersample for s in shots] == [2, 3]
+    rendered = render_job_for(shots[0], tmp_path / "out", FrameRange(0, 2, 1))[0]
+    assert rendered.spec.render.supersample == 2
+    (cli,) = load_job(job, render=RenderOptions(supersample=1)).shots[:1]
+    assert cli.render.supersample == 1
+    job.write_text(f'[render]\nsupersample = 5\n[[shots]]\nscene = "{scene}"\n')
+    with pytest.raises(InputError, match=r"\[render\] supersample = 5: an integer from 1 to 4"):
+        load_job(job)

@@ -18,7 +18,7 @@ def batch_command(args) -> int:
     from fraytool.farm.watch import FarmWatch
     from fraytool.farm.shots import Job, RenderOptions, check_job_name, check_render_options, expand, load_job, parse_wedge, unique_names
     from fraytool.render.motion_blur import parse_samples, parse_shutter
-    from fraytool.render.options import parse_resolution
+    from fraytool.render.options import check_supersample, parse_resolution
     from fraytool.scene.overrides import parse_assignment
 
     stream = sys.stderr
@@ -31,7 +31,8 @@ def batch_command(args) -> int:
                            codec=args.codec, fit=True if args.fit else None,
                            motion_blur=parse_shutter(args.motion_blur) if args.motion_blur is not None else None,
                            motion_samples=(parse_samples(args.motion_samples) if args.motion_samples is not None
-                                           else None))
+                                           else None),
+                           supersample=check_supersample(args.supersample))
     check_render_options(render, "batch", flags=True)
     if args.scheduler and args.workers:
         raise InputError("--workers starts a local cluster; with --scheduler the cluster's own workers run the job")

@@ -150,9 +150,11 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("-o", "--out", type=Path, help="output folder (default outputs/<scene name>/)")
     r.add_argument("--frames", metavar="START:END[:STEP]", help="frame range to render (END exclusive)")
     r.add_argument("--resolution", metavar="WxH", help="image size, e.g. 1280x720 (even numbers for H.264)")
-    r.add_argument("--samples", type=int, help="MSAA samples (clamped to what the GL context supports)")
+    r.add_argument("--samples", type=int, metavar="N", help="MSAA samples, 0-64 (default: the scene's [render] "
+                   "samples); more than the GL context draws are clamped, with a warning")
     r.add_argument("--supersample", type=int, metavar="K", help="draw K x K pixels per output pixel and average "
-                   "them in linear light (1-4; [render] supersample): finer, about K^2 times the draw")
+                   "them in linear light, 1-4 (default: the scene's [render] supersample, 1): finer, about K^2 "
+                   "times the draw")
     r.add_argument("--png", action="store_true", help="also write a numbered PNG sequence in <out>/png/")
     r.add_argument("--depth", metavar="BITS", default="8",
                    help="bits per channel of the PNGs: 8 (default) or 16 (drawn in float; RGB, or RGBA with --alpha)")
@@ -232,6 +234,8 @@ def build_parser() -> argparse.ArgumentParser:
     ba.add_argument("--frames", metavar="START:END[:STEP]", help="frame range of every shot")
     ba.add_argument("--resolution", metavar="WxH", help="image size of every shot, e.g. 1280x720 (even numbers)")
     ba.add_argument("--samples", type=int, help="MSAA samples of every shot")
+    ba.add_argument("--supersample", type=int, metavar="K", help="drawn pixels per output pixel along each axis, "
+                    "1-4, for every shot (as in render)")
     ba.add_argument("--wireframe", choices=("off", "only", "beside"), help="wireframe pass of every shot (as in render)")
     ba.add_argument("--alpha", action="store_true", help="transparent background for every shot (as in render)")
     ba.add_argument("--depth", type=int, choices=(8, 16), help="PNG bits per channel of every shot (as in render)")

@@ -88,13 +88,14 @@ def _render(args, stream: Optional[TextIO]) -> int:
         print("fraytool: --codec prores: ProRes 4444 carries alpha, so the background is transparent (as with "
               "--alpha, for the PNGs and EXRs too)", file=stream)
     from fraytool.render.context import create_context, describe
-    from fraytool.render.renderer import clamp_samples
+    from fraytool.render.renderer import check_drawn_size, clamp_samples
 
     ctx = create_context()
     try:
         if getattr(args, "verbose", False):
             print(describe(ctx), file=stream)
             print(f"MSAA samples: {clamp_samples(ctx, job.samples)} (asked {job.samples})", file=stream)
+        check_drawn_size(ctx, job.size, job.spec.render.supersample, job.wireframe)  # before any simulation
         if job.samples > 1 and clamp_samples(ctx, job.samples) < job.samples:
             print(f"fraytool: warning: [render] samples = {job.samples}: this OpenGL driver "
                   f"({ctx.info.get('GL_RENDERER', '?')}) draws at most {int(ctx.max_samples)} MSAA samples a "

@@ -28,7 +28,7 @@ RETRIES = 1
 JOB_JSON = "job.json"
 
 
-_LATER_OPTIONS = ("codec", "fit", "motion_blur", "motion_samples")
+_LATER_OPTIONS = ("codec", "fit", "motion_blur", "motion_samples", "supersample")
 """RenderOptions fields added after job.json digests were first written."""
 
 

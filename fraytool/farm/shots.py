@@ -13,6 +13,7 @@ A job file:
     frames = "0:48"           # START:END[:STEP]; default: the whole scene
     motion_blur = 0.5         # shutter, a fraction of a frame (as --motion-blur; 0: off, the default)
     motion_samples = 8        # sub-frames per blurred frame (as --motion-samples)
+    supersample = 1           # drawn pixels per output pixel along each axis, 1-4 (as --supersample)
 
     [[shots]]
     scene = "fig7_square_grab"                  # a path (relative to the job file) or a shipped name
@@ -40,7 +41,7 @@ DEFAULT_CHUNK_FRAMES = 24
 MAX_WEDGE_VALUES = 1000
 _JOB_KEYS = {"name", "chunk_frames"}
 _RENDER_KEYS = {"resolution", "samples", "wireframe", "frames", "alpha", "depth", "exr", "codec", "fit",
-                "motion_blur", "motion_samples"}
+                "motion_blur", "motion_samples", "supersample"}
 _SHOT_KEYS = {"scene", "set", "wedge", "render", "name"}
 
 
@@ -67,6 +68,8 @@ class RenderOptions:
     """Shutter as a fraction of a frame (as `--motion-blur`); None: not given (0, off)."""
     motion_samples: Optional[int] = None
     """Sub-frames per blurred frame (as `--motion-samples`); None: not given (8)."""
+    supersample: Optional[int] = None
+    """Drawn pixels per output pixel along each axis (as `--supersample`); None: the scene's [render] supersample."""
 
 
 @dataclass(frozen=True)
@@ -214,8 +217,13 @@ def _render_options(table: dict, where: str, base: RenderOptions) -> RenderOptio
     if blur_samples is not None and (isinstance(blur_samples, bool) or not isinstance(blur_samples, int)
                                      or not 2 <= blur_samples <= 64):
         raise InputError(f"{where} motion_samples = {blur_samples!r}: an integer from 2 to 64")
+    supersample = table.get("supersample", base.supersample)
+    if supersample is not None and (isinstance(supersample, bool) or not isinstance(supersample, int)
+                                    or not 1 <= supersample <= 4):
+        raise InputError(f"{where} supersample = {supersample!r}: an integer from 1 to 4 (drawn pixels per output "
+                         "pixel along each axis)")
     return check_render_options(RenderOptions(res, samples, wire, frames, flags["alpha"], depth, flags["exr"],
-                                              codec, flags["fit"], blur, blur_samples), where)
+                                              codec, flags["fit"], blur, blur_samples, supersample), where)
 
 
 def check_render_options(opts: RenderOptions, where: str, flags: bool = False) -> RenderOptions:
@@ -306,7 +314,7 @@ def _merge(base: RenderOptions, cli: RenderOptions) -> RenderOptions:
     return check_render_options(
         RenderOptions(cli.resolution or base.resolution, pick("samples"), pick("wireframe"), cli.frames or base.frames,
                       pick("alpha"), pick("depth"), pick("exr"), pick("codec"), pick("fit"),
-                      pick("motion_blur"), pick("motion_samples")),
+                      pick("motion_blur"), pick("motion_samples"), pick("supersample")),
         "render options (job file and command line)")
 
 

@@ -90,7 +90,7 @@ def render_job_for(shot: Shot, out_dir: Path, frames: FrameRange):
                            samples=r.samples, camera_position=None, camera_target=None, fov=None,
                            wireframe=r.wireframe, alpha=bool(r.alpha), depth=16 if prores else r.depth,
                            exr=bool(r.exr), codec=r.codec or "h264", fit=bool(r.fit),
-                           motion_blur=r.motion_blur, motion_samples=r.motion_samples)
+                           motion_blur=r.motion_blur, motion_samples=r.motion_samples, supersample=r.supersample)
     job = build_job(spec, args, out_dir)
     return job, replace(job, frames=frames)
 

@@ -58,7 +58,7 @@ from fraytool.render.color import (
     straight_alpha_srgb,
     yarn_palette,
 )
-from fraytool.errors import RunError
+from fraytool.errors import InputError, RunError
 from fraytool.render.context import check_gl_error
 from fraytool.render.farfield import SURFACE_FLOATS
 from fraytool.render.geometry import FrameGeometry, GeometryBuilder, YarnStyle
@@ -216,13 +216,16 @@ class Renderer:
         self._drawn = "float" if target == "float" or k > 1 else "srgb8"
         """The drawn image's format: supersampled, float, so the mean of the drawn pixels keeps a highlight's
         excess over 1 as a camera's pixel does (the 8-bit target clips each drawn pixel; frame 53 of
-        tablecloth_tear: 2.09 levels from the 4x reference that way, 1.86 through float)."""
+        tablecloth_tear: 2.09 levels from the 4x reference that way, 1.87 through float)."""
+        check_drawn_size(ctx, self.size, k, wireframe)
         try:
             self._make_framebuffers(ctx, depth)
         except moderngl.Error as exc:
-            raise RunError(f"[render] supersample = {k}, resolution = {self.size[0]}x{self.size[1]}: the GL context "
-                           f"cannot make a {W}x{H} framebuffer with {self.samples} MSAA samples ({exc}); lower "
-                           f"supersample, resolution or samples") from None
+            self._release_framebuffers()
+            ctx.error  # noqa: B018  (reading it clears the failed allocation's GL error)
+            raise RunError(f"{_drawn_size_text(self.size, k, wireframe)}: the GL context cannot make that framebuffer "
+                           f"with {self.samples} MSAA samples ({exc}); lower "
+                           + ("supersample, " if k > 1 else "") + "resolution or samples") from None
 
         encode = ("ENCODE_SRGB",) if self._drawn == "srgb8" else ()
         features = (("SHADOWS",) if render.shadows else ()) + (("FILL",) if render.fill_intensity > 0 else ()) + encode
@@ -339,6 +342,14 @@ class Renderer:
             self._down_vao = ctx.vertex_array(self._down_prog, [])
         self._fbo_read = self._fbo_down if k > 1 else self._fbo_out
         """Where the output image is read from."""
+
+    def _release_framebuffers(self) -> None:
+        for name in ("_down_vao", "_down_prog", "_fbo_down", "_down", "_fbo_out", "_depth_out", "_fbo_ms", "_depth_ms",
+                     "_resolved", "_color_ms"):
+            obj = getattr(self, name, None)
+            if obj is not None:
+                obj.release()
+            setattr(self, name, None)
 
     @property
     def shaded_width(self) -> int:
@@ -677,10 +688,13 @@ class Renderer:
                                                       "in_yarn_level")])
             self._line_vao = (self._line_vbo.generation, vao)
         self._line_prog["u_view_proj"].write(view_proj)
-        # supersampled, lines k drawn pixels wide: one output pixel, as without (llvmpipe draws wide lines)
-        ctx.line_width = float(self.supersample)
-        self._line_vao[1].render(moderngl.LINES, vertices=2 * lines.count)
-        ctx.line_width = 1.0
+        # supersampled, lines k drawn pixels wide: one output pixel, as without (as wide as the GL draws them)
+        widest = float(np.max(self.ctx.info.get("GL_ALIASED_LINE_WIDTH_RANGE", (1.0, 1.0))))
+        ctx.line_width = min(float(self.supersample), widest)
+        try:
+            self._line_vao[1].render(moderngl.LINES, vertices=2 * lines.count)
+        finally:
+            ctx.line_width = 1.0
 
     def _draw_shadow_map(self, geom: FrameGeometry) -> None:
         """Render the key light's depth map of this frame and hand it to the shaded programs."""
@@ -852,14 +866,27 @@ class Renderer:
                 obj.release()
         if self.shadow is not None:
             self.shadow.release()
-        for obj in (*self._static, self._fbo_ms, self._color_ms, self._depth_ms, self._fbo_out,
-                    self._resolved, self._yarn_prog, self._body_prog, self._ground_prog, self._line_prog):
+        for obj in (*self._static, self._yarn_prog, self._body_prog, self._ground_prog, self._line_prog):
             obj.release()
-        if self._depth_out is not None:
-            self._depth_out.release()
-        for obj in (self._down_vao, self._down_prog, self._fbo_down, self._down):
-            if obj is not None:
-                obj.release()
+        self._release_framebuffers()
+
+
+def _drawn_size_text(size: tuple[int, int], supersample: int, wireframe: str) -> str:
+    W, H = size
+    views = 2 if wireframe == "beside" else 1
+    text = f"[render] resolution = [{W // views}, {H}]" + (" with the wireframe beside" if views > 1 else "")
+    if supersample > 1:
+        text += f" and supersample = {supersample}"
+    return text + f" draws {W * supersample}x{H * supersample} pixels"
+
+
+def check_drawn_size(ctx: moderngl.Context, size: tuple[int, int], supersample: int, wireframe: str = "off") -> None:
+    """InputError when the drawn frame, `size` (the output's, both views beside) times `supersample` in each axis,
+    is larger than the GL context draws (GL_MAX_TEXTURE_SIZE, GL_MAX_RENDERBUFFER_SIZE; 16384 on llvmpipe)."""
+    most = min(int(ctx.info.get("GL_MAX_TEXTURE_SIZE", 1 << 30)), int(ctx.info.get("GL_MAX_RENDERBUFFER_SIZE", 1 << 30)))
+    if max(size) * supersample > most:
+        raise InputError(f"{_drawn_size_text(size, supersample, wireframe)}; this GL context draws at most {most} a "
+                         "side: lower " + ("supersample or " if supersample > 1 else "") + "the resolution")
 
 
 def clamp_samples(ctx: moderngl.Context, samples: int) -> int:

@@ -193,7 +193,6 @@ def render_job(job: RenderJob, ctx: moderngl.Context, store: FrameStore, stream:
     if job.exr:
         sweep_temp_files(job.exr_dir)
         files.append(_ExrFiles(job))
-    W, H = job.size
     renderer = Renderer(ctx, job.size, job.samples, job.spec.render, job.spec.camera, topology, job.wireframe,
                         alpha=job.alpha, target=job.target, depth=job.exr, panels_spec=job.spec.all_panels)
     digest = job.digest(renderer.samples, gl_strings(ctx))
