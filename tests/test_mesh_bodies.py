@@ -453,3 +453,22 @@ def test_exr_depth_and_alpha_hold_a_mesh_body(tmp_path):
     assert exr["A"][23, 31] == 1.0
     assert abs(exr["Z"][23, 31] - (0.3 - 0.035)) < 5e-4  # the mesh's front, facets within 0.1 mm of the sphere
     assert float(exr["A"][0, 0]) == 0.0 and np.isinf(exr["Z"][0, 0])  # the sky behind
+
+
+@pytest.mark.parametrize("scale,says", [
+    (100.0, "spans 28 m, 111 times the cloth (0.252 m); if its file is in centimetres set scale = [1, 1, 1], "
+            "in millimetres [0.1, 0.1, 0.1]"),
+    (1.0, None),
+    (10.0, None),     # 2.8 m: large, but not past 20 m
+])
+def test_a_mesh_in_centimetres_is_a_warning_naming_the_scale(scale, says):
+    """mannequin_snag's 0.28 m spike read a hundred times too large (a file in centimetres read as metres)
+    is named by `fraytool check` with the scale that fixes it; at its own size, or ten times it, nothing."""
+    run = subprocess.run([sys.executable, "-m", "fraytool", "check", "mannequin_snag", "--set",
+                          f"bodies.0.scale=[{scale:g},{scale:g},{scale:g}]"], capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    warnings = [line for line in run.stderr.splitlines() if line.startswith("fraytool: warning:")]
+    if says is None:
+        assert warnings == []
+    else:
+        assert len(warnings) == 1 and "[bodies.0] file = 'assets/mannequin.obj': the mesh " + says in warnings[0]

@@ -37,7 +37,8 @@ def default_out_dir(spec: SceneSpec) -> Path:
 
 def check_step(spec: SceneSpec, model: Model, stream=None) -> float:
     """Compare the step with the explicit stability bound: warn, or refuse (SceneError) when the
-    scene says [time] stability = "refuse". Returns the bound [s]."""
+    scene says [time] stability = "refuse"; warn of a mesh in the wrong unit (fraytool.sim.units).
+    Returns the bound [s]."""
     bound = stable_step_bound_s(model)
     if spec.time.step_s > bound:
         msg = (f"{spec.source}: [time] step_s = {spec.time.step_s:g}: above the explicit stability bound "
@@ -46,6 +47,10 @@ def check_step(spec: SceneSpec, model: Model, stream=None) -> float:
         if spec.time.stability == "refuse":
             raise SceneError([msg])
         print(f"fraytool: warning: {msg}", file=stream or sys.stderr)
+    from fraytool.sim.units import mesh_scale_warnings
+
+    for line in mesh_scale_warnings(spec, model):
+        print(f"fraytool: warning: {line}", file=stream or sys.stderr)
     return bound
 
 
