@@ -94,7 +94,9 @@ def _render(args, stream: Optional[TextIO]) -> int:
     try:
         if getattr(args, "verbose", False):
             print(describe(ctx), file=stream)
-            print(f"MSAA samples: {clamp_samples(ctx, job.samples)} (asked {job.samples})", file=stream)
+            print(f"MSAA samples: {clamp_samples(ctx, job.samples)} (asked {job.samples})"
+                  + (f"; supersampled {job.spec.render.supersample} x {job.spec.render.supersample}"
+                     if job.spec.render.supersample > 1 else ""), file=stream)
         check_drawn_size(ctx, job.size, job.spec.render.supersample, job.wireframe)  # before any simulation
         if job.samples > 1 and clamp_samples(ctx, job.samples) < job.samples:
             print(f"fraytool: warning: [render] samples = {job.samples}: this OpenGL driver "
