@@ -136,7 +136,25 @@ def test_render_refuses_a_frame_too_large_before_simulating(tmp_path):
     assert not (tmp_path / "out" / "frames").exists(), "it simulated first"
 
 
-def test_supersample_out_of_range_is_refused_on_the_command_line():
-    run = subprocess.run([sys.executable, "-m", "fraytool", "render", "drape", "--supersample", "5", "--no-mp4",
+@pytest.mark.parametrize("value", ["5", "0", "2.5", "two"])
+def test_supersample_out_of_range_is_refused_on_the_command_line(value):
+    run = subprocess.run([sys.executable, "-m", "fraytool", "render", "drape", "--supersample", value, "--no-mp4",
                           "--png", "-o", "/nonexistent/x"], capture_output=True, text=True)
-    assert run.returncode == 2 and "--supersample 5: expected 1 to 4" in run.stderr, run.stderr
+    assert run.returncode == 2 and f"--supersample {value}: expected an integer from 1 to 4" in run.stderr, run.stderr
+
+
+@pytest.mark.parametrize("command", [["check", "--set", "render.supersample=4"],
+                                     ["batch", "--supersample", "4", "-o", "OUT"]])
+def test_check_and_batch_refuse_a_frame_too_large_before_running(tmp_path, command):
+    """`fraytool check` and `fraytool batch` (before a cluster starts) refuse what `render` refuses."""
+    from helpers import small_scene_text
+
+    scene = tmp_path / "s.toml"
+    scene.write_text(small_scene_text(frames=2))
+    rest = [str(tmp_path / "out") if a == "OUT" else a for a in command[1:]]
+    run = subprocess.run([sys.executable, "-m", "fraytool", command[0], str(scene), *rest,
+                          "--set", "render.resolution=[4200,360]"], capture_output=True, text=True)
+    assert run.returncode == 2, run.stderr
+    assert "resolution = [4200, 360] and supersample = 4 draws 16800x1440 pixels; this GL context draws at most" \
+        in run.stderr, run.stderr
+    assert not (tmp_path / "out").exists()

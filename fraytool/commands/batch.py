@@ -147,11 +147,19 @@ def _checked(job, job_dir: Path, stream):
     from fraytool.errors import FraytoolError
     from fraytool.farm import tasks
 
+    from fraytool.render.options import FrameRange
+    from fraytool.render.renderer import drawn_size_problem, probe_gl_size_limit
+
+    most = probe_gl_size_limit()
     shots = []
     for shot in job.shots:
         if shot.error is None:
             try:
-                tasks.shot_frames(shot, job_dir / shot.name)
+                render_job, _ = tasks.render_job_for(shot, job_dir / shot.name, FrameRange(0, 1))
+                problem = most and drawn_size_problem(render_job.size, render_job.spec.render.supersample,
+                                                      render_job.wireframe, most, render_job.spec.source)
+                if problem:
+                    raise InputError(problem)
             except FraytoolError as exc:
                 shot = replace(shot, error=str(exc))
         shots.append(shot)

@@ -152,7 +152,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--resolution", metavar="WxH", help="image size, e.g. 1280x720 (even numbers for H.264)")
     r.add_argument("--samples", type=int, metavar="N", help="MSAA samples, 0-64 (default: the scene's [render] "
                    "samples); more than the GL context draws are clamped, with a warning")
-    r.add_argument("--supersample", type=int, metavar="K", help="draw K x K pixels per output pixel and average "
+    r.add_argument("--supersample", metavar="K", help="draw K x K pixels per output pixel and average "
                    "them in linear light, 1-4 (default: the scene's [render] supersample, 1): finer, about K^2 "
                    "times the draw")
     r.add_argument("--png", action="store_true", help="also write a numbered PNG sequence in <out>/png/")
@@ -234,7 +234,7 @@ def build_parser() -> argparse.ArgumentParser:
     ba.add_argument("--frames", metavar="START:END[:STEP]", help="frame range of every shot")
     ba.add_argument("--resolution", metavar="WxH", help="image size of every shot, e.g. 1280x720 (even numbers)")
     ba.add_argument("--samples", type=int, help="MSAA samples of every shot")
-    ba.add_argument("--supersample", type=int, metavar="K", help="drawn pixels per output pixel along each axis, "
+    ba.add_argument("--supersample", metavar="K", help="drawn pixels per output pixel along each axis, "
                     "1-4, for every shot (as in render)")
     ba.add_argument("--wireframe", choices=("off", "only", "beside"), help="wireframe pass of every shot (as in render)")
     ba.add_argument("--alpha", action="store_true", help="transparent background for every shot (as in render)")
@@ -328,6 +328,14 @@ def cmd_check(args) -> int:
     spec = _load(args.scene, force=args.force, sets=args.sets)
     model = build_model(spec)
     bound = check_step(spec, model)
+    if spec.render.supersample > 1:  # the drawn frame against the GL context, as `render` checks it
+        from fraytool.render.renderer import drawn_size_problem, probe_gl_size_limit
+
+        most = probe_gl_size_limit()
+        problem = most and drawn_size_problem(tuple(spec.render.resolution), spec.render.supersample, "off", most,
+                                              spec.source)
+        if problem:
+            raise InputError(problem)
     slots = {name: int((model.spring_kind == k).sum()) for k, name in enumerate(SPRING_KIND_NAMES)}
     # shear twins are reserved slots, born only when a crossing splits (docs/tearing.md): not springs yet
     kinds = {name: (0 if name == "shear_twin" else n) for name, n in slots.items()}

@@ -97,7 +97,7 @@ def _render(args, stream: Optional[TextIO]) -> int:
             print(f"MSAA samples: {clamp_samples(ctx, job.samples)} (asked {job.samples})"
                   + (f"; supersampled {job.spec.render.supersample} x {job.spec.render.supersample}"
                      if job.spec.render.supersample > 1 else ""), file=stream)
-        check_drawn_size(ctx, job.size, job.spec.render.supersample, job.wireframe)  # before any simulation
+        check_drawn_size(ctx, job.size, job.spec.render.supersample, job.wireframe, where=job.spec.source)  # before simulating
         if job.samples > 1 and clamp_samples(ctx, job.samples) < job.samples:
             print(f"fraytool: warning: [render] samples = {job.samples}: this OpenGL driver "
                   f"({ctx.info.get('GL_RENDERER', '?')}) draws at most {int(ctx.max_samples)} MSAA samples a "

@@ -90,11 +90,18 @@ def check_samples(samples: Optional[int]) -> Optional[int]:
     return samples
 
 
-def check_supersample(k: Optional[int]) -> Optional[int]:
-    if k is not None and not (1 <= k <= 4):
-        raise InputError(f"--supersample {k}: expected 1 to 4 (drawn pixels per output pixel along each axis; "
-                         "1 draws at the output size)")
-    return k
+def check_supersample(k) -> Optional[int]:
+    """--supersample K: an integer from 1 to 4 (given as text by argparse, or None when not given)."""
+    if k is None:
+        return None
+    try:
+        value = int(str(k).strip())
+    except ValueError:
+        value = None
+    if value is None or not (1 <= value <= 4):
+        raise InputError(f"--supersample {k}: expected an integer from 1 to 4 (drawn pixels per output pixel along "
+                         "each axis; 1 draws at the output size)")
+    return value
 
 
 def check_fov(fov: Optional[float]) -> Optional[float]:

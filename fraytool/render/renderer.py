@@ -880,13 +880,41 @@ def _drawn_size_text(size: tuple[int, int], supersample: int, wireframe: str) ->
     return text + f" draws {W * supersample}x{H * supersample} pixels"
 
 
-def check_drawn_size(ctx: moderngl.Context, size: tuple[int, int], supersample: int, wireframe: str = "off") -> None:
-    """InputError when the drawn frame, `size` (the output's, both views beside) times `supersample` in each axis,
-    is larger than the GL context draws (GL_MAX_TEXTURE_SIZE, GL_MAX_RENDERBUFFER_SIZE; 16384 on llvmpipe)."""
-    most = min(int(ctx.info.get("GL_MAX_TEXTURE_SIZE", 1 << 30)), int(ctx.info.get("GL_MAX_RENDERBUFFER_SIZE", 1 << 30)))
-    if max(size) * supersample > most:
-        raise InputError(f"{_drawn_size_text(size, supersample, wireframe)}; this GL context draws at most {most} a "
-                         "side: lower " + ("supersample or " if supersample > 1 else "") + "the resolution")
+def gl_size_limit(ctx: moderngl.Context) -> int:
+    """The widest side [px] the context draws into (GL_MAX_TEXTURE_SIZE, GL_MAX_RENDERBUFFER_SIZE; 16384 on llvmpipe)."""
+    return min(int(ctx.info.get("GL_MAX_TEXTURE_SIZE", 1 << 30)), int(ctx.info.get("GL_MAX_RENDERBUFFER_SIZE", 1 << 30)))
+
+
+def probe_gl_size_limit() -> Optional[int]:
+    """gl_size_limit of a context made and released here (commands that check input before any drawing:
+    `fraytool check`, `batch`); None when no GL context can be made (the render itself then says why)."""
+    from fraytool.render.context import create_context
+
+    try:
+        ctx = create_context()
+    except Exception:  # noqa: BLE001  (no GL here: nothing to compare with; rendering reports it)
+        return None
+    try:
+        return gl_size_limit(ctx)
+    finally:
+        ctx.release()
+
+
+def drawn_size_problem(size: tuple[int, int], supersample: int, wireframe: str, most: int, where: str = "") -> Optional[str]:
+    """The message when the drawn frame, `size` (the output's, both views beside) times `supersample` in each axis,
+    is wider than `most` pixels; None when it fits."""
+    if max(size) * supersample <= most:
+        return None
+    return (f"{where + ': ' if where else ''}{_drawn_size_text(size, supersample, wireframe)}; this GL context draws "
+            f"at most {most} a side: lower " + ("supersample or " if supersample > 1 else "") + "the resolution")
+
+
+def check_drawn_size(ctx: moderngl.Context, size: tuple[int, int], supersample: int, wireframe: str = "off",
+                     where: str = "") -> None:
+    """InputError (drawn_size_problem) when the drawn frame is larger than the context draws."""
+    problem = drawn_size_problem(size, supersample, wireframe, gl_size_limit(ctx), where)
+    if problem:
+        raise InputError(problem)
 
 
 def clamp_samples(ctx: moderngl.Context, samples: int) -> int:
