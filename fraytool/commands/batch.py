@@ -148,18 +148,16 @@ def _checked(job, job_dir: Path, stream):
     from fraytool.farm import tasks
 
     from fraytool.render.options import FrameRange
-    from fraytool.render.renderer import drawn_size_problem, probe_gl_size_limit
+    from fraytool.render.renderer import check_drawn_size_early
 
-    most = probe_gl_size_limit()
+    limit = None  # the GL context's widest side, probed once
     shots = []
     for shot in job.shots:
         if shot.error is None:
             try:
                 render_job, _ = tasks.render_job_for(shot, job_dir / shot.name, FrameRange(0, 1))
-                problem = most and drawn_size_problem(render_job.size, render_job.spec.render.supersample,
-                                                      render_job.wireframe, most, render_job.spec.source)
-                if problem:
-                    raise InputError(problem)
+                limit = check_drawn_size_early(render_job.size, render_job.spec.render.supersample,
+                                               render_job.wireframe, render_job.spec.source, limit)
             except FraytoolError as exc:
                 shot = replace(shot, error=str(exc))
         shots.append(shot)

@@ -329,13 +329,9 @@ def cmd_check(args) -> int:
     model = build_model(spec)
     bound = check_step(spec, model)
     if spec.render.supersample > 1:  # the drawn frame against the GL context, as `render` checks it
-        from fraytool.render.renderer import drawn_size_problem, probe_gl_size_limit
+        from fraytool.render.renderer import check_drawn_size_early
 
-        most = probe_gl_size_limit()
-        problem = most and drawn_size_problem(tuple(spec.render.resolution), spec.render.supersample, "off", most,
-                                              spec.source)
-        if problem:
-            raise InputError(problem)
+        check_drawn_size_early(tuple(spec.render.resolution), spec.render.supersample, where=spec.source)
     slots = {name: int((model.spring_kind == k).sum()) for k, name in enumerate(SPRING_KIND_NAMES)}
     # shear twins are reserved slots, born only when a crossing splits (docs/tearing.md): not springs yet
     kinds = {name: (0 if name == "shear_twin" else n) for name, n in slots.items()}

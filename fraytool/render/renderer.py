@@ -885,19 +885,26 @@ def gl_size_limit(ctx: moderngl.Context) -> int:
     return min(int(ctx.info.get("GL_MAX_TEXTURE_SIZE", 1 << 30)), int(ctx.info.get("GL_MAX_RENDERBUFFER_SIZE", 1 << 30)))
 
 
-def probe_gl_size_limit() -> Optional[int]:
-    """gl_size_limit of a context made and released here (commands that check input before any drawing:
-    `fraytool check`, `batch`); None when no GL context can be made (the render itself then says why)."""
-    from fraytool.render.context import create_context
+def check_drawn_size_early(size: tuple[int, int], supersample: int, wireframe: str = "off", where: str = "",
+                           limit: Optional[int] = None) -> Optional[int]:
+    """check_drawn_size for commands that check input before any drawing (`fraytool check`, `batch`): against
+    `limit`, or a context made and released here when None. Returns the limit for the next call (None when no
+    GL context can be made: nothing is checked, and the render itself then says why)."""
+    if limit is None:
+        from fraytool.render.context import create_context
 
-    try:
-        ctx = create_context()
-    except Exception:  # noqa: BLE001  (no GL here: nothing to compare with; rendering reports it)
-        return None
-    try:
-        return gl_size_limit(ctx)
-    finally:
-        ctx.release()
+        try:
+            ctx = create_context()
+        except Exception:  # noqa: BLE001  (no GL here: nothing to compare with; rendering reports it)
+            return None
+        try:
+            limit = gl_size_limit(ctx)
+        finally:
+            ctx.release()
+    problem = drawn_size_problem(size, supersample, wireframe, limit, where)
+    if problem:
+        raise InputError(problem)
+    return limit
 
 
 def drawn_size_problem(size: tuple[int, int], supersample: int, wireframe: str, most: int, where: str = "") -> Optional[str]:
