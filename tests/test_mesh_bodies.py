@@ -209,7 +209,7 @@ def test_sequence_is_read_as_keys_and_interpolated(tmp_path):
 
 
 def test_usd_mesh_points_per_time_sample(tmp_path):
-    pxr = pytest.importorskip("pxr")  # the usd extra (CI installs it)
+    pytest.importorskip("pxr")  # the usd extra (CI installs it)
     from pxr import Usd, UsdGeom
 
     path = tmp_path / "char.usda"
@@ -356,7 +356,7 @@ def test_animated_mesh_is_drawn_where_it_is_and_exported_time_sampled(tmp_path, 
     assert main(["render", str(scene), "-o", str(out), "--png", "--no-mp4", "--frames", "0:3"]) == 0
     frames = [np.asarray(Image.open(out / "png" / f"frame_{k:06d}.png").convert("L"), float) for k in (0, 2)]
     assert np.abs(frames[1] - frames[0]).mean() > 1.0  # the box moved (the cloth barely, in 2 frames)
-    pxr = pytest.importorskip("pxr")
+    pytest.importorskip("pxr")
     from pxr import Usd, UsdGeom
 
     usd = tmp_path / "shot.usda"

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from fraytool.io.frame_store import FrameStore
-from fraytool.scene import load_scene, parse_scene, scene_hash
+from fraytool.scene import load_scene, scene_hash
 from fraytool.scene.spec_io import spec_from_json, spec_to_json
 from fraytool.sim import Model, Simulation, build_model
 from fraytool.sim.run import load_shot, simulate_to_disk
@@ -96,7 +96,7 @@ def test_an_edited_model_is_simulated_saved_and_resumed_without_its_scene_file(t
         assert_arrays_equal(rec.arrays(), store.load_frame(rec.frame).arrays())
     plain = Simulation(spec)
     for _ in range(spec.time.frames - 1):
-        plain_rec = plain.advance_frame()
+        plain.advance_frame()
     assert plain.state.spring_broken.sum() != sim.state.spring_broken.sum()  # the edit tore it otherwise
     assert store.scene_hash() != scene_hash(spec)
     path.unlink()  # from here on, no scene file

@@ -188,7 +188,6 @@ edge = "right"
     assert out["all_finite"]
     # broken_springs counts the cloth's own springs (docs/panels.md): from the frame records, the springs
     # alive at the start and not at the end, less the stitches
-    import numpy as np
 
     from fraytool.io.frame_store import FrameStore
     from fraytool.scene import load_scene
@@ -338,3 +337,24 @@ def test_the_shipped_seams_start_at_rest():
     np.testing.assert_allclose(gap, model.spring_rest_length_m[st], rtol=1e-12)
     uv = model.crossing_plane_uv_m  # straight across: the same place along the seam (v)
     np.testing.assert_allclose(uv[model.spring_crossing_a[st], 1], uv[model.spring_crossing_b[st], 1])
+
+
+@pytest.mark.parametrize("reverse, strain, torn", [("false", 0.2, 8), ("true", 0.2, 0), ("false", 10.0, 0)])
+def test_stitches_that_start_past_their_break_strain_are_a_warning_naming_the_seam(reverse, strain, torn, tmp_path):
+    """Panel a's right edge runs up, panel b's left edge (segment 3) down: sewn without `reverse`, a's
+    crossing at height k spacings meets b's at 7 - k, so the 8 stitches start sqrt(1 + (7 - 2k)^2) spacings
+    long, every one past 1.2 spacings (break strain 0.2, no spread), the longest sqrt(50) x 4 mm = 28.3 mm.
+    With reverse, or a break strain of 10 (44 mm), none is: no warning. The scene is valid either way."""
+    (tmp_path / "s.toml").write_text(two_panels(seam(reverse=reverse, strain=strain)))
+    run = subprocess.run([sys.executable, "-m", "fraytool", "check", str(tmp_path / "s.toml")],
+                         capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    warnings = [x for x in run.stderr.splitlines() if x.startswith("fraytool: warning:")]
+    if not torn:
+        assert warnings == [], run.stderr
+        return
+    assert len(warnings) == 1, run.stderr
+    line = warnings[0]
+    assert "[seams.0] panel 'a' segment 1 to panel 'b' segment 3" in line
+    assert f"{torn} of 8 stitches start past their break strain" in line
+    assert f"up to {math.sqrt(50) * 4:.3g} mm, rest 4 mm" in line and "reverse" in line

@@ -20,7 +20,6 @@ from typing import Iterable, Mapping
 
 import numpy as np
 
-from fraytool.kinds import SHAPE_BOX, SHAPE_SPHERE
 from fraytool.render.camera import Camera
 from fraytool.scene.spec import CameraSpec
 

@@ -248,7 +248,6 @@ def _with_panels_and_stitches(pieces: YarnPieces, topology: Mapping[str, np.ndar
         return replace(pieces, color=color)
     a, b = np.asarray(topology["spring_crossing_a"])[st], np.asarray(topology["spring_crossing_b"])[st]
     x = np.asarray(particle_position_m, np.float64)
-    k = pieces.count
     thread = color_index(np.zeros(1, np.int8), np.array([int(panel.max()) + 1]))[0]
     return YarnPieces(
         points=np.concatenate([pieces.points, np.stack([x[a], x[b]], axis=1).reshape(-1, 3)]),

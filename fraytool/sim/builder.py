@@ -53,6 +53,7 @@ from fraytool.scene.panel_shape import (PanelShapeError, crossing_fraction_along
                                        sample_map, tear_map_image)
 from fraytool.sim.model import Model
 from fraytool.sim.paths import orientation_keys, quat_to_matrix
+from fraytool.sim.seam_layout import stitch_pairs
 
 Vec3 = tuple[float, float, float]
 
@@ -688,36 +689,15 @@ class ModelBuilder:
         return out
 
     def _stitches(self, uv: np.ndarray, crossing_panel: np.ndarray, border: np.ndarray, rest: np.ndarray):
-        """The seams' stitches (docs/panels.md "Seams"): along segment_a, n + 1 of them about stitch_spacing_m
-        apart (n = its length / stitch_spacing_m, rounded) at fractions k / n of its length, ends included,
-        each joining the border crossing of panel_a nearest that point to the border crossing of panel_b
-        nearest the point at the same fraction of segment_b (reversed: 1 - fraction); a pair made twice
-        counts once (the lower crossing wins a tie). Returns (a, b, rest length [m], stiffness [N/m], break
-        strain), the break strains drawn after the cloth's from the same seeded stream."""
+        """The seams' stitches (docs/panels.md "Seams"), each seam's placed by fraytool.sim.seam_layout.stitch_pairs.
+        Returns (a, b, rest length [m], stiffness [N/m], break strain), the break strains drawn after the
+        cloth's from the same seeded stream."""
         out_a, out_b, out_rest, out_k, out_break = [], [], [], [], []
         for seam in self.seams:
-            ends = []
-            for name, k in ((seam.panel_a, seam.segment_a), (seam.panel_b, seam.segment_b)):
-                p = self._panel_index("finalize", name)
-                outline = self._panels[p].shape.outline_uv_m
-                ends.append((p, outline[k], outline[(k + 1) % len(outline)]))
-            (pa, a0, a1), (pb, b0, b1) = ends
-            count = max(1, int(round(float(np.linalg.norm(a1 - a0)) / seam.stitch_spacing_m)))
-            f = np.arange(count + 1) / count
-
-            def nearest(p, pts):
-                candidates = np.flatnonzero(border & (crossing_panel == p))
-                d = np.linalg.norm(uv[candidates][None, :, :] - pts[:, None, :], axis=2)
-                return candidates[d.argmin(axis=1)]
-
-            on_a = nearest(pa, a0 + f[:, None] * (a1 - a0))
-            # panel b's end is found from where a's crossing actually lies along segment a (its projection), so
-            # a point midway between two crossings (a tie) cannot pair a crossing with b's diagonal neighbour
-            along = np.clip(((uv[on_a] - a0) @ (a1 - a0)) / float((a1 - a0) @ (a1 - a0)), 0.0, 1.0)
-            fb = 1.0 - along if seam.reverse else along
-            pairs = [on_a, nearest(pb, b0 + fb[:, None] * (b1 - b0))]
-            pair = np.unique(np.stack(pairs, axis=1), axis=0)
-            pair = pair[pair[:, 0] != pair[:, 1]]
+            pa, pb = self._panel_index("finalize", seam.panel_a), self._panel_index("finalize", seam.panel_b)
+            pair = stitch_pairs(self._panels[pa].shape.outline_uv_m, seam.segment_a, pa,
+                                self._panels[pb].shape.outline_uv_m, seam.segment_b, pb, seam.reverse,
+                                seam.stitch_spacing_m, uv, crossing_panel, border)
             out_a.append(pair[:, 0])
             out_b.append(pair[:, 1])
             length = seam.stitch_length_m or self.cloth.spacing_m

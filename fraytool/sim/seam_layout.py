@@ -1,0 +1,96 @@
+"""Where a seam's stitches go, and a warning when they start torn (docs/panels.md "Seams").
+
+`stitch_pairs` places one seam's stitches on the two panels' border crossings; the builder calls it for
+each [[seams]] entry, and `seam_start_warnings` calls it again on the built Model to measure each seam's
+stitches where the panels are placed. A stitch that starts longer than its rest length times
+(1 + its break strain) breaks in the first steps: the seam opens before the shot begins. No range check
+sees that (each key is valid on its own); it is what sewing the wrong segment, leaving `reverse` the
+wrong way or placing the panels apart looks like, so it is named, with the seam and the lengths.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from fraytool.kinds import STITCH
+
+
+def stitch_pairs(outline_a: np.ndarray, segment_a: int, panel_a: int, outline_b: np.ndarray, segment_b: int,
+                 panel_b: int, reverse: bool, stitch_spacing_m: float, crossing_uv_m: np.ndarray,
+                 crossing_panel: np.ndarray, border: np.ndarray) -> np.ndarray:
+    """One seam's stitches as (n, 2) crossing pairs, sorted, each pair once, none joining a crossing to itself.
+
+    Along segment_a (outline point k to k + 1, in the panel's plane [m]) n + 1 points at fractions k / n
+    (n = its length / stitch_spacing_m, rounded; at least 1) each take the border crossing of panel_a nearest
+    them; each joins panel_b's border crossing nearest the point at the same fraction of segment_b as that
+    crossing lies along segment_a (1 - fraction with `reverse`). Going through the crossing's own place, not
+    the sample point, keeps a point midway between two crossings from pairing a crossing with the other
+    panel's diagonal neighbour."""
+    a0, a1 = outline_a[segment_a], outline_a[(segment_a + 1) % len(outline_a)]
+    b0, b1 = outline_b[segment_b], outline_b[(segment_b + 1) % len(outline_b)]
+    count = max(1, int(round(float(np.linalg.norm(a1 - a0)) / stitch_spacing_m)))
+    f = np.arange(count + 1) / count
+
+    def nearest(p, pts):
+        candidates = np.flatnonzero(border & (crossing_panel == p))
+        d = np.linalg.norm(crossing_uv_m[candidates][None, :, :] - pts[:, None, :], axis=2)
+        return candidates[d.argmin(axis=1)]
+
+    on_a = nearest(panel_a, a0 + f[:, None] * (a1 - a0))
+    along = np.clip(((crossing_uv_m[on_a] - a0) @ (a1 - a0)) / float((a1 - a0) @ (a1 - a0)), 0.0, 1.0)
+    fb = 1.0 - along if reverse else along
+    pair = np.unique(np.stack([on_a, nearest(panel_b, b0 + fb[:, None] * (b1 - b0))], axis=1), axis=0)
+    return pair[pair[:, 0] != pair[:, 1]]
+
+
+def border_crossings(model) -> np.ndarray:
+    """Crossings with a structural neighbour missing on some side: a panel's border (as the builder finds it)."""
+    return ((np.asarray(model.crossing_weft_springs) < 0).any(axis=1)
+            | (np.asarray(model.crossing_warp_springs) < 0).any(axis=1))
+
+
+def seam_start_warnings(spec, model) -> list[str]:
+    """One line per [[seams]] entry some of whose stitches start, at the panels' rest positions, longer than
+    rest length x (1 + their own break strain): they break in the first steps."""
+    if not spec.seams:
+        return []
+    from fraytool.scene.panel_shape import panel_shape
+
+    stitches = np.flatnonzero(np.asarray(model.spring_kind) == STITCH)
+    a_all = np.asarray(model.spring_crossing_a)[stitches]
+    b_all = np.asarray(model.spring_crossing_b)[stitches]
+    panels = spec.all_panels
+    names = [p.name for p in panels]
+    index = {name: k for k, name in enumerate(names)}
+    uv = np.asarray(model.crossing_plane_uv_m)
+    cpanel = np.asarray(model.crossing_panel)
+    border = border_crossings(model)
+    rest = np.asarray(model.crossing_rest_position_m, dtype=np.float64)
+    outlines = {}
+    out = []
+    start = 0
+    for s, seam in enumerate(spec.seams):
+        pa, pb = index.get(seam.panel_a, 0), index.get(seam.panel_b, 0)
+        for p in (pa, pb):
+            if p not in outlines:
+                outlines[p] = panel_shape(panels[p], spec.source).outline_uv_m
+        pair = stitch_pairs(outlines[pa], seam.segment_a, pa, outlines[pb], seam.segment_b, pb, seam.reverse,
+                            seam.stitch_spacing_m, uv, cpanel, border)
+        take = slice(start, start + len(pair))
+        start += len(pair)
+        if not (np.array_equal(a_all[take], pair[:, 0]) and np.array_equal(b_all[take], pair[:, 1])):
+            return []  # a Model edited after building: its stitches are not the scene's to judge
+        springs = stitches[take]
+        length_m = np.linalg.norm(rest[pair[:, 1]] - rest[pair[:, 0]], axis=1)
+        rest_m = np.asarray(model.spring_rest_length_m)[springs]
+        limit_m = rest_m * (1.0 + np.asarray(model.spring_break_strain)[springs])
+        torn = length_m > limit_m
+        if not torn.any():
+            continue
+        worst = int(np.argmax(length_m / limit_m))
+        out.append(
+            f"{spec.source}: [seams.{s}] panel {seam.panel_a!r} segment {seam.segment_a} to panel {seam.panel_b!r} "
+            f"segment {seam.segment_b}{' (reverse)' if seam.reverse else ''}: {int(torn.sum())} of {len(pair)} stitches "
+            f"start past their break strain (up to {1e3 * length_m[worst]:.3g} mm, rest {1e3 * rest_m[worst]:.3g} mm, "
+            f"breaking at {1e3 * limit_m[worst]:.3g} mm) and break in the first steps; the two edges lie apart "
+            f"where the panels are placed: check segment_a, segment_b, reverse and the panels' origin_m")
+    return out
