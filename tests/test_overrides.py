@@ -56,6 +56,15 @@ def test_bad_set_exits_2_naming_it(arg, needle, scene, capsys):
         assert "--set" in err  # the message says the value came from the command line
 
 
+def test_the_message_echoes_each_set_as_toml_so_it_can_be_given_again(scene, capsys):
+    """A bare word, a boolean and an array given with --set read back in TOML (not Python's 'abc', True)."""
+    assert main(["check", str(scene), "--set", "cloth.tearing.break_strain=abc", "--set", "cloth.tearing.enabled=true",
+                 "--set", "world.gravity_m_s2=[0.0, -1.0, 0.0]"]) == 2
+    err = capsys.readouterr().err
+    assert ('(with --set cloth.tearing.break_strain="abc", cloth.tearing.enabled=true, '
+            "world.gravity_m_s2=[0.0, -1.0, 0.0])") in err, err
+
+
 def test_set_reaches_simulate_and_render(scene, tmp_path, capsys):
     import json
 

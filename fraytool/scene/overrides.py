@@ -14,6 +14,7 @@ import tomllib
 from typing import Any, Sequence
 
 from fraytool.errors import InputError
+from fraytool.scene.keys import show
 from fraytool.scene.schema import ARRAY_TABLES
 
 MAX_KEY_CHARS = 200
@@ -78,7 +79,8 @@ def _table_of(tables: list, part: str, key: str, where: str, flag: str) -> dict:
 
 
 def describe(overrides: Sequence[tuple[str, Any]]) -> str:
-    """How the source of an overridden scene is named in messages."""
-    shown = ", ".join(f"{k}={v!r}"[:80] for k, v in overrides[:4])
+    """How the source of an overridden scene is named in messages: each value as TOML writes it (true, "twill",
+    [0.0, 1.0]), so it can be given again as it reads."""
+    shown = ", ".join(f"{k}={show(v, 60)}" for k, v in overrides[:4])
     more = f" and {len(overrides) - 4} more" if len(overrides) > 4 else ""
     return f" (with --set {shown}{more})"
