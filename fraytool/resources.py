@@ -70,6 +70,8 @@ def find_scene(path: str | Path) -> Path:
 
     wanted = p.with_suffix("").as_posix() if p.suffix == ".toml" else p.as_posix()
     wanted = wanted[len("scenes/"):] if wanted.startswith("scenes/") else wanted
-    close = difflib.get_close_matches(wanted, names, n=3, cutoff=0.5)
+    # a scene's start ("fig5", "stress/fast"), else the closest names (a misspelling)
+    close = [n for n in names if n.startswith(wanted)][:3] if wanted else []
+    close = close or difflib.get_close_matches(wanted, names, n=3, cutoff=0.5)
     hint = f"did you mean {' or '.join(close)}? " if close else ""
     raise SceneError([f"{str(path)[:200]}: scene file not found ({hint}shipped scenes: {', '.join(names) or 'none'})"])

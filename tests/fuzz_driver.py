@@ -1,7 +1,10 @@
 """Run `fraytool check` (and, where it passes, `simulate --frames 2`) on many scene files in one
 process, as the CLI would: `python tests/fuzz_driver.py OUT_DIR FILE...` prints one JSON line per
 file with each command's exit code, stderr, and whether an exception escaped main() (a traceback) or
-the case hung (SIGALRM after HANG_S seconds). tests/test_fuzz_scenes.py runs it in a subprocess."""
+the case hung (SIGALRM after HANG_S seconds). With `--warm=SCENE` first, that scene is checked and
+simulated before the cases, with no alarm: the first simulation compiles the kernels (a minute or more on a
+cold numba cache, on a loaded machine), which is not a hang. tests/test_fuzz_scenes.py runs it in a
+subprocess."""
 from __future__ import annotations
 
 import contextlib
@@ -22,12 +25,12 @@ def _alarm(signum, frame):
     raise Hang()
 
 
-def run(argv: list[str]) -> dict:
+def run(argv: list[str], limit_s: int = HANG_S) -> dict:
     from fraytool.commands.main import main
 
     err = io.StringIO()
     result = {"argv": argv, "code": None, "traceback": None, "hang": False}
-    signal.alarm(HANG_S)
+    signal.alarm(limit_s)
     try:
         with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
             result["code"] = main(argv)
@@ -46,6 +49,10 @@ def run(argv: list[str]) -> dict:
 def main() -> int:
     signal.signal(signal.SIGALRM, _alarm)
     out_dir, files = sys.argv[1], sys.argv[2:]
+    if files and files[0].startswith("--warm="):
+        warm = files.pop(0)[len("--warm="):]
+        run(["check", warm], limit_s=0)  # alarm(0): none
+        run(["simulate", warm, "--frames", "2", "-o", f"{out_dir}/warm"], limit_s=0)
     for k, path in enumerate(files):
         check = run(["check", path])
         sim = None

@@ -215,7 +215,8 @@ def test_echoed_values_are_cut_at_80_characters_and_lines_stay_under_200(tmp_pat
         assert len(lines) == 1 and len(lines[0]) < 200, err
         echoed = re.search(r"= (.*?)\.\.\. \((\d+) (characters|items)\)", err)
         assert echoed and len(echoed.group(1)) <= 80, err
-    assert "no_such_key" in err and "did you mean" in err and "sub-tables: multires" in err
+    assert "no_such_key" in err and "unknown key; the keys of this table: docs/scene-format.md" in err \
+        and "sub-tables: multires" in err and "did you mean" not in err  # nothing close to suggest
 
 
 def test_a_scene_too_big_for_the_memory_is_refused_with_the_estimate(tmp_path, capsys, monkeypatch):

@@ -159,6 +159,8 @@ def test_unknown_scene_name_suggests_the_closest_shipped_ones(capsys):
     assert "did you mean fig7_square_grab" in err
     assert main(["check", "stress/very_stif_small_step"]) == 2
     assert "did you mean stress/very_stiff_small_step" in capsys.readouterr().err
+    assert main(["check", "fig6"]) == 2  # a scene's start
+    assert "did you mean fig6_thrown_ball_plain or fig6_thrown_ball_twill?" in capsys.readouterr().err
 
 
 def test_a_negative_camera_position_needs_no_equals_sign(tmp_path):

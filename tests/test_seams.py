@@ -245,7 +245,7 @@ def test_a_panel_wrapped_round_a_cylinder_and_sewn_to_itself_is_a_tube():
 
 BAD = {
     "lengths differ": (seam(sb=0), "within 25 %"),
-    "unknown panel": (seam(b="c"), "must name one of the [[cloth]] panels"),
+    "unknown panel": (seam(b="c"), 'panel_b = "c": must name one of the [[cloth]] panels'),
     "segment out of range": (seam(sa=4), "has segments 0 to 3"),
 }
 
@@ -337,15 +337,26 @@ def test_the_shipped_seams_start_at_rest():
     np.testing.assert_allclose(gap, model.spring_rest_length_m[st], rtol=1e-12)
     uv = model.crossing_plane_uv_m  # straight across: the same place along the seam (v)
     np.testing.assert_allclose(uv[model.spring_crossing_a[st], 1], uv[model.spring_crossing_b[st], 1])
+    # one stitch at every crossing of the left panel's sewn edge (its column of largest u), none twice: the
+    # two seams' outlines run half a spacing outside the crossings, and points placed along them fell midway
+    # between two crossings, leaving 3 of the 40 unstitched
+    left = np.flatnonzero(model.crossing_panel == model.panel_names.index("left"))
+    edge = left[np.isclose(uv[left, 0], uv[left, 0].max())]
+    assert edge.size == 40
+    assert sorted(model.spring_crossing_a[st].tolist()) == sorted(edge.tolist())
 
 
-@pytest.mark.parametrize("reverse, strain, torn", [("false", 0.2, 8), ("true", 0.2, 0), ("false", 10.0, 0)])
-def test_stitches_that_start_past_their_break_strain_are_a_warning_naming_the_seam(reverse, strain, torn, tmp_path):
+@pytest.mark.parametrize("sb, reverse, strain, torn, longest", [
+    (3, "false", 0.2, 8, math.sqrt(50)), (3, "true", 0.2, 0, 0), (3, "false", 10.0, 0, 0), (1, "false", 0.2, 8, 10)])
+def test_stitches_that_start_past_their_break_strain_are_a_warning_naming_the_seam(sb, reverse, strain, torn, longest,
+                                                                                   tmp_path):
     """Panel a's right edge runs up, panel b's left edge (segment 3) down: sewn without `reverse`, a's
     crossing at height k spacings meets b's at 7 - k, so the 8 stitches start sqrt(1 + (7 - 2k)^2) spacings
-    long, every one past 1.2 spacings (break strain 0.2, no spread), the longest sqrt(50) x 4 mm = 28.3 mm.
-    With reverse, or a break strain of 10 (44 mm), none is: no warning. The scene is valid either way."""
-    (tmp_path / "s.toml").write_text(two_panels(seam(reverse=reverse, strain=strain)))
+    long, every one past 1.2 spacings (break strain 0.2, no spread), the longest sqrt(50) x 4 mm = 28.3 mm;
+    the warning says that reverse would fix it. With reverse, or a break strain of 10 (44 mm), none is: no
+    warning. Sewn to b's right edge (segment 1, 10 spacings away) every stitch starts 10 spacings long,
+    either way round: the warning names the edges and the panels' places. The scene is valid in every case."""
+    (tmp_path / "s.toml").write_text(two_panels(seam(sb=sb, reverse=reverse, strain=strain)))
     run = subprocess.run([sys.executable, "-m", "fraytool", "check", str(tmp_path / "s.toml")],
                          capture_output=True, text=True)
     assert run.returncode == 0, run.stderr
@@ -355,6 +366,10 @@ def test_stitches_that_start_past_their_break_strain_are_a_warning_naming_the_se
         return
     assert len(warnings) == 1, run.stderr
     line = warnings[0]
-    assert "[seams.0] panel 'a' segment 1 to panel 'b' segment 3" in line
+    assert f"[seams.0] panel 'a' segment 1 to panel 'b' segment {sb}" in line
     assert f"{torn} of 8 stitches start past their break strain" in line
-    assert f"up to {math.sqrt(50) * 4:.3g} mm, rest 4 mm" in line and "reverse" in line
+    assert f"up to {longest * 4:.3g} mm, rest 4 mm" in line
+    if sb == 3:
+        assert "with reverse = true every stitch would start within it" in line
+    else:
+        assert "reverse = true" not in line and "the two edges lie apart" in line and "origin_m" in line

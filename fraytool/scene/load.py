@@ -79,12 +79,14 @@ SHORT_SHOW_CHARS = 24
 
 def allowed_keys(name: str, keys, tables=()) -> str:
     """What an unknown key's message says of the allowed ones: all of a short table (at most 6), else the
-    closest one, a key's or a sub-table's (`tables`), and where they are all listed (a message line stays
-    under 200 characters)."""
+    closest one, a key's or a sub-table's (`tables`), if one is close (a misspelling: difflib's ratio at
+    least 0.6), and where they are all listed (a message line stays under 200 characters)."""
     names = sorted(keys)
     if len(names) <= 6:
         return "allowed keys: " + ", ".join(names)
-    close = difflib.get_close_matches(str(name), names + sorted(tables), n=1, cutoff=0.0)
+    close = difflib.get_close_matches(str(name), names + sorted(tables), n=1, cutoff=0.6)
+    if not close:
+        return "the keys of this table: docs/scene-format.md"
     return f"did you mean {close[0]}? (docs/scene-format.md)"
 
 
@@ -318,10 +320,10 @@ def _assemble(values: dict, bodies_raw: list, att_raw: list, cut_raw: list, sour
         panels.append(panel)
     cloth = replace(cloth, name=cloth.name or "cloth")
 
-    def panel_grid(where: str, panel_name: str) -> tuple[int, int]:
-        """(warp_yarns, weft_yarns) of the panel a table names ("": the first)."""
+    def panel_grid(where: str, panel_name: str, key: str = "panel") -> tuple[int, int]:
+        """(warp_yarns, weft_yarns) of the panel a table names in `key` ("": the first)."""
         if panel_name and panel_name not in grids:
-            problems.add(where, "panel", panel_name, "must name one of the [[cloth]] panels: " + ", ".join(grids))
+            problems.add(where, key, panel_name, "must name one of the [[cloth]] panels: " + ", ".join(grids))
         grid = grids.get(panel_name or cloth.name) or first_grid
         return grid or (2, 2)
 
@@ -363,7 +365,7 @@ def _assemble(values: dict, bodies_raw: list, att_raw: list, cut_raw: list, sour
     for s_raw, i in seam_raw:
         seam = SeamSpec(**s_raw)
         for side in ("a", "b"):
-            panel_grid(f"seams.{i}", getattr(seam, f"panel_{side}"))
+            panel_grid(f"seams.{i}", getattr(seam, f"panel_{side}"), f"panel_{side}")
         if seam.panel_a in all_panels and seam.panel_b in all_panels and not problems.lines:
             problems.extend(f"seams.{i}", seam_problems(seam, all_panels[seam.panel_a], all_panels[seam.panel_b],
                                                         scene_file))

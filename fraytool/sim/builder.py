@@ -697,7 +697,7 @@ class ModelBuilder:
             pa, pb = self._panel_index("finalize", seam.panel_a), self._panel_index("finalize", seam.panel_b)
             pair = stitch_pairs(self._panels[pa].shape.outline_uv_m, seam.segment_a, pa,
                                 self._panels[pb].shape.outline_uv_m, seam.segment_b, pb, seam.reverse,
-                                seam.stitch_spacing_m, uv, crossing_panel, border)
+                                seam.stitch_spacing_m, uv, crossing_panel, border, self.cloth.spacing_m)
             out_a.append(pair[:, 0])
             out_b.append(pair[:, 1])
             length = seam.stitch_length_m or self.cloth.spacing_m

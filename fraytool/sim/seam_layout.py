@@ -14,20 +14,39 @@ import numpy as np
 from fraytool.kinds import STITCH
 
 
+SEAM_REACH_SPACINGS = 0.75
+"""A border crossing within this many yarn spacings of segment_a's line (and along it, within a quarter
+spacing of its ends) is one the seam runs through: an outline drawn half a spacing outside the crossings
+(as seam_rip's) keeps its edge's crossings, and a rectangle's edge (through them) does not take the row
+beside it, one spacing in."""
+
+
 def stitch_pairs(outline_a: np.ndarray, segment_a: int, panel_a: int, outline_b: np.ndarray, segment_b: int,
                  panel_b: int, reverse: bool, stitch_spacing_m: float, crossing_uv_m: np.ndarray,
-                 crossing_panel: np.ndarray, border: np.ndarray) -> np.ndarray:
+                 crossing_panel: np.ndarray, border: np.ndarray, spacing_m: float) -> np.ndarray:
     """One seam's stitches as (n, 2) crossing pairs, sorted, each pair once, none joining a crossing to itself.
 
-    Along segment_a (outline point k to k + 1, in the panel's plane [m]) n + 1 points at fractions k / n
-    (n = its length / stitch_spacing_m, rounded; at least 1) each take the border crossing of panel_a nearest
-    them; each joins panel_b's border crossing nearest the point at the same fraction of segment_b as that
-    crossing lies along segment_a (1 - fraction with `reverse`). Going through the crossing's own place, not
-    the sample point, keeps a point midway between two crossings from pairing a crossing with the other
-    panel's diagonal neighbour."""
+    The seam runs along segment_a (outline point k to k + 1, in the panel's plane [m]) over the span of
+    panel_a's border crossings beside it (SEAM_REACH_SPACINGS): n + 1 points over that span at fractions
+    k / n (n = its length / stitch_spacing_m, rounded; at least 1; the segment's own ends where no crossing
+    lies beside it) each take the border crossing of panel_a nearest them. Over the crossings' span, not the
+    outline's, the points fall on crossings where stitch_spacing_m is a multiple of the yarn spacing: an
+    outline drawn half a spacing outside them put every point midway between two crossings, and the tie
+    left crossings unstitched (seam_rip: 3 of 40) and stitched others twice. Each joins panel_b's border
+    crossing nearest the point at the same fraction of segment_b as that crossing lies along segment_a
+    (1 - fraction with `reverse`). Going through the crossing's own place, not the sample point, keeps a
+    point midway between two crossings from pairing a crossing with the other panel's diagonal neighbour."""
     a0, a1 = outline_a[segment_a], outline_a[(segment_a + 1) % len(outline_a)]
     b0, b1 = outline_b[segment_b], outline_b[(segment_b + 1) % len(outline_b)]
-    count = max(1, int(round(float(np.linalg.norm(a1 - a0)) / stitch_spacing_m)))
+    length_m = float(np.linalg.norm(a1 - a0))
+    unit = (a1 - a0) / length_m
+    mine = np.flatnonzero(border & (crossing_panel == panel_a))
+    rel = crossing_uv_m[mine] - a0
+    t = rel @ unit
+    beside = (np.linalg.norm(rel - t[:, None] * unit, axis=1) <= SEAM_REACH_SPACINGS * spacing_m) \
+        & (t >= -0.25 * spacing_m) & (t <= length_m + 0.25 * spacing_m)
+    start, end = (a0, a1) if not beside.any() else (a0 + t[beside].min() * unit, a0 + t[beside].max() * unit)
+    count = max(1, int(round(float(np.linalg.norm(end - start)) / stitch_spacing_m)))
     f = np.arange(count + 1) / count
 
     def nearest(p, pts):
@@ -35,7 +54,7 @@ def stitch_pairs(outline_a: np.ndarray, segment_a: int, panel_a: int, outline_b:
         d = np.linalg.norm(crossing_uv_m[candidates][None, :, :] - pts[:, None, :], axis=2)
         return candidates[d.argmin(axis=1)]
 
-    on_a = nearest(panel_a, a0 + f[:, None] * (a1 - a0))
+    on_a = nearest(panel_a, start + f[:, None] * (end - start))
     along = np.clip(((crossing_uv_m[on_a] - a0) @ (a1 - a0)) / float((a1 - a0) @ (a1 - a0)), 0.0, 1.0)
     fb = 1.0 - along if reverse else along
     pair = np.unique(np.stack([on_a, nearest(panel_b, b0 + fb[:, None] * (b1 - b0))], axis=1), axis=0)
@@ -74,7 +93,7 @@ def seam_start_warnings(spec, model) -> list[str]:
             if p not in outlines:
                 outlines[p] = panel_shape(panels[p], spec.source).outline_uv_m
         pair = stitch_pairs(outlines[pa], seam.segment_a, pa, outlines[pb], seam.segment_b, pb, seam.reverse,
-                            seam.stitch_spacing_m, uv, cpanel, border)
+                            seam.stitch_spacing_m, uv, cpanel, border, float(model.spacing_m))
         take = slice(start, start + len(pair))
         start += len(pair)
         if not (np.array_equal(a_all[take], pair[:, 0]) and np.array_equal(b_all[take], pair[:, 1])):
@@ -87,10 +106,18 @@ def seam_start_warnings(spec, model) -> list[str]:
         if not torn.any():
             continue
         worst = int(np.argmax(length_m / limit_m))
+        flipped = stitch_pairs(outlines[pa], seam.segment_a, pa, outlines[pb], seam.segment_b, pb, not seam.reverse,
+                               seam.stitch_spacing_m, uv, cpanel, border, float(model.spacing_m))
+        flipped_m = np.linalg.norm(rest[flipped[:, 1]] - rest[flipped[:, 0]], axis=1)
+        if len(flipped) and flipped_m.max() <= rest_m.min() * (1.0 + np.asarray(model.spring_break_strain)[springs].min()):
+            cause = (f"with reverse = {'false' if seam.reverse else 'true'} every stitch would start within it "
+                     "(the two edges run the other way)")
+        else:
+            cause = ("the two edges lie apart where the panels are placed, or are not the edges meant: check segment_a, "
+                     "segment_b, reverse and the panels' origin_m and rotation_deg")
         out.append(
             f"{spec.source}: [seams.{s}] panel {seam.panel_a!r} segment {seam.segment_a} to panel {seam.panel_b!r} "
             f"segment {seam.segment_b}{' (reverse)' if seam.reverse else ''}: {int(torn.sum())} of {len(pair)} stitches "
             f"start past their break strain (up to {1e3 * length_m[worst]:.3g} mm, rest {1e3 * rest_m[worst]:.3g} mm, "
-            f"breaking at {1e3 * limit_m[worst]:.3g} mm) and break in the first steps; the two edges lie apart "
-            f"where the panels are placed: check segment_a, segment_b, reverse and the panels' origin_m")
+            f"breaking at {1e3 * limit_m[worst]:.3g} mm) and break in the first steps; {cause}")
     return out
