@@ -106,6 +106,24 @@ def test_damage_is_named_then_repaired_by_resume(case, reference, tmp_path, caps
     assert main(["check", "--outputs", str(out), str(scene)]) == 0
 
 
+def test_check_outputs_names_every_missing_frame_and_refuses_a_folder_with_no_shot(reference, tmp_path, capsys):
+    """Frames 1 and 3-4 deleted: the first gap is named by its file, the rest by their numbers (a count and a
+    range said nothing of which). A folder with no frames, images or video is not a shot: exit 2, not a
+    "damaged" topology."""
+    scene, good = reference
+    out = _copy(good, tmp_path / "out")
+    for k in (1, 3, 4):
+        (out / "frames" / f"frame_{k:06d}.npz").unlink()
+    capsys.readouterr()
+    assert main(["check", "--outputs", str(out), str(scene)]) == 1
+    err = capsys.readouterr().err
+    assert "frame_000001.npz: missing" in err and f"2 more frame file(s) between 2 and {FRAMES - 1} missing: 3-4" in err
+    (tmp_path / "empty" / "notes").mkdir(parents=True)
+    assert main(["check", "--outputs", str(tmp_path / "empty")]) == 2
+    err = capsys.readouterr().err
+    assert "not a shot's output folder" in err and "damaged" not in err, err
+
+
 def test_intact_outputs_check_clean_and_json(reference, capsys):
     scene, good = reference
     capsys.readouterr()

@@ -27,6 +27,10 @@ def check_outputs(out_dir: Path, spec: Optional[SceneSpec] = None, as_json: bool
         raise InputError(f"--outputs {out_dir}: not a folder")
     if (out_dir / "job.json").is_file() and not (out_dir / "frames").exists():
         return _check_job(out_dir, as_json)
+    if not (out_dir / "frames").exists() and not any(
+            any(out_dir.glob(pattern)) for pattern in ("png*/", "exr*/", "*.mp4", "*.mov")):
+        raise InputError(f"--outputs {out_dir}: not a shot's output folder (no frames/, png/, exr/ or video in it; "
+                         "a render writes them, by default under outputs/<scene>/)")
     report = folder_report(out_dir, spec)
     if as_json:
         print(json.dumps(report))

@@ -255,9 +255,10 @@ class FrameStore:
                 self._check_frame(k, digest)
             except DamagedFile as exc:
                 problems.append(str(exc))
-        missing = sum(1 for k in range(good + 1, frames) if k not in on_disk)
+        missing = [k for k in range(good + 1, frames) if k not in on_disk]
         if missing:
-            problems.append(f"{self.dir}: {missing} more frame file(s) between {good + 1} and {frames - 1} missing")
+            problems.append(f"{self.dir}: {len(missing)} more frame file(s) between {good + 1} and {frames - 1} missing: "
+                            f"{_frame_list(missing)}")
         if len(problems) > MAX_PROBLEMS:
             problems = problems[:MAX_PROBLEMS] + [f"... and {len(problems) - MAX_PROBLEMS} more"]
         checkpoint_frame = None
@@ -423,3 +424,15 @@ def _count_frame_files(folder: Path) -> int:
     while k in numbers:
         k += 1
     return k
+
+
+def _frame_list(frames: list[int], most: int = 8) -> str:
+    """Frame numbers as runs, at most `most` of them: "100", "3-5, 9", "3-5, 9, ... (12 runs)"."""
+    runs: list[list[int]] = []
+    for k in frames:
+        if runs and k == runs[-1][1] + 1:
+            runs[-1][1] = k
+        else:
+            runs.append([k, k])
+    text = ", ".join(f"{a}" if a == b else f"{a}-{b}" for a, b in runs[:most])
+    return text + (f", ... ({len(runs)} runs)" if len(runs) > most else "")
