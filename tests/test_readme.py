@@ -42,4 +42,4 @@ def test_every_command_has_its_line_and_every_linked_doc_exists():
 def test_the_readme_test_command_is_the_one_ci_runs():
     ci = (ROOT / ".ci" / "run").read_text()
     assert 'python -m pip install -e ".[test,usd]"' in README and 'python -m pip install -e ".[test,usd]"' in ci
-    assert "python -m pytest" in README and "python -m pytest" in ci
+    assert "python -m pytest -n auto" in README and "python -m pytest -n auto" in ci

@@ -373,3 +373,22 @@ def test_stitches_that_start_past_their_break_strain_are_a_warning_naming_the_se
         assert "with reverse = true every stitch would start within it" in line
     else:
         assert "reverse = true" not in line and "the two edges lie apart" in line and "origin_m" in line
+
+
+@pytest.mark.parametrize("grain", [0.0, 30.0, 45.0])
+def test_a_seam_stitches_each_border_crossing_along_its_edge_once_at_any_grain(grain):
+    """Two 28 mm squares cut by outline_m, their weave turned by `grain` (45: a bias cut), a's right edge
+    sewn to b's left every yarn spacing: each of a's border crossings within a spacing of the right edge's
+    line (u = 28 mm; the outline excludes crossings on it, so they lie up to a spacing inside, in a
+    staircase when the weave is turned) gets one stitch, and no other crossing does."""
+    def square(name, origin):
+        extra = f"outline_m = [[0.0, 0.0], [0.028, 0.0], [0.028, 0.028], [0.0, 0.028]]\ngrain_deg = {grain}\n"
+        return panel(name, origin, extra=extra).replace("warp_yarns = 10\nweft_yarns = 8\n", "")
+    model = build_model(parse_scene(HEAD.format(frames=2) + square("a", (0.0, 0.0, 0.0))
+                                    + square("b", (0.032, 0.0, 0.0)) + seam(spacing=S), "p.toml"))
+    st = np.flatnonzero(model.spring_kind == STITCH)
+    uv = model.crossing_plane_uv_m
+    border = (model.crossing_weft_springs < 0).any(axis=1) | (model.crossing_warp_springs < 0).any(axis=1)
+    along = np.flatnonzero(border & (model.crossing_panel == 0) & (0.028 - uv[:, 0] <= S + 1e-12))
+    assert along.size >= 5
+    assert sorted(model.spring_crossing_a[st].tolist()) == sorted(along.tolist())

@@ -81,6 +81,6 @@ def _table_of(tables: list, part: str, key: str, where: str, flag: str) -> dict:
 def describe(overrides: Sequence[tuple[str, Any]]) -> str:
     """How the source of an overridden scene is named in messages: each value as TOML writes it (true, "twill",
     [0.0, 1.0]), so it can be given again as it reads."""
-    shown = ", ".join(f"{k}={show(v, 60)}" for k, v in overrides[:4])
+    shown = ", ".join(f"{k[:60]}={show(v, 60)}" for k, v in overrides[:4])
     more = f" and {len(overrides) - 4} more" if len(overrides) > 4 else ""
     return f" (with --set {shown}{more})"

@@ -14,11 +14,12 @@ import numpy as np
 from fraytool.kinds import STITCH
 
 
-SEAM_REACH_SPACINGS = 0.75
-"""A border crossing within this many yarn spacings of segment_a's line (and along it, within a quarter
-spacing of its ends) is one the seam runs through: an outline drawn half a spacing outside the crossings
-(as seam_rip's) keeps its edge's crossings, and a rectangle's edge (through them) does not take the row
-beside it, one spacing in."""
+SEAM_REACH_SPACINGS = 1.5
+"""The seam's span along segment_a is that of panel_a's border crossings at most this many yarn spacings
+from the segment's line and between its ends: an outline drawn half a spacing outside the crossings
+(seam_rip's), or a spacing (an outline_m whose far edges exclude the crossings on them), keeps its edge's
+crossings, and so does a bias cut's staircase of border crossings (up to about 1.2 spacings off a 45 degree
+edge). Crossings a little further in change nothing: they lie along the same stretch of the line."""
 
 
 def stitch_pairs(outline_a: np.ndarray, segment_a: int, panel_a: int, outline_b: np.ndarray, segment_b: int,
@@ -30,21 +31,22 @@ def stitch_pairs(outline_a: np.ndarray, segment_a: int, panel_a: int, outline_b:
     panel_a's border crossings beside it (SEAM_REACH_SPACINGS): n + 1 points over that span at fractions
     k / n (n = its length / stitch_spacing_m, rounded; at least 1; the segment's own ends where no crossing
     lies beside it) each take the border crossing of panel_a nearest them. Over the crossings' span, not the
-    outline's, the points fall on crossings where stitch_spacing_m is a multiple of the yarn spacing: an
-    outline drawn half a spacing outside them put every point midway between two crossings, and the tie
-    left crossings unstitched (seam_rip: 3 of 40) and stitched others twice. Each joins panel_b's border
+    outline's, an edge along the weave sewn every yarn spacing has a point on each crossing: an outline
+    drawn half a spacing outside them put every point midway between two crossings, and the tie left
+    crossings unstitched (seam_rip: 3 of 40) and stitched others twice. Each joins panel_b's border
     crossing nearest the point at the same fraction of segment_b as that crossing lies along segment_a
     (1 - fraction with `reverse`). Going through the crossing's own place, not the sample point, keeps a
     point midway between two crossings from pairing a crossing with the other panel's diagonal neighbour."""
     a0, a1 = outline_a[segment_a], outline_a[(segment_a + 1) % len(outline_a)]
     b0, b1 = outline_b[segment_b], outline_b[(segment_b + 1) % len(outline_b)]
     length_m = float(np.linalg.norm(a1 - a0))
-    unit = (a1 - a0) / length_m
+    unit = (a1 - a0) / max(length_m, 1e-30)
     mine = np.flatnonzero(border & (crossing_panel == panel_a))
     rel = crossing_uv_m[mine] - a0
     t = rel @ unit
+    slack = 1e-9 * max(length_m, spacing_m)  # a corner crossing on the segment's end
     beside = (np.linalg.norm(rel - t[:, None] * unit, axis=1) <= SEAM_REACH_SPACINGS * spacing_m) \
-        & (t >= -0.25 * spacing_m) & (t <= length_m + 0.25 * spacing_m)
+        & (t >= -slack) & (t <= length_m + slack)
     start, end = (a0, a1) if not beside.any() else (a0 + t[beside].min() * unit, a0 + t[beside].max() * unit)
     count = max(1, int(round(float(np.linalg.norm(end - start)) / stitch_spacing_m)))
     f = np.arange(count + 1) / count
@@ -72,7 +74,7 @@ def seam_start_warnings(spec, model) -> list[str]:
     rest length x (1 + their own break strain): they break in the first steps."""
     if not spec.seams:
         return []
-    from fraytool.scene.panel_shape import panel_shape
+    from fraytool.scene.panel_shape import PanelShapeError, panel_shape
 
     stitches = np.flatnonzero(np.asarray(model.spring_kind) == STITCH)
     a_all = np.asarray(model.spring_crossing_a)[stitches]
@@ -89,15 +91,18 @@ def seam_start_warnings(spec, model) -> list[str]:
     start = 0
     for s, seam in enumerate(spec.seams):
         pa, pb = index.get(seam.panel_a, 0), index.get(seam.panel_b, 0)
-        for p in (pa, pb):
-            if p not in outlines:
-                outlines[p] = panel_shape(panels[p], spec.source).outline_uv_m
+        try:  # the shape as the builder made it: a mask image relative to the scene file
+            for p in (pa, pb):
+                if p not in outlines:
+                    outlines[p] = panel_shape(panels[p], spec.source_file).outline_uv_m
+        except (PanelShapeError, OSError):
+            return out  # the mask moved since the shot was simulated: nothing to judge by
         pair = stitch_pairs(outlines[pa], seam.segment_a, pa, outlines[pb], seam.segment_b, pb, seam.reverse,
                             seam.stitch_spacing_m, uv, cpanel, border, float(model.spacing_m))
         take = slice(start, start + len(pair))
         start += len(pair)
         if not (np.array_equal(a_all[take], pair[:, 0]) and np.array_equal(b_all[take], pair[:, 1])):
-            return []  # a Model edited after building: its stitches are not the scene's to judge
+            return out  # a Model edited after building: its stitches are not the scene's to judge
         springs = stitches[take]
         length_m = np.linalg.norm(rest[pair[:, 1]] - rest[pair[:, 0]], axis=1)
         rest_m = np.asarray(model.spring_rest_length_m)[springs]
