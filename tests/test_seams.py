@@ -392,3 +392,19 @@ def test_a_seam_stitches_each_border_crossing_along_its_edge_once_at_any_grain(g
     along = np.flatnonzero(border & (model.crossing_panel == 0) & (0.028 - uv[:, 0] <= S + 1e-12))
     assert along.size >= 5
     assert sorted(model.spring_crossing_a[st].tolist()) == sorted(along.tolist())
+
+
+def test_with_several_panels_the_first_panels_problems_name_it_cloth_0():
+    """[[cloth]] twice: a problem in the first panel is in [cloth.0] (and its springs in [cloth.0.springs]), as
+    one in the second is in [cloth.1] and as --set names them; a single [cloth] keeps its name."""
+    from fraytool.errors import SceneError
+
+    text = two_panels().replace('name = "a"\n', 'name = "a"\nspacng_m = 1\n', 1)
+    text = text.replace("structural_n_per_m = 40.0", "structural_n_per_m = -4.0", 1)
+    text = text.replace('name = "b"\n', 'name = "b"\nspacng_m = 1\n', 1)
+    with pytest.raises(SceneError) as err:
+        parse_scene(text, "p.toml")
+    lines = str(err.value)
+    assert "[cloth.0] spacng_m = 1: unknown key; did you mean spacing_m?" in lines
+    assert "[cloth.0.springs] structural_n_per_m = -4.0" in lines and "[cloth.1] spacng_m = 1" in lines
+    assert "[cloth] " not in lines and "[cloth.springs]" not in lines

@@ -49,10 +49,16 @@ class _Problems:
     def __init__(self, source: str):
         self.source = source
         self.lines: list[str] = []
+        self.several_panels = False
+        """[[cloth]] written more than once: the first panel's tables are named [cloth.0], [cloth.0.springs],
+        ..., as the others are [cloth.1], ... (and as --set names them), not [cloth], which reads as any."""
 
     def add(self, where: str, key: str | None, value: Any, allowed: str, show_chars: Optional[int] = None) -> None:
         """One problem line; `show_chars` echoes the value at most that long (default: as long as it
         fits, see MESSAGE_CHARS)."""
+        parts = where.split(".")
+        if self.several_panels and parts[0] == "cloth" and (len(parts) == 1 or not parts[1].isdigit()):
+            where = ".".join(["cloth", "0", *parts[1:]])
         if show_chars is not None:
             self.lines.append(f"{self.source}: [{where}] {key} = {show(value, show_chars)}: {allowed}")
             return
@@ -167,6 +173,7 @@ def parse_scene(text: str, source: str = "<string>", overrides: Sequence[tuple[s
     more_panels: list = []
     if isinstance(doc.get("cloth"), list) and doc["cloth"] and all(isinstance(v, dict) for v in doc["cloth"]):
         doc["cloth"], more_panels = doc["cloth"][0], doc["cloth"][1:]  # [[cloth]]: several panels
+        problems.several_panels = bool(more_panels)
 
     for name, value in doc.items():
         if name not in schema.TOP:
