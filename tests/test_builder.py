@@ -409,3 +409,24 @@ def test_plane_normal_keeps_its_direction_at_any_scale(normal, unit):
     b.add_cloth(warp_yarns=3, weft_yarns=3, spacing_m=0.01, thickness_m=0.001, mass_per_crossing_kg=1e-5,
                 structural_n_per_m=10.0)
     np.testing.assert_allclose(b.finalize().body_params[0], unit, rtol=1e-12)  # a plane: its unit normal
+
+
+@pytest.mark.parametrize("centre, holds", [("[0.0, 0.1, 0.5]", False), ("[0.0, 0.1, 0.0]", True)])
+def test_an_attachment_that_holds_no_crossing_is_a_warning(centre, holds, tmp_path, capsys):
+    """The 12 x 12 cloth lies at y = 0.1 m over x, z from -0.03 to 0.025 m: a 1 cm region around z = 0.5 m
+    holds none of it (the nearest crossing, at x = 0, z = 0.025, is 0.475 m away), and check says so and
+    that the ball holds nothing; around the origin it holds some, and nothing is said."""
+    from fraytool.commands.main import main
+    from helpers import BALL, small_scene_text
+
+    path = tmp_path / "s.toml"
+    path.write_text(small_scene_text() + BALL + f'\n[[attachments]]\nbody = "ball"\nregion_center_m = {centre}\n'
+                    "region_radius_m = 0.01\n")
+    assert main(["check", str(path)]) == 0
+    warnings = [x for x in capsys.readouterr().err.splitlines() if x.startswith("fraytool: warning:")]
+    if holds:
+        assert warnings == []
+        return
+    assert warnings == [f"fraytool: warning: {path}: [attachments.0] body 'ball': region_radius_m = 0.01 around "
+                        "region_center_m = [0, 0.1, 0.5] holds no crossing of panel 'cloth' (the nearest is 0.475 m "
+                        "from the centre); the body holds nothing"]
