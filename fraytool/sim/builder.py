@@ -53,7 +53,7 @@ from fraytool.scene.panel_shape import (PanelShapeError, crossing_fraction_along
                                        sample_map, tear_map_image)
 from fraytool.sim.model import Model
 from fraytool.sim.paths import orientation_keys, quat_to_matrix
-from fraytool.sim.seam_layout import stitch_pairs
+from fraytool.sim.seam_layout import border_crossings, stitch_pairs
 
 Vec3 = tuple[float, float, float]
 
@@ -688,7 +688,7 @@ class ModelBuilder:
             out[structural[hit]] = np.minimum(out[structural[hit]], times)
         return out
 
-    def _stitches(self, uv: np.ndarray, crossing_panel: np.ndarray, border: np.ndarray, rest: np.ndarray):
+    def _stitches(self, uv: np.ndarray, crossing_panel: np.ndarray, border: np.ndarray):
         """The seams' stitches (docs/panels.md "Seams"), each seam's placed by fraytool.sim.seam_layout.stitch_pairs.
         Returns (a, b, rest length [m], stiffness [N/m], break strain), the break strains drawn after the
         cloth's from the same seeded stream."""
@@ -737,7 +737,7 @@ class ModelBuilder:
         cv[a[s], 1] = s
         cv[b[s], 0] = s
         # the panel's border: a crossing missing one of its four yarn neighbours
-        border = (cw < 0).any(axis=1) | (cv < 0).any(axis=1)
+        border = border_crossings(cw, cv)
         hemmed = border & np.array([p.spec.edge == "hemmed" for p in self._panels])[crossing_panel]
 
         bodies = self.bodies
@@ -783,7 +783,7 @@ class ModelBuilder:
         break_strain = self._break_strains(len(kind), 0.5 * (uv[a] + uv[b]), crossing_panel[a])
         cut_time = self._scissor_times(kind, a, b, uv, crossing_panel)
         if self.seams:  # the stitches come after every spring of the cloth
-            st_a, st_b, st_rest, st_k, st_break = self._stitches(uv, crossing_panel, border, rest)
+            st_a, st_b, st_rest, st_k, st_break = self._stitches(uv, crossing_panel, border)
             kind = np.concatenate([kind, np.full(st_a.size, STITCH, np.int8)])
             a, b = np.concatenate([a, st_a]), np.concatenate([b, st_b])
             rest_len = np.concatenate([rest_len, st_rest])

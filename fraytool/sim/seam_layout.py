@@ -63,10 +63,10 @@ def stitch_pairs(outline_a: np.ndarray, segment_a: int, panel_a: int, outline_b:
     return pair[pair[:, 0] != pair[:, 1]]
 
 
-def border_crossings(model) -> np.ndarray:
-    """Crossings with a structural neighbour missing on some side: a panel's border (as the builder finds it)."""
-    return ((np.asarray(model.crossing_weft_springs) < 0).any(axis=1)
-            | (np.asarray(model.crossing_warp_springs) < 0).any(axis=1))
+def border_crossings(crossing_weft_springs: np.ndarray, crossing_warp_springs: np.ndarray) -> np.ndarray:
+    """Crossings with a structural neighbour missing on some side (a -1 in their spring slots): a panel's
+    border, for the builder and for the warnings on a built Model alike."""
+    return (np.asarray(crossing_weft_springs) < 0).any(axis=1) | (np.asarray(crossing_warp_springs) < 0).any(axis=1)
 
 
 def seam_start_warnings(spec, model) -> list[str]:
@@ -84,7 +84,7 @@ def seam_start_warnings(spec, model) -> list[str]:
     index = {name: k for k, name in enumerate(names)}
     uv = np.asarray(model.crossing_plane_uv_m)
     cpanel = np.asarray(model.crossing_panel)
-    border = border_crossings(model)
+    border = border_crossings(model.crossing_weft_springs, model.crossing_warp_springs)
     rest = np.asarray(model.crossing_rest_position_m, dtype=np.float64)
     outlines = {}
     out = []
