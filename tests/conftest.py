@@ -24,6 +24,33 @@ TESTS = Path(__file__).resolve().parent
 GOLDEN_SCENE = TESTS / "scenes" / "golden_small.toml"
 
 
+UNDECLARED = ("scipy",)
+"""Packages that fraytool does not declare but that its libraries use when they find them: numba runs
+`@`, np.dot and np.linalg in a kernel through scipy's BLAS. A developer's machine often has them; a clean
+install does not. The suite hides them (an import raises ImportError, as in a clean venv), so that a
+kernel needing one fails here and not first for a new user (tests/test_scenes.py checks it is hidden)."""
+
+
+class _HideUndeclared:
+    """A meta-path finder that refuses UNDECLARED packages and their submodules."""
+
+    def find_spec(self, name, path=None, target=None):
+        if name.split(".")[0] in UNDECLARED:
+            raise ModuleNotFoundError(f"No module named {name!r} (hidden by tests/conftest.py: fraytool does "
+                                      "not declare it)", name=name)
+        return None
+
+
+def _hide_undeclared():
+    import sys
+
+    loaded = sorted(m for m in sys.modules if m.split(".")[0] in UNDECLARED)
+    assert not loaded, f"imported before tests/conftest.py could hide them: {loaded}"
+    sys.meta_path.insert(0, _HideUndeclared())
+
+
+_hide_undeclared()
+
 pytest_plugins = ["fraytool.testing"]
 """fraytool's golden-test plugin, as a studio's suite uses it: the --update-goldens option and the
 `update_goldens` and `golden` fixtures (docs/golden.md)."""
@@ -36,9 +63,14 @@ def pytest_addoption(parser):
 
 @pytest.fixture(scope="session")
 def _gl_session():
+    from fraytool.errors import RunError
     from fraytool.render.context import create_context
 
-    ctx = create_context()
+    try:
+        ctx = create_context()
+    except RunError as exc:  # the system packages are missing: say which, in one line
+        pytest.fail("no headless OpenGL context: install EGL and Mesa (apt-get install libegl1 libegl-mesa0 "
+                    f"libgl1-mesa-dri, README Set up): {str(exc).splitlines()[0]}", pytrace=False)
     yield ctx
     ctx.release()
 

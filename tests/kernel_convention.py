@@ -6,7 +6,12 @@ group's: `springs_inout.spring_alive[s] = False`), never one ending in `_in`.
 A write is an assignment or augmented assignment to a subscript of the argument (or of a field of it),
 directly or through a local name bound to it (`x = particles_inout.particle_position_m`), or a call of
 its `fill` / `sort` / `resize` method or of `np.copyto(argument, ...)`. What a called kernel writes is
-checked in that kernel (its own argument names say it)."""
+checked in that kernel (its own argument names say it).
+
+No kernel needs a package fraytool does not declare: numba runs `@` on arrays, `np.dot`, `np.vdot`,
+`np.inner`, `np.matmul` and `np.linalg.*` through scipy's BLAS and LAPACK, and scipy is not a
+dependency (a clean install dies in the kernel's first call with "scipy 0.16+ is required for linear
+algebra"). Products of 3-vectors are written out (fraytool.sim.kernels.mesh_contact._dot3)."""
 from __future__ import annotations
 
 import ast
@@ -15,6 +20,8 @@ from pathlib import Path
 MAX_FLAT_ARGUMENTS = 12
 WRITABLE_SUFFIXES = ("_out", "_inout")
 MUTATING_METHODS = {"fill", "sort", "resize", "itemset", "put"}
+BLAS_FUNCTIONS = {"dot", "vdot", "inner", "matmul", "tensordot", "kron"}
+"""NumPy functions numba implements through scipy's BLAS (np.linalg.* too, by its module)."""
 
 
 def _is_numba_kernel(fn: ast.FunctionDef) -> bool:
@@ -53,6 +60,14 @@ def kernel_problems(source: str, filename: str = "<source>", callees: dict | Non
         where = f"{filename}:{fn.lineno} {fn.name}"
         if len(params) > MAX_FLAT_ARGUMENTS:
             out.append(f"{where}: {len(params)} arguments (at most {MAX_FLAT_ARGUMENTS}; group the rest)")
+        for node in ast.walk(fn):
+            if isinstance(node, (ast.BinOp, ast.AugAssign)) and isinstance(node.op, ast.MatMult):
+                out.append(f"{where}: line {node.lineno} uses '@', which numba runs through scipy's BLAS "
+                           "(write the products out)")
+            elif isinstance(node, ast.Attribute) and (
+                    node.attr == "linalg" or (node.attr in BLAS_FUNCTIONS and _root_name(node) in ("np", "numpy"))):
+                out.append(f"{where}: line {node.lineno} uses np.{node.attr}, which numba runs through scipy's "
+                           "BLAS / LAPACK (write it out)")
         alias = {p: p for p in params}  # local name -> the argument it refers to
         for node in ast.walk(fn):
             if isinstance(node, ast.Assign) and len(node.targets) == 1:

@@ -392,3 +392,45 @@ def test_velocities_follow_the_pieces_as_the_cloth_tears(tmp_path, posed_cloth):
             np.testing.assert_allclose(mesh_v, np.broadcast_to(slide * frame_time * fps, (3, 3)), rtol=1e-5)
         else:
             assert not prim.HasAttribute("velocities")                          # a sphere has no points
+
+
+def test_a_garment_exports_a_prim_per_panel_in_its_colours_and_live_stitches_as_curves(tmp_path):
+    """seam_rip (panels "left" and "right", sewn by two seams): a Scope per panel named by it, its Weft and
+    Warp holding that panel's pieces in its colours (right has its own, left [render]'s), and the live
+    stitches as linear two-point curves between their masses."""
+    pytest.importorskip("pxr")
+    from pxr import Usd, UsdGeom
+
+    from fraytool.commands.main import main
+    from fraytool.io.frame_store import FrameStore
+    from fraytool.kinds import STITCH
+    from fraytool.scene import load_scene
+
+    out, usd = tmp_path / "shot", tmp_path / "garment.usda"
+    assert main(["export", "seam_rip", "--usd", str(usd), "-o", str(out), "--frames", "0:2", "--progress", "none"]) == 0
+    stage = Usd.Stage.Open(str(usd))
+    root = stage.GetDefaultPrim().GetPath()
+    store = FrameStore(out)
+    topology, record = store.load_topology(), store.load_frame(1)
+    pieces = yarn_pieces(topology, record.particle_position_m, record.crossing_yarn_level, record.spring_alive)
+    panel = np.asarray(topology["crossing_panel"])[pieces.first_crossing]
+    spec = load_scene("seam_rip")
+    assert [p.name for p in spec.all_panels] == ["left", "right"]
+    assert not stage.GetPrimAtPath(root.AppendPath("Yarns/Weft"))
+    for p, cloth in enumerate(spec.all_panels):
+        for kind, name, colour in ((WEFT, "Weft", cloth.weft_color or spec.render.weft_color),
+                                   (WARP, "Warp", cloth.warp_color or spec.render.warp_color)):
+            curves = UsdGeom.BasisCurves(stage.GetPrimAtPath(root.AppendPath(f"Yarns/{cloth.name}/{name}")))
+            assert curves, (cloth.name, name)
+            mine = (pieces.yarn >= 0) & (pieces.kind == kind) & (panel == p)
+            assert len(curves.GetCurveVertexCountsAttr().Get(1)) == int(mine.sum()) > 0
+            np.testing.assert_allclose(curves.GetDisplayColorAttr().Get()[0], srgb_to_linear(colour), atol=1e-6)
+    assert spec.all_panels[1].warp_color != spec.render.warp_color  # the two panels' colours differ
+    stitches = UsdGeom.BasisCurves(stage.GetPrimAtPath(root.AppendPath("Yarns/Stitches")))
+    assert stitches.GetTypeAttr().Get() == UsdGeom.Tokens.linear
+    live = np.flatnonzero((np.asarray(topology["spring_kind"]) == STITCH) & record.spring_alive)
+    assert live.size > 0 and list(stitches.GetCurveVertexCountsAttr().Get(1)) == [2] * live.size
+    ends = np.array(stitches.GetPointsAttr().Get(1)).reshape(-1, 2, 3)
+    x = record.particle_position_m
+    np.testing.assert_allclose(ends[:, 0], x[np.asarray(topology["spring_crossing_a"])[live]], atol=1e-6)
+    np.testing.assert_allclose(ends[:, 1], x[np.asarray(topology["spring_crossing_b"])[live]], atol=1e-6)

@@ -5,6 +5,7 @@ pixel of camera, the seed of a tear, gravity on a drape). The report is loaded i
 from __future__ import annotations
 
 import json
+import re
 import os
 import shutil
 import subprocess
@@ -13,6 +14,7 @@ import textwrap
 from pathlib import Path
 from xml.etree import ElementTree as ET
 
+import numpy as np
 import pytest
 
 TESTS = Path(__file__).resolve().parent
@@ -178,7 +180,8 @@ def test_bad_frames_are_exit_2(drape_golden):
 def test_the_report_loads_in_a_real_browser_with_every_image_and_a_working_swap(drape_golden, tmp_path):
     chromium = shutil.which("chromium") or shutil.which("chromium-browser")
     if chromium is None:
-        pytest.fail("Debian's chromium is not installed (.ci/run installs it): the report must be loaded in a browser")
+        pytest.fail("Debian's chromium is not installed (apt-get install chromium, README Set up): the report "
+                    "must be loaded in a browser", pytrace=False)
     run = check(drape_golden, "--report", tmp_path / "report", "--set", "world.gravity_m_s2=[0.0, -7.0, 0.0]")
     assert run.returncode == 1
     summary = json.loads((tmp_path / "report" / "summary.json").read_text())
@@ -187,12 +190,34 @@ def test_the_report_loads_in_a_real_browser_with_every_image_and_a_working_swap(
     assert [f["status"] for f in frames][-1] == "fail" and "ssim" in frames[-1]["figures"]
     page = tmp_path / "report" / "report.html"
     dom = subprocess.run([chromium, "--headless", "--no-sandbox", "--disable-gpu", "--allow-file-access-from-files",
-                          "--virtual-time-budget=5000", "--dump-dom", page.as_uri()],
+                          "--window-size=1400,1000", "--virtual-time-budget=5000", "--dump-dom", page.as_uri()],
                          capture_output=True, text=True, timeout=120).stdout
     body = dom[dom.index("<body"):dom.index(">", dom.index("<body"))]
     assert 'data-images-total="12"' in body and 'data-images-loaded="12"' in body, body
     assert 'data-swap-works="true"' in body, body
     assert 'data-status="fail"' in body
+    # a reviewer's scan: the summary first, the failures at the top, the key that differs by key and value
+    assert dom.index("id=\"summary\"") < dom.index("id=\"problems\"") < dom.index("<section"), dom[:2000]
+    assert 'data-first-frame-status="fail"' in body, body
+    assert "world.gravity_m_s2: [0.0, -9.81, 0.0] -&gt; [0.0, -7.0, 0.0]" in dom
+    overview = summary["overview"][0]
+    assert overview["status"] == "fail" and overview["frames"] == 3 and overview["counts"]["fail"] >= 1
+    assert overview["worst"]["ssim"] == min(f["figures"]["ssim"] for f in frames)
+    assert overview["worst"]["max_error"] == max(f["figures"]["max_error"] for f in frames)
+    # images large enough to judge, each a link to itself at full size
+    assert int(re.search(r'data-shown-width="(\d+)"', body).group(1)) >= 320, body
+    for f in frames:
+        for name in f["images"].values():
+            assert f"<a href=\"{name}\" target=\"_blank\">" in dom, name
+    # the ring where the yarns moved most sits on a changed part of the picture
+    from PIL import Image
+
+    moved = [f for f in frames if "moved_most_pixel" in f["figures"]]
+    assert moved and int(re.search(r'data-rings="(\d+)"', body).group(1)) == 2 * len(moved)
+    for f in moved:
+        x, y = f["figures"]["moved_most_pixel"]
+        diff = np.asarray(Image.open(tmp_path / "report" / f["images"]["diff"]))
+        assert diff[max(0, y - 6):y + 7, max(0, x - 6):x + 7].max() > 0, (f["frame"], x, y)
 
 
 def test_fraytool_testing_gives_a_studio_a_one_line_test(tmp_path):

@@ -40,6 +40,10 @@ def unpacks_a_group(springs_in, out_inout):
 def hands_on_to_a_writer(values, rows_in):
     writes_its_input(rows_in, values)
 
+@nb.njit(cache=True, inline="always")
+def needs_blas(a_in, b_in):
+    return a_in @ b_in + np.dot(a_in, b_in) + np.linalg.norm(a_in)
+
 def not_a_kernel(x_in):
     x_in[0] = 1.0
 '''
@@ -49,9 +53,11 @@ def test_the_check_fails_on_an_injected_kernel_of_each_kind():
     problems = kernel_problems(INJECTED, "injected.py")
     assert [p.split(": ", 1)[0] for p in problems] == [
         "injected.py:5 flat", "injected.py:9 writes_its_input", "injected.py:14 writes_unsuffixed",
-        "injected.py:21 unpacks_a_group", "injected.py:27 hands_on_to_a_writer"], problems
+        "injected.py:21 unpacks_a_group", "injected.py:27 hands_on_to_a_writer"] + [
+        "injected.py:31 needs_blas"] * 3, problems
     assert f"13 arguments (at most {MAX_FLAT_ARGUMENTS}" in problems[0]
     assert "writes argument 'x_in'" in problems[1] and "not _in" in problems[1]
     assert "writes argument 'positions'" in problems[2]  # through a local name; a group's field is fine
     assert "writes argument 'springs_in'" in problems[3]  # a field of an unpacked read-only group
     assert "writes argument 'values'" in problems[4]  # handed on to a callee's _out argument
+    assert "uses '@'" in problems[5] and "np.dot" in problems[6] and "np.linalg" in problems[7]

@@ -39,7 +39,20 @@ def test_every_command_has_its_line_and_every_linked_doc_exists():
         assert (ROOT / link).is_file(), link
 
 
-def test_the_readme_test_command_is_the_one_ci_runs():
+SET_UP = ["python3 -m venv .venv && . .venv/bin/activate", 'python -m pip install -e ".[test,usd]"',
+          "python -m pytest -n auto"]
+
+
+def test_the_readme_set_up_is_the_one_ci_runs_in_a_fresh_venv():
+    """CI makes the README's venv (no system site-packages, so the machine's own packages hide nothing) and
+    runs its install and test commands in it, in that order; the system packages are the README's."""
     ci = (ROOT / ".ci" / "run").read_text()
-    assert 'python -m pip install -e ".[test,usd]"' in README and 'python -m pip install -e ".[test,usd]"' in ci
-    assert "python -m pytest -n auto" in README and "python -m pytest -n auto" in ci
+    ci_lines = [ln.strip() for ln in ci.splitlines()]
+    at = [ci_lines.index(line) for line in SET_UP]
+    assert at == sorted(at), "CI runs the set-up lines out of order"
+    for line in SET_UP:
+        assert f"    {line}" in README, line
+    assert "system-site-packages" not in ci and "rm -rf .venv" in ci
+    apt = re.search(r"apt-get install ([^\n`]+)", README).group(1).split()
+    assert {"libegl1", "libegl-mesa0", "libgl1-mesa-dri", "chromium"} <= set(apt)
+    assert all(pkg in ci for pkg in apt), apt

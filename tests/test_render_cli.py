@@ -214,3 +214,47 @@ def test_killed_render_takes_its_ffmpeg_along_and_the_partial_is_swept(tmp_path)
     r = fraytool("render", scene, "-o", out, "--png", "--resolution", "320x240")
     assert r.returncode == 0, r.stderr
     assert not list(out.glob(".*partial*")) and probe(out / "golden_small.mp4")["frames"] == 60
+
+
+def _no_stepping(monkeypatch):
+    """Any simulation step from here on fails the test: a render-only change must simulate nothing."""
+    from fraytool.sim.simulation import Simulation
+
+    def refuse(self):
+        raise AssertionError("a simulation step ran for a change of the picture only")
+
+    monkeypatch.setattr(Simulation, "step", refuse)
+
+
+def test_look_dev_reuses_the_simulated_frames_for_a_shot_folder_and_a_scene(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    assert main(["render", str(SCENE), "--no-mp4", "--png", "--resolution", "32x24"]) == 0  # outputs/golden_small
+    shot = tmp_path / "outputs" / "golden_small"
+    assert "simulating 4 frames" in capsys.readouterr().err
+    _no_stepping(monkeypatch)
+    # the shot's folder drawn elsewhere: its frames are read where they are, the new folder holds only pictures
+    assert main(["render", str(shot), "-o", "lookdev_a", "--no-mp4", "--png", "--resolution", "48x32",
+                 "--samples", "0", "--fov", "30", "--motion-blur", "0.5"]) == 0
+    err = capsys.readouterr().err
+    assert f"reusing the frames simulated in {Path('outputs/golden_small/frames')}" in err or "reusing" in err, err
+    assert "simulating" not in err
+    assert len(list((tmp_path / "lookdev_a" / "png").glob("frame_*.png"))) == 4
+    assert not (tmp_path / "lookdev_a" / "frames").exists()
+    # the scene file with settings that change only the picture, into another folder
+    assert main(["render", str(SCENE), "-o", "lookdev_b", "--no-mp4", "--exr", "--camera-position", "0.3,0.4,0.5",
+                 "--set", "render.background=[0.2, 0.2, 0.3]", "--set", "cloth.warp_color=[0.9, 0.1, 0.1]"]) == 0
+    err = capsys.readouterr().err
+    assert "reusing the frames simulated in" in err and "simulating" not in err, err
+    assert len(list((tmp_path / "lookdev_b" / "exr").glob("*.exr"))) == 4
+
+
+def test_a_change_of_the_simulation_simulates_again_and_names_the_key(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    assert main(["render", str(SCENE), "--no-mp4", "--png", "--frames", "0:2", "--resolution", "32x24"]) == 0
+    capsys.readouterr()
+    assert main(["render", str(SCENE), "-o", "other", "--no-mp4", "--png", "--frames", "0:2", "--resolution", "32x24",
+                 "--set", "world.gravity_m_s2=[0.0, -8.5, 0.0]"]) == 0
+    err = capsys.readouterr().err
+    assert "simulating 2 frames" in err
+    assert "world.gravity_m_s2: [0.0, -9.81, 0.0] -> [0.0, -8.5, 0.0]" in err, err
+    assert (tmp_path / "other" / "frames" / "manifest.json").is_file()

@@ -28,6 +28,14 @@ def test_scene_runs_a_few_frames(path):
     assert sim.frame == 2
 
 
+def test_the_scenes_run_without_the_packages_fraytool_does_not_declare():
+    """tests/conftest.py hides scipy (numba's BLAS for `@` in a kernel), so the runs above are a clean
+    install's: a mesh scene whose kernel used `@` died there with "scipy 0.16+ is required"."""
+    with pytest.raises(ImportError):
+        import scipy  # noqa: F401
+    assert "mannequin_snag.toml" in {p.name for p in SCENES}
+
+
 MAIN_SCENES = sorted((ROOT / "scenes").glob("*.toml"))
 
 

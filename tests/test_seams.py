@@ -200,6 +200,35 @@ edge = "right"
     stitch = Simulation(load_scene(tmp_path / "s.toml")).model.spring_kind == STITCH
     assert int(gone[stitch].sum()) == out["broken_stitches"]
     assert out["broken_springs"] == int(gone[~stitch].sum()), (out, int(gone[~stitch].sum()))
+    # per seam: its stitches, how many broke and the frames of its first and last break, read off the records
+    alive = np.array([store.load_frame(f).spring_alive[stitch].sum() for f in range(store.frames_complete())])
+    fell = np.flatnonzero(np.diff(alive) < 0) + 1
+    assert out["seams"] == [{"index": 0, "stitches": 8, "panels": ["a", "b"], "broken": out["broken_stitches"],
+                             "first_break_frame": int(fell[0]), "last_break_frame": int(fell[-1])}], out["seams"]
+    check = subprocess.run([sys.executable, "-m", "fraytool", "check", str(tmp_path / "s.toml")],
+                           capture_output=True, text=True)
+    assert "seam 0 (a - b): 8 stitches" in check.stdout, check.stdout
+
+
+def test_a_weak_line_reports_the_springs_it_weakened_in_its_own_panel_only():
+    """The weakened springs are those whose break strain the line changed (the same scene without it draws the
+    same numbers): all in its panel, none in the panel beside it, as `check` lists them."""
+    from fraytool.scene import parse_scene
+    from fraytool.sim.builder import build_model
+    from fraytool.sim.tear_control_figures import tear_control_figures
+
+    line = '\n[[weak_lines]]\npanel = "a"\npoints_m = [[0.0, 0.0], [0.04, 0.04]]\nwidth_m = 0.006\nfactor = 0.5\n'
+    plain = build_model(parse_scene(two_panels(), "plain.toml"))
+    weak_spec = parse_scene(two_panels() + line, "weak.toml")
+    weak = build_model(weak_spec)
+    changed = np.flatnonzero(weak.spring_break_strain != plain.spring_break_strain)
+    assert changed.size > 0
+    panel_of = weak.crossing_panel[weak.spring_crossing_a[changed]]
+    assert set(panel_of.tolist()) == {weak.panel_names.index("a")}
+    figures = tear_control_figures(weak, spec=weak_spec)
+    assert figures["weak_lines"] == [{"index": 0, "springs_weakened": int(changed.size), "panel": "a", "broken": None,
+                                      "first_break_frame": None, "last_break_frame": None}]
+    assert figures["seams"] == []
 
 
 def test_panels_collide_with_each_other_through_self_collision():

@@ -34,7 +34,7 @@ def export_command(args, stream: Optional[TextIO] = None) -> int:
     out = target.output_dir(getattr(args, "out", None))
     with OutputLock(out, "export", wait_stream=stream):
         needed = _frames_needed(spec, frames)
-        store = ensure_frames(spec, out, needed, stream, target.model, target.digest)
+        store = ensure_frames(spec, out, needed, stream, target.model, target.digest, target.frame_sources())
         if spec.camera.fit:
             spec = _with_fitted_camera(spec, store, stream)
         topology = store.load_topology()

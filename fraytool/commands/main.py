@@ -323,6 +323,7 @@ def cmd_check(args) -> int:
     from fraytool.sim.builder import build_model
     from fraytool.kinds import SPRING_KIND_NAMES
     from fraytool.sim.memory import available_bytes, estimate_bytes
+    from fraytool.sim.mesh_report import describe_lines, describe_mesh_bodies
     from fraytool.sim.stability import stability_report
 
     spec = _load(args.scene, force=args.force, sets=args.sets)
@@ -348,6 +349,7 @@ def cmd_check(args) -> int:
         "step_over_bound": spec.time.step_s / bound,
         **{k: v for k, v in stability_report(model, spec.time.step_s).items() if k != "step_s"},
         "bodies": len(spec.bodies),
+        "mesh_bodies": describe_mesh_bodies(spec, model),
         "attached_masses": model.attachment_count,
         "simulated_s_per_frame": spec.time.step_s * spec.time.steps_per_frame,
         "memory_estimate_bytes": estimate_bytes(spec),
@@ -363,16 +365,25 @@ def cmd_check(args) -> int:
                      "cells_refined_at_start": int(refined.sum()),
                      "free_crossings_at_start": int(multires.free_crossings(layout, refined).sum()),
                      "refine_strain": model.refine_strain, "refine_band_cells": model.refine_band_cells})
+    from fraytool.sim.tear_control_figures import figure_lines, tear_control_figures
+
+    info.update(tear_control_figures(model, spec=spec))  # stitches and weakened springs; broken after --run
     if args.run:
         from fraytool.sim.checks import run_scene_checks
 
         info["checks"] = run_scene_checks(spec)
+        for table in ("seams", "weak_lines"):
+            info[table] = info["checks"]["summary"].get(table, info[table])
     if args.json:
         print(json.dumps(finite_json(info)))
     else:
         checks = info.pop("checks", None)
+        listed = {k: info.pop(k) for k in ("mesh_bodies", "seams", "weak_lines")}
         for k, v in info.items():
             print(f"{k:28s} {_rounded(v)}")
+        for line in describe_lines(listed["mesh_bodies"]) + figure_lines(listed):
+            print(line)
+        info.update(listed)
         if not info["power_converged"]:
             print(f"note: power iteration stopped after {info['power_iterations']} sweeps (cap "
                   f"{info['power_sweep_cap']}, about a second of work) before converging: omega_max_power_rad_s "

@@ -8,10 +8,10 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
-from typing import Optional, TextIO
+from typing import Optional, Sequence, TextIO
 
 from fraytool.commands.target import load_target
-from fraytool.errors import RunError
+from fraytool.errors import FraytoolError, RunError
 from fraytool.io.frame_store import FrameStore
 from fraytool.io.lock import OutputLock
 from fraytool.render.job import build_job
@@ -21,16 +21,28 @@ from fraytool.sim.model import Model
 
 
 def ensure_frames(spec: SceneSpec, out_dir: Path, needed: int, stream: TextIO = sys.stderr,
-                  model: Optional[Model] = None, digest: Optional[str] = None) -> FrameStore:
-    """Frame records 0..needed-1 in out_dir/frames: reuse them if the manifest's digest matches
-    and frames 0..needed-1 verify (checksums), continue or repair a matching run (resume: the
-    damaged files are named on `stream`), else simulate afresh. `model`: a Model built or edited in
-    Python to simulate instead of the scene's (fraytool.sim.run.simulate_to_disk); `digest`: the frames'
-    hash of a shot read back from its folder (default: shot_hash(spec, model))."""
+                  model: Optional[Model] = None, digest: Optional[str] = None,
+                  sources: Sequence[Path] = ()) -> FrameStore:
+    """Frame records 0..needed-1: reuse out_dir/frames if the manifest's digest matches and frames
+    0..needed-1 verify (checksums); else reuse those of another folder of `sources` that holds them (the shot
+    folder rendered with `-o OTHER`, the scene's default folder: a change of the picture only simulates
+    nothing, and says so); else continue or repair a matching run in out_dir (resume: the damaged files are
+    named on `stream`), else simulate afresh, naming the scene keys that differ from the frames it replaces.
+    `model`: a Model built or edited in Python to simulate instead of the scene's
+    (fraytool.sim.run.simulate_to_disk); `digest`: the frames' hash of a shot read back from its folder
+    (default: shot_hash(spec, model))."""
     from fraytool.sim.run import shot_hash, simulate_to_disk
 
     store = FrameStore(out_dir)
     digest = digest or shot_hash(spec, model)
+    if _holds(store, digest, needed):
+        return store
+    for source in sources:
+        other = FrameStore(Path(source))
+        if other.dir.resolve() != store.dir.resolve() and _holds(other, digest, needed):
+            print(f"fraytool: reusing the frames simulated in {other.dir} (the settings change only the picture: "
+                  "nothing is simulated)", file=stream)
+            return other
     if store.matches(digest) or (store.manifest() is None and store.dir.is_dir()):
         done = store.frames_complete()
         survey = store.survey(digest, frames=min(done, needed) if store.manifest() else None)
@@ -43,8 +55,45 @@ def ensure_frames(spec: SceneSpec, out_dir: Path, needed: int, stream: TextIO = 
             simulate_to_disk(spec, out_dir, frames=needed, resume=True, stream=stream, model=model, digest=digest)
             return store
     print(f"fraytool: simulating {needed} frames into {store.dir}", file=stream)
+    for line in _why_again(spec, digest, needed, [store] + [FrameStore(Path(s)) for s in sources]):
+        print(f"fraytool: {line}", file=stream)
     simulate_to_disk(spec, out_dir, frames=needed, stream=stream, model=model, digest=digest)
     return store
+
+
+def _holds(store: FrameStore, digest: str, needed: int) -> bool:
+    """True when `store` holds intact frames 0..needed-1 of the shot `digest`."""
+    if not store.matches(digest) or store.frames_complete() < needed:
+        return False
+    return store.survey(digest, frames=needed).clean
+
+
+def _why_again(spec: SceneSpec, digest: str, needed: int, stores: list) -> list[str]:
+    """Why frames already on disk for this scene cannot be reused: the simulation keys that differ from the
+    first of `stores` that holds a shot of the same name, or that it holds too few frames (none: nothing to
+    say)."""
+    from fraytool.scene.load import key_changes, simulation_keys
+    from fraytool.sim.run import is_shot_folder, load_shot
+
+    for store in stores:
+        if not is_shot_folder(store.out_dir):
+            continue
+        try:
+            old_spec, _, _ = load_shot(store.out_dir)
+        except FraytoolError:
+            continue
+        if old_spec.name != spec.name:
+            continue
+        if store.matches(digest):
+            return [f"not reusing the frames in {store.dir}: it holds {store.frames_complete()} intact frames of "
+                    f"the {needed} needed"]
+        changed = key_changes(simulation_keys(old_spec), simulation_keys(spec))
+        if not changed:
+            changed = ["no scene key: the Model (built or edited in Python), a file the scene reads, or the "
+                       "solver's revision changed"]
+        return [f"not reusing the frames in {store.dir}: they were simulated with other settings: "
+                + "; ".join(changed)]
+    return []
 
 
 def _fmt(v) -> str:
@@ -108,7 +157,7 @@ def _render(args, stream: Optional[TextIO]) -> int:
             if job.spec.camera.fit:
                 # the fit covers the whole shot, so farm shards of one scene agree on the camera
                 store = ensure_frames(spec, job.out_dir, job.spec.time.frames, stream, target.model,
-                                      target.digest)
+                                      target.digest, target.frame_sources())
                 from fraytool.render.fit import fitted_job
 
                 job = fitted_job(job, store)
@@ -116,7 +165,8 @@ def _render(args, stream: Optional[TextIO]) -> int:
                 print(f"fraytool: --fit: camera at {_fmt(cam.position_m)} looking at {_fmt(cam.target_m)}",
                       file=stream)
             else:
-                store = ensure_frames(spec, job.out_dir, frames_needed(job), stream, target.model, target.digest)
+                store = ensure_frames(spec, job.out_dir, frames_needed(job), stream, target.model, target.digest,
+                                      target.frame_sources())
             result = render_job(job, ctx, store, stream=stream)
     finally:
         ctx.release()

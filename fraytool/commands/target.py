@@ -28,6 +28,13 @@ class Target:
 
         return Path(out) if out else self.out_dir or default_out_dir(self.spec)
 
+    def frame_sources(self) -> list[Path]:
+        """Folders whose frames of this shot a command writing elsewhere (`-o OTHER`) reuses: the shot's own
+        folder, then the scene's default one (fraytool.commands.render.ensure_frames checks the digest)."""
+        from fraytool.sim.run import default_out_dir
+
+        return [d for d in (self.out_dir, default_out_dir(self.spec)) if d is not None]
+
 
 def load_target(name: str, sets: Sequence[str] = (), force: bool = False) -> Target:
     """The scene file `name` with its --set overrides (refused, exit 2, when the machine lacks the memory

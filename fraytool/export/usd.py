@@ -7,6 +7,9 @@ Stage layout (the default prim is named after the scene, made a valid USD identi
     /<scene>/Camera          Camera: the renderer's view (fraytool.export.usd_camera), static
     /<scene>/Yarns/Weft      BasisCurves: every weft piece of the frame
     /<scene>/Yarns/Warp      BasisCurves: every warp piece
+    /<scene>/Yarns/<panel>/Weft, .../Warp   instead, with several [[cloth]] panels (a garment): one Scope per
+                             panel, named by the panel, its curves in the panel's own colours
+    /<scene>/Yarns/Stitches  BasisCurves, linear: every live stitch of the seams, two points each
     /<scene>/Bodies/<name>   Sphere (radius), Cube (size 2, scaled by the half extents), Plane or Mesh
 
 Yarns: `type` cubic, `basis` catmullRom, `wrap` pinned (the curve runs through its first and last
@@ -104,16 +107,20 @@ def up_axis(camera_up) -> str:
 
 
 class _YarnPrim:
-    """One BasisCurves prim (all weft or all warp pieces) and its time-sampled attributes."""
+    """One BasisCurves prim (a panel's weft or warp pieces, or the seams' stitches) and its time-sampled
+    attributes."""
 
-    def __init__(self, stage, path: str, color_srgb, width_m: float):
+    def __init__(self, stage, path: str, color_srgb, width_m: float, linear: bool = False):
         from pxr import Gf, Sdf, UsdGeom
 
         self.width_m = width_m
         c = UsdGeom.BasisCurves.Define(stage, path)
-        c.CreateTypeAttr(UsdGeom.Tokens.cubic)
-        c.CreateBasisAttr(UsdGeom.Tokens.catmullRom)
-        c.CreateWrapAttr(UsdGeom.Tokens.pinned)
+        if linear:  # a stitch: a straight thread between its two masses
+            c.CreateTypeAttr(UsdGeom.Tokens.linear)
+        else:
+            c.CreateTypeAttr(UsdGeom.Tokens.cubic)
+            c.CreateBasisAttr(UsdGeom.Tokens.catmullRom)
+            c.CreateWrapAttr(UsdGeom.Tokens.pinned)
         c.CreateDisplayColorPrimvar(UsdGeom.Tokens.constant).Set([Gf.Vec3f(*map(float, srgb_to_linear(color_srgb)))])
         self.counts = c.CreateCurveVertexCountsAttr()
         self.points = c.CreatePointsAttr()
@@ -144,10 +151,10 @@ class _YarnPrim:
             self.extent.Set(Vt.Vec3fArray.FromNumpy(np.stack([lo, hi]).astype(np.float32)), time)
 
 
-def _pieces_of(curves, kind: int, velocities: Optional[np.ndarray]) -> tuple:
-    """(points, offsets, opacity, yarn, velocities or None) of the pieces of one kind; `velocities` are
-    per point of `curves` (None: unknown)."""
-    sel = np.nonzero(curves.kind == kind)[0]
+def _pieces_of(curves, chosen: np.ndarray, velocities: Optional[np.ndarray]) -> tuple:
+    """(points, offsets, opacity, yarn, velocities or None) of the `chosen` pieces (a mask over them);
+    `velocities` are per point of `curves` (None: unknown)."""
+    sel = np.nonzero(chosen)[0]
     counts = np.diff(curves.offsets)[sel]
     starts = curves.offsets[:-1][sel]
     idx = np.repeat(starts - np.concatenate([[0], np.cumsum(counts)[:-1]]), counts) + np.arange(counts.sum())
@@ -256,6 +263,39 @@ def _define_bodies(stage, root: str, spec: SceneSpec, topology: Mapping[str, np.
     return bodies
 
 
+def _define_yarns(stage, path: str, spec: SceneSpec, topology: Mapping[str, np.ndarray], width_m: float) -> dict:
+    """The yarn prims: (panel, kind) -> _YarnPrim. One panel: Weft and Warp (panel -1: every piece); several
+    (a garment): a Scope per panel named by the panel with its Weft and Warp in its own colours (the
+    renderer's, fraytool.render.color.yarn_palette); (None, None): the seams' live stitches, when there are any."""
+    from pxr import Tf, UsdGeom
+
+    from fraytool.kinds import STITCH
+    from fraytool.render.color import THREAD_SRGB, yarn_palette
+
+    UsdGeom.Scope.Define(stage, path)
+    panels = spec.all_panels
+    palette = yarn_palette(spec.render, panels)  # the renderer's colours
+    prims = {}
+    if len(panels) <= 1:
+        prims[(-1, WEFT)] = _YarnPrim(stage, f"{path}/Weft", palette[0], width_m)
+        prims[(-1, WARP)] = _YarnPrim(stage, f"{path}/Warp", palette[1], width_m)
+    else:
+        used: set[str] = {"Stitches"}
+        for p, panel in enumerate(panels):
+            name = Tf.MakeValidIdentifier(panel.name or f"panel_{p}")
+            while name in used:
+                name += "_"
+            used.add(name)
+            scope = UsdGeom.Scope.Define(stage, f"{path}/{name}")
+            scope.GetPrim().SetCustomDataByKey("fraytool:panel", panel.name)
+            row = min(p, len(palette) // 2 - 1)
+            prims[(p, WEFT)] = _YarnPrim(stage, f"{path}/{name}/Weft", palette[2 * row], width_m)
+            prims[(p, WARP)] = _YarnPrim(stage, f"{path}/{name}/Warp", palette[2 * row + 1], width_m)
+    if (np.asarray(topology["spring_kind"]) == STITCH).any():
+        prims[(None, None)] = _YarnPrim(stage, f"{path}/Stitches", THREAD_SRGB, width_m, linear=True)
+    return prims
+
+
 def _vec3f_array(points: np.ndarray):
     from pxr import Vt
 
@@ -300,10 +340,7 @@ def write_usd(path: Path, spec: SceneSpec, topology: Mapping[str, np.ndarray], r
     stage, root = _new_stage(spec)
     define_camera(stage, f"{root}/{CAMERA_NAME}", spec.camera, spec.render.resolution)
     style = YarnStyle.from_spec(spec.render, topology)
-    UsdGeom.Scope.Define(stage, f"{root}/Yarns")
-    width = 2.0 * style.radius_m
-    prims = {WEFT: _YarnPrim(stage, f"{root}/Yarns/Weft", spec.render.weft_color, width),
-             WARP: _YarnPrim(stage, f"{root}/Yarns/Warp", spec.render.warp_color, width)}
+    prims = _define_yarns(stage, f"{root}/Yarns", spec, topology, 2.0 * style.radius_m)
     bodies = _define_bodies(stage, root, spec, topology)
     time_codes_per_second = stage.GetTimeCodesPerSecond()
 
@@ -315,8 +352,11 @@ def write_usd(path: Path, spec: SceneSpec, topology: Mapping[str, np.ndarray], r
         stencil = Stencil.around(record, frames, time_codes_per_second)
         curves = yarn_curves(topology, record, style)
         velocities = yarn_point_velocities(topology, stencil) if stencil.has_motion else None
-        for kind, prim in prims.items():
-            prim.set(t, *_pieces_of(curves, kind, velocities))
+        for (panel, kind), prim in prims.items():
+            chosen = curves.panel < 0 if panel is None else (curves.panel >= 0) & (curves.kind == kind)
+            if panel is not None and panel >= 0:
+                chosen &= curves.panel == panel
+            prim.set(t, *_pieces_of(curves, chosen, velocities))
         motion = body_velocities(stencil) if stencil.has_motion else None
         for b, body in enumerate(bodies):
             if body is not None:

@@ -84,6 +84,8 @@ def geometry_figures(golden_points: np.ndarray, golden_offsets: np.ndarray, poin
     if same:
         d = np.linalg.norm(points.astype(np.float64) - golden_points.astype(np.float64), axis=1)
         out["max_yarn_distance_thickness"] = float(d.max(initial=0.0) / thickness_m)
+        if d.size and d.max() > 0.0:  # where it moved most (the report marks it on the image)
+            out["moved_most_point_m"] = [float(x) for x in points[int(d.argmax())]]
     return out
 
 

@@ -135,10 +135,33 @@ def check_scene(spec: SceneSpec, golden_dir: Path, frames: Optional[Sequence[int
     out = SceneCheck(spec.name, store.scene_dir(golden_dir, spec))
     for f in captured.frames:
         new = {"image": f.image, "points": f.points_m, "offsets": f.offsets, "torn_springs": f.torn_springs}
-        out.verdicts.append(judge(f.frame, golden[f.frame], new, spec.golden, thickness))
+        verdict = judge(f.frame, golden[f.frame], new, spec.golden, thickness)
+        at = verdict.figures.pop("moved_most_point_m", None)
+        pixel = project_to_pixel(spec, at) if at is not None else None
+        if pixel is not None:
+            verdict.figures["moved_most_pixel"] = pixel
+        out.verdicts.append(verdict)
         out.images[f.frame] = (golden[f.frame]["image"], f.image)
     out.differences = store.settings_differences(meta, spec, list(sets), captured.renderer)
     return out
+
+
+def project_to_pixel(spec: SceneSpec, point_m) -> Optional[list[int]]:
+    """The pixel (x right, y down, of the scene's resolution) where the camera sees `point_m`; None behind the
+    camera or outside the picture."""
+    import numpy as np
+
+    from fraytool.render.camera import Camera
+
+    width, height = spec.render.resolution
+    clip = Camera(spec.camera).view_proj(width / height) @ np.append(np.asarray(point_m, float), 1.0)
+    if clip[3] <= 0.0:
+        return None
+    x = (clip[0] / clip[3] + 1.0) * 0.5 * width
+    y = (1.0 - clip[1] / clip[3]) * 0.5 * height
+    if not (0.0 <= x < width and 0.0 <= y < height):
+        return None
+    return [int(x), int(y)]
 
 
 def farm_task(scene: str, sets: Sequence, golden_dir: str, work_root: Optional[str], report_dir: Optional[str],

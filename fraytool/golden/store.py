@@ -36,7 +36,7 @@ def write(golden_dir: Path, spec: SceneSpec, captured: Capture, sets: list[str])
     """Store a capture as the scene's golden (replacing an earlier one); returns its folder."""
     from fraytool import __version__
     from fraytool.render.png16 import write_png16
-    from fraytool.scene.load import scene_hash
+    from fraytool.scene.load import scene_hash, simulation_keys
 
     out = scene_dir(golden_dir, spec)
     out.mkdir(parents=True, exist_ok=True)
@@ -48,7 +48,8 @@ def write(golden_dir: Path, spec: SceneSpec, captured: Capture, sets: list[str])
         np.savez_compressed(out / f"yarns_{f.frame:06d}.npz", points_m=f.points_m, offsets=f.offsets)
         frames.append({"frame": f.frame, "torn_springs": f.torn_springs})
     meta = {"fraytool_version": __version__, "scene": spec.name, "scene_file": spec.source_file or spec.source,
-            "scene_hash": scene_hash(spec), "settings": settings_of(spec, sets), "frames": frames,
+            "scene_hash": scene_hash(spec), "scene_keys": simulation_keys(spec),
+            "settings": settings_of(spec, sets), "frames": frames,
             "renderer": captured.renderer, "cpu": machine(), "python": platform.python_version(),
             "numpy": np.__version__, "thickness_m": spec.cloth.thickness_m}
     (out / METADATA).write_text(json.dumps(meta, indent=2, sort_keys=True) + "\n")
@@ -81,10 +82,13 @@ def read(golden_dir: Path, spec: SceneSpec, command: str) -> tuple[dict, dict[in
 def settings_differences(meta: dict, spec: SceneSpec, sets: list[str], renderer: str) -> list[str]:
     """What differs between the golden's metadata and this check: version, scene, settings, renderer, CPU."""
     from fraytool import __version__
-    from fraytool.scene.load import scene_hash
+    from fraytool.scene.load import key_changes, scene_hash, simulation_keys
 
     now = {"fraytool_version": __version__, "scene_hash": scene_hash(spec), "renderer": renderer, "cpu": machine()}
     out = [f"{k}: golden {meta.get(k)!r}, now {v!r}" for k, v in now.items() if meta.get(k) != v]
+    if isinstance(meta.get("scene_keys"), dict) and meta.get("scene_hash") != now["scene_hash"]:
+        # the scene keys that differ, by key and value (golden -> now), after the hash line
+        out += key_changes(meta["scene_keys"], simulation_keys(spec), limit=20)
     old = meta.get("settings", {})
     for k, v in settings_of(spec, sets).items():
         v, was = json.loads(json.dumps(v)), old.get(k)

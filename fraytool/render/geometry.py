@@ -114,6 +114,8 @@ class YarnCurves:
     """Yarn index per piece (j for a weft, i for a warp), shape (K,), int32."""
     opacity: np.ndarray
     """The fade of broken ends at each control point (1 = opaque), shape (N,), float32."""
+    panel: np.ndarray
+    """Panel per piece ([[cloth]] entry), -1 for a seam's stitch (a piece of two points), shape (K,), int32."""
 
 
 def yarn_curves(topology: Mapping[str, np.ndarray], record: FrameRecord, style: YarnStyle) -> YarnCurves:
@@ -128,7 +130,10 @@ def yarn_curves(topology: Mapping[str, np.ndarray], record: FrameRecord, style: 
     piece = np.repeat(np.arange(pieces.count), counts)
     local = np.arange(len(pieces.points)) - pieces.offsets[:-1][piece]
     opacity = alpha[curves.offsets[:-1][piece] + local * m] if len(pieces.points) else np.ones(0, np.float32)
-    return YarnCurves(pieces.points, pieces.offsets, pieces.kind, pieces.yarn, opacity.astype(np.float32))
+    crossing_panel = np.asarray(topology["crossing_panel"]) if "crossing_panel" in topology else \
+        np.zeros(len(np.asarray(topology["crossing_rest_position_m"])), np.int32)
+    panel = np.where(pieces.yarn >= 0, crossing_panel[pieces.first_crossing], -1).astype(np.int32)
+    return YarnCurves(pieces.points, pieces.offsets, pieces.kind, pieces.yarn, opacity.astype(np.float32), panel)
 
 
 @dataclass(frozen=True)

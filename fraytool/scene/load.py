@@ -430,7 +430,52 @@ before the strain limit in scenes that tear (docs/tearing.md). (1, implicit: eve
 
 def scene_hash(spec: SceneSpec) -> str:
     """Stable digest of everything that affects the simulation (not camera/render/output), and of the
-    solver revision (SIM_REVISION)."""
+    solver revision (SIM_REVISION): the keys of simulation_keys."""
+    d = _simulation_dict(spec)
+    if "panels" in d:
+        d["panels"] = [[p.name for p in spec.all_panels], d["panels"]]  # seams and attachments name them
+    d["sim_revision"] = SIM_REVISION
+    blob = json.dumps(d, sort_keys=True, default=list).encode()
+    return hashlib.sha256(blob).hexdigest()[:16]
+
+
+def simulation_keys(spec: SceneSpec) -> dict:
+    """The scene keys the frames depend on, flattened to `table.key` (`bodies.0.radius_m`) -> value as JSON
+    reads it back (a file key: the digest of its bytes): what scene_hash digests, so that a run can say which
+    key made it simulate again (fraytool.scene.key_changes)."""
+    flat: dict = {}
+
+    def walk(prefix: str, value) -> None:
+        if isinstance(value, dict):
+            for k, v in value.items():
+                walk(f"{prefix}.{k}" if prefix else str(k), v)
+        elif isinstance(value, (list, tuple)) and value and all(isinstance(v, dict) for v in value):
+            for i, v in enumerate(value):
+                walk(f"{prefix}.{i}", v)
+        else:
+            flat[prefix] = value
+
+    walk("", json.loads(json.dumps(_simulation_dict(spec), default=list)))
+    return {_toml_key(k, bool(spec.panels)): v for k, v in flat.items()}
+
+
+def _toml_key(key: str, several_panels: bool) -> str:
+    """A SceneSpec path as the scene file writes it: gravity is [world]'s; with several [[cloth]] panels the
+    first is cloth.0 and SceneSpec.panels[k] is cloth.(k + 1)."""
+    head, _, rest = key.partition(".")
+    if head == "gravity_m_s2":
+        return "world." + key
+    if head == "cloth" and several_panels:
+        return "cloth.0." + rest
+    if head == "panels":
+        index, _, rest = rest.partition(".")
+        return f"cloth.{int(index) + 1}" + (f".{rest}" if rest else "")
+    return key
+
+
+def _simulation_dict(spec: SceneSpec) -> dict:
+    """The scene as a dict of what affects the simulation, keys at their defaults left out where a digest
+    predates them (scene_hash)."""
     d = asdict(spec)
     for k in ("source", "source_file", "camera", "render", "output", "checks", "golden"):
         d.pop(k)
@@ -447,10 +492,11 @@ def scene_hash(spec: SceneSpec) -> str:
         for k, default in _PANEL_KEY_DEFAULTS.items():  # cloths without them keep the digest they had before
             if raw[k] == default:
                 raw.pop(k)
+        if raw.get("plane") == "yz":  # the weft now runs along y, as documented (it ran along z): new frames
+            raw["plane"] = "yz:weft-y"
         for k in ("mask", "tear_map"):
             if raw.get(k):
                 raw[k] = _file_digest(panel_shape.resolve(getattr(panel, k), spec.source_file))
-    d["panels"] = [[p.name for p in spec.all_panels], d["panels"]]  # seams and attachments name them
     for table in ("panels", "seams", "weak_lines"):
         if not getattr(spec, table):
             d.pop(table)
@@ -466,13 +512,41 @@ def scene_hash(spec: SceneSpec) -> str:
             if raw[k] == default:
                 raw.pop(k)
         if body.shape != "mesh":  # bodies of other kinds keep the digest they had before meshes existed
-            for k in ("file", "prim", "scale", "frame_time_s"):
-                raw.pop(k)
+            for k in ("file", "prim", "scale", "frame_time_s", "sequence_start_s"):
+                raw.pop(k, None)  # (sequence_start_s at its default is gone already)
         else:
             raw["file"] = _mesh_digest(body.file, spec.source_file)  # the mesh, not where it lies
-    d["sim_revision"] = SIM_REVISION
-    blob = json.dumps(d, sort_keys=True, default=list).encode()
-    return hashlib.sha256(blob).hexdigest()[:16]
+    return d
+
+
+def key_changes(before: dict, after: dict, limit: int = 8) -> list[str]:
+    """The keys of two simulation_keys records that differ, one line each as a scene file writes them:
+    `world.gravity_m_s2: [0.0, -9.81, 0.0] -> [0.0, -8.5, 0.0]` (a file key: `its contents changed`); at
+    most `limit` lines, then how many more."""
+    from fraytool.scene.keys import show
+
+    def shown(v) -> str:
+        return "(unset)" if v is _UNSET else show(v, 60)
+
+    lines = []
+    for key in sorted(set(before) | set(after)):
+        was, now = before.get(key, _UNSET), after.get(key, _UNSET)
+        if was == now:
+            continue
+        if _is_digest(was) and _is_digest(now):
+            lines.append(f"{key}: its file's contents changed")
+        else:
+            lines.append(f"{key}: {shown(was)} -> {shown(now)}")
+    if len(lines) > limit:
+        lines = lines[:limit] + [f"and {len(lines) - limit} more keys"]
+    return lines
+
+
+_UNSET = object()
+
+
+def _is_digest(value) -> bool:
+    return isinstance(value, str) and len(value) == 64 and all(c in "0123456789abcdef" for c in value)
 
 
 _PANEL_KEY_DEFAULTS = {k: schema.TOP["cloth"][k].default for k in
@@ -480,7 +554,7 @@ _PANEL_KEY_DEFAULTS = {k: schema.TOP["cloth"][k].default for k in
                         "rotation_deg", "wrap_radius_m")}
 """[cloth] keys of shaped panels, left out of the digest at their defaults."""
 _BODY_KEY_DEFAULTS = {k: schema.TOP["bodies"][k].default for k in
-                      ("path_rotation_deg", "path_quaternion", "interpolation")}
+                      ("path_rotation_deg", "path_quaternion", "interpolation", "sequence_start_s")}
 """[[bodies]] keys of turning and smooth paths, left out of the digest at their defaults."""
 
 

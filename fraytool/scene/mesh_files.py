@@ -183,7 +183,32 @@ def _read_trimesh(path: Path) -> tuple[np.ndarray, np.ndarray]:
     vertices = np.asarray(getattr(mesh, "vertices", np.zeros((0, 3))), np.float64).reshape(-1, 3)
     if faces.shape[0] == 0:
         raise MeshFileError(f"{path}: holds no triangles (an empty mesh)")
+    if not np.isfinite(vertices).all():
+        _raise_non_finite(path, vertices)
     return faces.astype(np.int32), vertices
+
+
+def _raise_non_finite(path: Path, vertices: np.ndarray) -> None:
+    """A non-finite vertex named as the file numbers it: trimesh reorders an OBJ's vertices (it splits them
+    where texture coordinates differ), so an OBJ's `v` lines are read again to find the first bad one."""
+    if path.suffix.lower() == ".obj":
+        number = 0
+        with open(path, "rb") as handle:
+            for line_no, raw in enumerate(handle, 1):
+                parts = raw.split()
+                if not parts or parts[0] != b"v":
+                    continue
+                number += 1
+                try:
+                    xyz = [float(p) for p in parts[1:4]]
+                except ValueError:
+                    continue  # trimesh has said what it made of it
+                if not all(math.isfinite(x) for x in xyz):
+                    raise MeshFileError(f"{path}: vertex {number} (line {line_no}, OBJ counts from 1) is not "
+                                        f"finite ({', '.join(p.decode(errors='replace') for p in parts[1:4])})")
+    v = int(np.argwhere(~np.isfinite(vertices))[0][0])
+    raise MeshFileError(f"{path}: vertex {v} (counting from 0 in the file's order) is not finite "
+                        f"({vertices[v].tolist()})")
 
 
 def _read_usd(path: Path, prim_path: str) -> tuple[np.ndarray, list[np.ndarray], np.ndarray]:

@@ -119,7 +119,8 @@ def body_problems(b: BodySpec) -> list[Problem]:
             out.append(("motion", b.motion, 'a mesh is "static" or "kinematic" (it moves the cloth, the cloth '
                         'does not move it)'))
     else:
-        for name, default in (("file", ""), ("prim", ""), ("scale", (1.0, 1.0, 1.0)), ("frame_time_s", 0.0)):
+        for name, default in (("file", ""), ("prim", ""), ("scale", (1.0, 1.0, 1.0)), ("frame_time_s", 0.0),
+                              ("sequence_start_s", 0.0)):
             if getattr(b, name) != default:
                 value = getattr(b, name)
                 out.append((name, list(value) if isinstance(value, tuple) else value,

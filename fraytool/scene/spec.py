@@ -205,6 +205,10 @@ class BodySpec:
                       "to metres, per axis (a USD stage's metersPerUnit is applied first)")
     frame_time_s: float = key("float", 0.0, lo=0, hi=1e4, doc="mesh sequence: seconds between two files; "
                               "0 = the scene's frame time (step_s x steps_per_frame)")
+    sequence_start_s: float = key("float", 0.0, lo=-1e6, hi=1e6,
+                                  doc="animated mesh (a sequence, USD time samples): the scene time [s] of its "
+                                      "first file or sample, after start_s; negative: the shot starts part way "
+                                      "through (walk.1001.obj at -2 s: `check` names the file at 0 s)")
     velocity_m_s: Vec3 = key("vec3", (0.0, 0.0, 0.0), lo=-1e4, hi=1e4,
                              doc="kinematic: constant velocity; dynamic: initial velocity [m/s]")
     path: tuple[tuple[float, float, float, float], ...] = key(

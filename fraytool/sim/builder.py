@@ -57,7 +57,9 @@ from fraytool.sim.seam_layout import border_crossings, stitch_pairs
 
 Vec3 = tuple[float, float, float]
 
-_PLANE_AXES = {"xz": (0, 2), "xy": (0, 1), "yz": (2, 1)}
+_PLANE_AXES = {"xz": (0, 2), "xy": (0, 1), "yz": (1, 2)}
+"""[cloth] plane -> (the weft's axis, the warp's axis): the first letter's and the second's
+(docs/scene-format.md; scene_hash marks "yz", whose frames once ran the weft along z)."""
 
 _SCENE, _WORLD, _CLOTH, _SPRINGS = (schema.TOP[t] for t in ("scene", "world", "cloth", "cloth.springs"))
 _STRAIN, _TEARING, _SELF = (schema.TOP[t] for t in ("cloth.strain", "cloth.tearing", "self_collision"))
@@ -456,6 +458,7 @@ class ModelBuilder:
                  key_times_s: Optional[Sequence[float]] = None,
                  scale: Sequence[float] = _BODY["scale"].default,
                  frame_time_s: float = _BODY["frame_time_s"].default,
+                 sequence_start_s: float = _BODY["sequence_start_s"].default,
                  position_m: Sequence[float] = _BODY["position_m"].default,
                  rotation_deg: Sequence[float] = _BODY["rotation_deg"].default,
                  motion: str = _BODY["motion"].default,
@@ -470,6 +473,7 @@ class ModelBuilder:
         """A triangle mesh (static or kinematic; docs/meshes.md) from `file` (OBJ, PLY, STL, glTF/GLB, a
         numbered sequence walk.####.obj with frame_time_s seconds between files, or USD with `prim`) or
         from arrays: `vertices_m` (V, 3), or (K, V, 3) keys at `key_times_s`, and `triangles` (T, 3).
+        An animated mesh's first key is at scene time start_s + sequence_start_s.
         Its vertices, times `scale`, are in the body's frame: position_m and rotation_deg place it.
         Returns its body index."""
         args = _given(locals())
@@ -648,10 +652,11 @@ class ModelBuilder:
         rest_len = np.linalg.norm(rest[b] - rest[a], axis=1)
         return kind, a, b, stiff, rest_len, twin, weft_struct, warp_struct
 
-    def _break_strains(self, count: int, spring_uv_m: np.ndarray, spring_panel: np.ndarray) -> np.ndarray:
+    def _break_strains(self, count: int, spring_uv_m: np.ndarray, spring_panel: np.ndarray) -> tuple:
         """Per-spring break strain ~ Normal(mean, spread), clipped above the transition strain. The mean is
         break_strain, or the tear map's value under the spring's middle (`spring_uv_m`, in the cloth's
-        plane); a weak line then scales the draw (docs/panels.md "Tear control").
+        plane); a weak line then scales the draw (docs/panels.md "Tear control"). Returns (break strains, the
+        last weak line that weakened each spring or -1; empty without weak lines).
 
         The floor does not depend on yarn_level, so a base-model-only run of a scene (yarn_level =
         false, for comparison) tears a cloth with exactly the same break strains."""
@@ -665,13 +670,15 @@ class ModelBuilder:
                 mean = np.full(count, t.break_strain) if np.isscalar(mean) else mean
                 mean[on] = lo + (hi - lo) * sample_map(p.tear_map, p.shape.extent_uv_m, spring_uv_m[on])
         draw = mean + t.break_strain_spread * rng.standard_normal(count)
-        for line in self.weak_lines:
+        weak_line = np.full(count if self.weak_lines else 0, -1, np.int32)
+        for index, line in enumerate(self.weak_lines):
             on = spring_panel == self._panel_index("finalize", line.panel)
             near = on & (distance_to_polyline(spring_uv_m, np.asarray(line.points_m, float)) <= 0.5 * line.width_m)
             draw[near] *= line.factor
+            weak_line[near] = index
         floor = t.transition_strain * 1.01 if t.transition_strain < t.break_strain else 1e-3
         self._rng = rng  # the seams' stitches draw theirs next, from the same stream
-        return np.maximum(draw, floor)
+        return np.maximum(draw, floor), weak_line
 
     def _scissor_times(self, kind: np.ndarray, a: np.ndarray, b: np.ndarray, uv: np.ndarray,
                        crossing_panel: np.ndarray) -> np.ndarray:
@@ -690,10 +697,10 @@ class ModelBuilder:
 
     def _stitches(self, uv: np.ndarray, crossing_panel: np.ndarray, border: np.ndarray):
         """The seams' stitches (docs/panels.md "Seams"), each seam's placed by fraytool.sim.seam_layout.stitch_pairs.
-        Returns (a, b, rest length [m], stiffness [N/m], break strain), the break strains drawn after the
-        cloth's from the same seeded stream."""
-        out_a, out_b, out_rest, out_k, out_break = [], [], [], [], []
-        for seam in self.seams:
+        Returns (a, b, rest length [m], stiffness [N/m], break strain, seam index), the break strains drawn
+        after the cloth's from the same seeded stream."""
+        out_a, out_b, out_rest, out_k, out_break, out_seam = [], [], [], [], [], []
+        for index, seam in enumerate(self.seams):
             pa, pb = self._panel_index("finalize", seam.panel_a), self._panel_index("finalize", seam.panel_b)
             pair = stitch_pairs(self._panels[pa].shape.outline_uv_m, seam.segment_a, pa,
                                 self._panels[pb].shape.outline_uv_m, seam.segment_b, pb, seam.reverse,
@@ -705,8 +712,10 @@ class ModelBuilder:
             out_k.append(np.full(len(pair), seam.stiffness_n_per_m))
             draw = seam.break_strain + self.tearing.break_strain_spread * self._rng.standard_normal(len(pair))
             out_break.append(np.maximum(draw, 1e-3))
+            out_seam.append(np.full(len(pair), index, np.int32))
         cat = np.concatenate
-        return (cat(out_a).astype(np.int32), cat(out_b).astype(np.int32), cat(out_rest), cat(out_k), cat(out_break))
+        return (cat(out_a).astype(np.int32), cat(out_b).astype(np.int32), cat(out_rest), cat(out_k), cat(out_break),
+                cat(out_seam))
 
     def finalize(self) -> Model:
         """Turn everything added into the immutable Model (typed arrays); the builder can go on."""
@@ -780,10 +789,14 @@ class ModelBuilder:
 
         t = self.tearing
         strain = self.strain
-        break_strain = self._break_strains(len(kind), 0.5 * (uv[a] + uv[b]), crossing_panel[a])
+        break_strain, spring_weak_line = self._break_strains(len(kind), 0.5 * (uv[a] + uv[b]), crossing_panel[a])
         cut_time = self._scissor_times(kind, a, b, uv, crossing_panel)
+        spring_seam = np.zeros(0, np.int32)
         if self.seams:  # the stitches come after every spring of the cloth
-            st_a, st_b, st_rest, st_k, st_break = self._stitches(uv, crossing_panel, border)
+            st_a, st_b, st_rest, st_k, st_break, st_seam = self._stitches(uv, crossing_panel, border)
+            spring_seam = np.concatenate([np.full(len(kind), -1, np.int32), st_seam])
+            if spring_weak_line.size:
+                spring_weak_line = np.concatenate([spring_weak_line, np.full(st_a.size, -1, np.int32)])
             kind = np.concatenate([kind, np.full(st_a.size, STITCH, np.int8)])
             a, b = np.concatenate([a, st_a]), np.concatenate([b, st_b])
             rest_len = np.concatenate([rest_len, st_rest])
@@ -871,6 +884,8 @@ class ModelBuilder:
             refine_strain=mr.refine_fraction * tear_from,
             refine_band_cells=max(mr.band_cells, split_walk_band(top.reshape(ny, nx), mr.factor)) if mr.factor > 1 and n == nx * ny else mr.band_cells,
             refine_near_bodies=mr.refine_near_bodies,
+            spring_seam=spring_seam,
+            spring_weak_line=spring_weak_line,
         )
 
 
@@ -919,7 +934,7 @@ def _body_params(body: BodySpec, unit_normal: np.ndarray, mesh_radius_m: float, 
 
 def _mesh_arrays(bodies: Sequence[BodySpec], assets: dict) -> dict[str, np.ndarray]:
     """The Model's mesh arrays (fraytool.meshes) from the mesh bodies' assets, scaled, key times from
-    the body's start_s."""
+    the body's start_s + sequence_start_s."""
     from fraytool.meshes import empty_fields
 
     out = empty_fields()
@@ -933,7 +948,7 @@ def _mesh_arrays(bodies: Sequence[BodySpec], assets: dict) -> dict[str, np.ndarr
         scale = np.asarray(bd.scale, float)
         tris.append(a.triangles + v_off)
         edges.append(a.sharp_edges + v_off)
-        times.append(a.key_time_s + bd.start_s)
+        times.append(a.key_time_s + (bd.start_s + bd.sequence_start_s))
         keys.append((a.key_vertices * scale).reshape(-1, 3))
         v_off += a.key_vertices.shape[1]
         t_off += a.triangles.shape[0]

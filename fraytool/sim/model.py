@@ -25,6 +25,9 @@ def broken_cloth_springs(spring_kind: np.ndarray, spring_broken: np.ndarray) -> 
     return int(np.count_nonzero(spring_broken & (spring_kind != STITCH)))
 
 
+_DIGEST_SKIPS_EMPTY = ("spring_seam", "spring_weak_line")
+
+
 def _empty_mesh(name: str) -> np.ndarray:
     from fraytool.meshes import empty_fields
 
@@ -184,6 +187,12 @@ class Model:
     mesh_key_vertex_m: np.ndarray = field(default_factory=lambda: _empty_mesh("mesh_key_vertex_m"))
     mesh_edge_start: np.ndarray = field(default_factory=lambda: _empty_mesh("mesh_edge_start"))
     mesh_sharp_edges: np.ndarray = field(default_factory=lambda: _empty_mesh("mesh_sharp_edges"))
+    spring_seam: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int32))
+    """The [[seams]] entry each spring is a stitch of, -1 for the cloth's own springs, shape (spring_count,),
+    int32; empty where the scene has no seam (the per-seam figures, fraytool.sim.tear_control_figures)."""
+    spring_weak_line: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int32))
+    """The last [[weak_lines]] entry that weakened each spring, -1 for none, shape (spring_count,), int32;
+    empty where the scene has no weak line."""
 
     @property
     def particle_count(self) -> int:
@@ -300,6 +309,8 @@ class Model:
 
         h = hashlib.sha256()
         for name, v in sorted(self.arrays().items()):
+            if name in _DIGEST_SKIPS_EMPTY and v.size == 0:
+                continue  # Models without seams or weak lines keep the digest they had before these fields
             v = np.ascontiguousarray(v)
             h.update(f"{name}:{v.dtype.str}:{v.shape}".encode())
             h.update(v.tobytes())

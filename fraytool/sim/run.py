@@ -38,7 +38,8 @@ def default_out_dir(spec: SceneSpec) -> Path:
 def check_step(spec: SceneSpec, model: Model, stream=None) -> float:
     """Compare the step with the explicit stability bound: warn, or refuse (SceneError) when the
     scene says [time] stability = "refuse"; warn of a mesh in the wrong unit (fraytool.sim.units) and of
-    seams whose stitches start torn (fraytool.sim.seam_layout) and of attachments that hold nothing
+    open mesh bodies (fraytool.sim.mesh_report), of seams whose stitches start torn (fraytool.sim.seam_layout) and of
+    attachments that hold nothing
     (fraytool.sim.attachment_warnings).
     Returns the bound [s]."""
     bound = stable_step_bound_s(model)
@@ -51,10 +52,11 @@ def check_step(spec: SceneSpec, model: Model, stream=None) -> float:
         print(f"fraytool: warning: {msg}", file=stream or sys.stderr)
     from fraytool.sim.attachment_warnings import empty_attachment_warnings
     from fraytool.sim.seam_layout import seam_start_warnings
+    from fraytool.sim.mesh_report import open_mesh_warnings
     from fraytool.sim.units import mesh_scale_warnings
 
-    for line in mesh_scale_warnings(spec, model) + seam_start_warnings(spec, model) + \
-            empty_attachment_warnings(spec, model):
+    for line in mesh_scale_warnings(spec, model) + open_mesh_warnings(spec, model) + \
+            seam_start_warnings(spec, model) + empty_attachment_warnings(spec, model):
         print(f"fraytool: warning: {line}", file=stream or sys.stderr)
     return bound
 

@@ -10,7 +10,7 @@
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 from typing import Iterator, Optional
 
 import numpy as np
@@ -24,6 +24,7 @@ from fraytool.sim.pieces import crossings_near_grips, piece_figures, woven_strai
 from fraytool.sim.record import frame_record
 from fraytool.sim.solver import SolverExplicitPBD
 from fraytool.sim.state import State
+from fraytool.sim.tear_control_figures import tear_control_figures, tracked_springs
 
 
 WOVEN_STRAIN_TOLERANCE = 0.01
@@ -52,6 +53,9 @@ class ShotFigures:
     """Strain-limiting cap hits of the run before a resume."""
     strain_iterations_max_before: int = 0
     """Most strain-limiting sweeps in one step of the run before a resume."""
+    tracked_break_frame: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    """The first frame at which each of the seams' stitches and weakened springs
+    (fraytool.sim.tear_control_figures.tracked_springs) was broken, -1 while whole."""
 
     def arrays(self) -> dict[str, np.ndarray]:
         return {f"shot_{f.name}": np.asarray(getattr(self, f.name)) for f in fields(self)}
@@ -62,7 +66,9 @@ class ShotFigures:
         for f in fields(ShotFigures):
             key = f"shot_{f.name}"
             if key in data:
-                setattr(out, f.name, type(getattr(out, f.name))(np.asarray(data[key])))
+                value = getattr(out, f.name)
+                setattr(out, f.name, np.array(data[key], np.int64) if isinstance(value, np.ndarray)
+                        else type(value)(np.asarray(data[key])))
         return out
 
 
@@ -82,6 +88,9 @@ class Simulation:
         self.steps_per_frame = spec.time.steps_per_frame
         self.shot = ShotFigures()
         """Figures over the shot (max woven strain, small pieces), updated at every frame."""
+        self._tracked = tracked_springs(self.model)
+        """The seams' stitches and weakened springs, whose break frames the shot figures keep."""
+        self.shot.tracked_break_frame = np.full(self._tracked.size, -1, np.int64)
         self._near_grips = None
         """Crossings near a held crossing (fraytool.sim.pieces.crossings_near_grips), made when first needed."""
         self._observe()
@@ -105,6 +114,12 @@ class Simulation:
                 self.shot.max_woven_strain_away = away
                 self.shot.max_woven_strain_away_frame = self.frame
                 self.shot.max_woven_strain_away_spring = spring
+        if self._tracked.size:
+            record = self.shot.tracked_break_frame
+            if record.size != self._tracked.size:  # a checkpoint written before these figures were kept
+                record = self.shot.tracked_break_frame = np.full(self._tracked.size, -1, np.int64)
+            newly = np.asarray(self.state.spring_broken, bool)[self._tracked] & (record < 0)
+            record[newly] = self.frame
         if self.model.tearing:
             small = piece_figures(self.model, self.state)["small_pieces"]
             if small and self.shot.small_pieces_first_frame < 0:
@@ -189,6 +204,9 @@ class Simulation:
             out["small_pieces_max"] = self.shot.small_pieces_max
             out["small_pieces_first_frame"] = self.shot.small_pieces_first_frame
         out.update(self.solver.summary(self.state))
+        if self._tracked.size:
+            out.update(tear_control_figures(self.model, self.state.spring_broken, self.shot.tracked_break_frame,
+                                            self.spec))
         return out
 
     def woven_strain_warning(self, tolerance: float = WOVEN_STRAIN_TOLERANCE) -> Optional[str]:

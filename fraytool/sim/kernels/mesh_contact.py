@@ -130,6 +130,18 @@ def closest_on_triangle(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz):
 
 
 @nb.njit(cache=True, inline="always")
+def _dot3(a, b):
+    """a . b of two 3-vectors, written out: no BLAS (numba runs `@` on arrays through scipy's)."""
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+@nb.njit(cache=True, inline="always")
+def _dist2(a, b):
+    """|b - a|^2 of two 3-vectors, without a temporary array."""
+    return (b[0] - a[0]) ** 2 + (b[1] - a[1]) ** 2 + (b[2] - a[2]) ** 2
+
+
+@nb.njit(cache=True, inline="always")
 def _vertex(vertices, i):
     return vertices[i, 0], vertices[i, 1], vertices[i, 2]
 
@@ -288,7 +300,11 @@ def start_rotation(rot, omega, dt_s):
     turn = np.array([[1.0 - c * (ky * ky + kz * kz), -s * kz + c * kx * ky, s * ky + c * kx * kz],
                      [s * kz + c * kx * ky, 1.0 - c * (kx * kx + kz * kz), -s * kx + c * ky * kz],
                      [-s * ky + c * kx * kz, s * kx + c * ky * kz, 1.0 - c * (kx * kx + ky * ky)]])
-    return turn @ rot
+    out = np.empty((3, 3))
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = turn[i, 0] * rot[0, j] + turn[i, 1] * rot[1, j] + turn[i, 2] * rot[2, j]
+    return out
 
 
 @nb.njit(cache=True)
@@ -397,17 +413,17 @@ def _segment_closest(p0, p1, q0, q1):
     d1 = p1 - p0
     d2 = q1 - q0
     r = p0 - q0
-    a = d1 @ d1
-    e = d2 @ d2
-    f = d2 @ r
+    a = _dot3(d1, d1)
+    e = _dot3(d2, d2)
+    f = _dot3(d2, r)
     if a <= 1e-300 and e <= 1e-300:
         return 0.0, 0.0
     if a <= 1e-300:
         return 0.0, min(max(f / e, 0.0), 1.0)
-    c = d1 @ r
+    c = _dot3(d1, r)
     if e <= 1e-300:
         return min(max(-c / a, 0.0), 1.0), 0.0
-    b = d1 @ d2
+    b = _dot3(d1, d2)
     denom = a * e - b * b
     s = min(max((b * f - c * e) / denom, 0.0), 1.0) if denom > 1e-14 * a * e else 0.0
     u = (b * s + f) / e
@@ -450,23 +466,23 @@ def _segment_pass(m, meshes_in, seg_start, seg_end_inout, inverse_masses, margin
             e0e, e1e = vb[meshes_in.edges[e, 0]], vb[meshes_in.edges[e, 1]]
             s1, u1 = _segment_closest(la1, lb1, e0e, e1e)
             wx = la1 + s1 * (lb1 - la1) - (e0e + u1 * (e1e - e0e))
-            dist = math.sqrt(wx @ wx)
+            dist = math.sqrt(_dot3(wx, wx))
             # did the edge pass through the segment during the step? (interval CCD, no false negative)
             crossed, _ = edge_edge_ccd_kernel(la0, lb0, e0s, e1s, la1, lb1, e0e, e1e, 0.0)
             if crossed:  # back to the side of the start: along the common normal, oriented by then
                 s0, u0 = _segment_closest(la0, lb0, e0s, e1s)
                 w0 = la0 + s0 * (lb0 - la0) - (e0s + u0 * (e1s - e0s))
                 n = np.cross(lb1 - la1, e1e - e0e)
-                nl = math.sqrt(n @ n)
-                if nl <= 1e-12 * math.sqrt((lb1 - la1) @ (lb1 - la1)) * math.sqrt((e1e - e0e) @ (e1e - e0e)):
+                nl = math.sqrt(_dot3(n, n))
+                if nl <= 1e-12 * math.sqrt(_dist2(la1, lb1)) * math.sqrt(_dist2(e0e, e1e)):
                     n = w0  # parallel: the start's closest-point direction
-                    nl = math.sqrt(n @ n)
+                    nl = math.sqrt(_dot3(n, n))
                 if nl <= 0.0:
                     continue
                 n = n / nl
-                if n @ w0 < 0.0:
+                if _dot3(n, w0) < 0.0:
                     n = -n
-                sep = wx @ n
+                sep = _dot3(wx, n)
             elif 0.0 < dist < margin_m * (1.0 - 1e-6):  # (one pushed to the margin stays put)
                 n = wx / dist
                 sep = dist
@@ -486,7 +502,7 @@ def _segment_pass(m, meshes_in, seg_start, seg_end_inout, inverse_masses, margin
                     seg_end_inout[1, c] += cb * lam * n[c]
                 s1, u1 = _segment_closest(la1, lb1, e0e, e1e)
                 wx = la1 + s1 * (lb1 - la1) - (e0e + u1 * (e1e - e0e))
-                sep = wx @ n
+                sep = _dot3(wx, n)
                 if sep >= margin_m * (1.0 - 1e-6):
                     break
             contacts += 1
@@ -538,7 +554,7 @@ def _segment_through(m, meshes_in, seg_end_inout, inverse_masses, margin_m, stac
         return 0  # no surface crossed, or one: an end is inside, which the masses' pass handles
     sm = 0.5 * (first + last)
     deep = la1 + sm * (lb1 - la1)
-    reach = 0.5 * (last - first) * math.sqrt((lb1 - la1) @ (lb1 - la1)) + margin_m
+    reach = 0.5 * (last - first) * math.sqrt(_dist2(la1, lb1)) + margin_m
     moved, x0, x1, x2, _, _, _, _, _, _, _, _ = _resolve_point(m, meshes_in, deep, deep, margin_m, reach, stack_out)
     if not moved:
         return 0
