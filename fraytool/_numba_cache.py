@@ -1,27 +1,35 @@
-"""Drop numba's on-disk cache of fraytool when any of its source files changed.
+"""Drop numba's on-disk cache of a fraytool kernel file when it, or a file it depends on, changed.
 
 numba's ``cache=True`` checks only the file that defines a kernel, not the files of the kernels it
 calls: after an edit of ``segments.py``, the cached tearing and self-collision kernels that call it
-would silently keep the old code. fraytool's kernels call each other across files and packages, so
-the whole cache is keyed on one hash of every source file of the package; when it changes, every
-cache file (``*.nbi``, ``*.nbc``) of the package is deleted before any kernel is loaded.
+would silently keep the old code. So each source file that defines kernels is keyed on the files its
+kernels can see when they compile: itself and the fraytool modules it imports at module level,
+transitively (a kernel calls kernels and reads module-level constants of those modules; nothing else
+reaches a compiled kernel). When that key changes, the file's cache files (``<stem>.*.nbi``,
+``<stem>.*.nbc``) are deleted before any kernel is loaded; the other files' stay. An edit of a docstring
+in ``golden/`` recompiles nothing; an edit of ``collision/ccd.py`` recompiles the kernels that call CCD
+(docs/testing.md, "The kernel cache").
 
-Where numba keeps them: ``__pycache__`` beside each source file, or, when the environment sets
-``NUMBA_CACHE_DIR``, one folder per source folder inside it, named as numba names it
-(``<folder>_<sha1 of the folder's path>``, numba's UserProvidedCacheLocator); the stamp of the
-sources' hash then lives there too (one per fraytool checkout), so a cache folder shared between
-checkouts or switched between runs is judged on its own.
+A first, cheap check hashes every source file of the package: when nothing changed since the stamp, no
+import graph is read. Where numba keeps the files: ``__pycache__`` beside each source file, or, when
+the environment sets ``NUMBA_CACHE_DIR``, one folder per source folder inside it, named as numba names
+it (``<folder>_<sha1 of the folder's path>``, numba's UserProvidedCacheLocator); the stamp then lives
+there too (one per fraytool checkout), so a cache folder shared between checkouts or switched between
+runs is judged on its own.
 """
 from __future__ import annotations
 
+import ast
 import hashlib
+import json
 import os
 import sys
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Callable
 
-_STAMP = "numba_sources.sha256"
+_STAMP = "numba_sources.json"
+"""{"package": digest of every source, "kernels": {kernel file: digest of the files it depends on}}."""
 
 
 COLD = False
@@ -97,8 +105,8 @@ def cache_folders_of(sources: list[Path], user: Path) -> list[Path]:
 
 
 def invalidate_stale_numba_cache(package_dir: Path) -> None:
-    """Delete the package's numba cache files (``cache_folders``) unless the sources hash matches the
-    stamp.
+    """Delete the cache files of each kernel file whose dependencies' digest differs from the stamp's
+    (`kernel_dependencies`); every kernel file's when there is no readable stamp.
 
     Best effort: an unwritable cache directory is left alone (numba then caches elsewhere).
     """
@@ -106,38 +114,124 @@ def invalidate_stale_numba_cache(package_dir: Path) -> None:
     user = _user_cache_dir()
     files = sorted(package_dir.rglob("*.py"))
     sources = sorted({path.parent for path in files})
-    folders = cache_folders(package_dir, sources)
     sim = package_dir.resolve() / "sim"
     sim_sources = [q for q in sources if q.resolve() == sim or sim in q.resolve().parents]
     sim_folders = [q / "__pycache__" for q in sim_sources] if user is None else cache_folders_of(sim_sources, user)
     writable = os.access(user if user is not None and user.exists() else package_dir, os.W_OK)
     # (a cache we cannot write to caches elsewhere: nothing to tell then)
     COLD = writable and not any(any(f.glob("*.nbi")) for f in sim_folders if f.is_dir())
-    digest = hashlib.sha256()
-    for path in files:
-        digest.update(str(path.relative_to(package_dir)).encode())
-        digest.update(path.read_bytes())
-    want = digest.hexdigest()
+    texts = {path.relative_to(package_dir).as_posix(): path.read_bytes() for path in files}
+    whole = _digest(texts, sorted(texts))
     if user is None:
         stamp = package_dir / "__pycache__" / _STAMP
     else:
         checkout = hashlib.sha1(os.path.abspath(package_dir).encode()).hexdigest()[:12]
         stamp = user / f"fraytool-{checkout}-{_STAMP}"
     try:
-        if stamp.read_text() == want:
-            return
-    except OSError:
-        pass
-    COLD = writable
+        old = json.loads(stamp.read_text())
+        if not isinstance(old, dict) or not isinstance(old.get("kernels"), dict):
+            raise ValueError("not a stamp")
+    except (OSError, ValueError):
+        old = {"package": None, "kernels": {}}
+    if old.get("package") == whole:
+        return
+    kernels = {rel: _digest(texts, deps) for rel, deps in kernel_dependencies(package_dir, texts).items()}
+    stale = [rel for rel, d in kernels.items() if old["kernels"].get(rel) != d]
     try:
-        for cache in folders:
-            if cache.is_dir():
-                for path in list(cache.glob("*.nbi")) + list(cache.glob("*.nbc")):
-                    path.unlink(missing_ok=True)
+        for rel in stale:
+            path = package_dir / rel
+            folder = path.parent / "__pycache__" if user is None else cache_folders_of([path.parent], user)[0]
+            if folder.is_dir():
+                for cached in list(folder.glob(f"{path.stem}.*.nbi")) + list(folder.glob(f"{path.stem}.*.nbc")):
+                    cached.unlink(missing_ok=True)
         stamp.parent.mkdir(parents=True, exist_ok=True)
-        stamp.write_text(want)
+        stamp.write_text(json.dumps({"package": whole, "kernels": kernels}, sort_keys=True))
     except OSError:
         pass
+    sim_kernels = [rel for rel in kernels if rel.startswith("sim/")]
+    if sim_kernels and all(rel in stale for rel in sim_kernels):  # every simulation kernel compiles again
+        COLD = writable
+
+
+def _digest(texts: dict[str, bytes], names) -> str:
+    h = hashlib.sha256()
+    for name in names:
+        h.update(name.encode())
+        h.update(hashlib.sha256(texts[name]).digest())
+    return h.hexdigest()
+
+
+KERNEL_DECORATORS = ("njit", "jit", "vectorize", "guvectorize", "stencil")
+
+
+def kernel_dependencies(package_dir: Path, texts: dict[str, bytes] | None = None) -> dict[str, list[str]]:
+    """Each source file (relative to the package, posix) that defines a numba kernel -> the files its
+    kernels depend on: itself and the package's modules it imports at module level, transitively."""
+    if texts is None:
+        texts = {p.relative_to(package_dir).as_posix(): p.read_bytes() for p in sorted(package_dir.rglob("*.py"))}
+    name = package_dir.name
+    by_module = {}
+    for rel in texts:
+        parts = rel[:-3].split("/")
+        if parts[-1] == "__init__":
+            parts = parts[:-1]
+        by_module[".".join([name, *parts])] = rel
+    graph, kernels = {}, []
+    for rel, text in texts.items():
+        try:
+            tree = ast.parse(text)
+        except SyntaxError:
+            graph[rel] = set()
+            continue
+        graph[rel] = _module_imports(tree, rel, name, by_module)
+        if _defines_kernel(tree):
+            kernels.append(rel)
+    out = {}
+    for rel in kernels:
+        seen, todo = {rel}, [rel]
+        while todo:
+            for dep in graph[todo.pop()]:
+                if dep not in seen:
+                    seen.add(dep)
+                    todo.append(dep)
+        out[rel] = sorted(seen)
+    return out
+
+
+def _defines_kernel(tree: ast.AST) -> bool:
+    for fn in ast.walk(tree):
+        if isinstance(fn, ast.FunctionDef):
+            for d in fn.decorator_list:
+                target = d.func if isinstance(d, ast.Call) else d
+                if (target.attr if isinstance(target, ast.Attribute) else getattr(target, "id", "")) in KERNEL_DECORATORS:
+                    return True
+    return False
+
+
+def _module_imports(tree: ast.Module, rel: str, package: str, by_module: dict[str, str]) -> set[str]:
+    """The package's files a module imports at module level (inside a top-level if or try too)."""
+    here = ".".join([package, *rel[:-3].split("/")])
+    out = set()
+    stack = list(tree.body)
+    while stack:
+        node = stack.pop()
+        if isinstance(node, (ast.If, ast.Try)):
+            stack.extend(node.body + node.orelse + getattr(node, "finalbody", [])
+                         + [s for h in getattr(node, "handlers", []) for s in h.body])
+        elif isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+            out.update(by_module[n] for n in names if n in by_module)
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:  # relative: from the module's package
+                anchor = here.split(".")[:-node.level] if not rel.endswith("__init__.py") else \
+                    here.split(".")[:len(here.split(".")) - node.level + 1]
+                base = ".".join(anchor + ([base] if base else []))
+            for a in node.names:
+                target = by_module.get(f"{base}.{a.name}") or by_module.get(base)
+                if target is not None:
+                    out.add(target)
+    return out
 
 
 def kernels_compiled() -> int:

@@ -11,6 +11,8 @@ import pytest
 from fraytool.commands.main import main
 from helpers import small_scene_text
 
+pytestmark = pytest.mark.fast  # `pytest -m fast` (docs/testing.md)
+
 GOOD = small_scene_text()
 
 

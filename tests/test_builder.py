@@ -15,6 +15,8 @@ from fraytool.sim import ModelBuilder, build_model
 from fraytool.sim.builder import ModelBuilderError
 from helpers import assert_arrays_equal
 
+pytestmark = pytest.mark.fast  # `pytest -m fast` (docs/testing.md)
+
 ROOT = Path(__file__).resolve().parent.parent
 
 SCENE = """

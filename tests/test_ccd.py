@@ -384,28 +384,68 @@ def test_segment_closest_params_matches_oracle():
         assert d <= segment_distance(seg[0], seg[1], seg[2], seg[3]) + 1e-12
 
 
-def test_numba_cache_dropped_when_sources_change(tmp_path, monkeypatch):
+KERNEL = "import numba as nb\n{imports}\n\n@nb.njit(cache=True)\ndef f():\n    return {value}\n"
+
+
+def _fake_package(root):
+    """consts.py (no kernel) <- kern.py (a kernel) <- sub/k2.py (a kernel); lone.py (a kernel, imports nothing);
+    report.py (no kernel, imports kern): their cache files beside them."""
+    (root / "sub").mkdir(parents=True)
+    (root / "consts.py").write_text("X = 1\n")
+    (root / "kern.py").write_text(KERNEL.format(imports=f"from {root.name}.consts import X", value="X"))
+    (root / "sub" / "k2.py").write_text(KERNEL.format(imports=f"from {root.name} import kern", value=2))
+    (root / "lone.py").write_text(KERNEL.format(imports="", value=3))
+    (root / "report.py").write_text(f"from {root.name}.kern import f\n\ndef page():\n    return 'a'\n")
+    return {"kern": root / "__pycache__" / "kern.f-4.py311.nbi", "k2": root / "sub" / "__pycache__" / "k2.f-4.py311.1.nbc",
+            "lone": root / "__pycache__" / "lone.f-4.py311.nbi"}
+
+
+def _compiled(files):
+    for f in files.values():
+        f.parent.mkdir(parents=True, exist_ok=True)
+        f.write_text("compiled")
+
+
+def _kept(files):
+    return {name for name, f in files.items() if f.exists()}
+
+
+def test_numba_cache_dropped_for_the_kernels_whose_sources_changed(tmp_path, monkeypatch):
+    """A kernel file's cache goes when it or a file it imports (transitively) changes; an edit elsewhere (a
+    report, a docstring outside the kernels' imports) keeps every compiled kernel."""
     monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
-    (tmp_path / "mod.py").write_text("x = 1\n")
-    cache = tmp_path / "__pycache__"
-    cache.mkdir()
-    (cache / "mod.f-1.py311.nbi").write_text("stale")
-    invalidate_stale_numba_cache(tmp_path)
-    assert not (cache / "mod.f-1.py311.nbi").exists()
-    (cache / "mod.f-1.py311.nbi").write_text("fresh")
-    invalidate_stale_numba_cache(tmp_path)  # same sources: kept
-    assert (cache / "mod.f-1.py311.nbi").exists()
-    (tmp_path / "mod.py").write_text("x = 2\n")
-    invalidate_stale_numba_cache(tmp_path)  # edited: dropped
-    assert not (cache / "mod.f-1.py311.nbi").exists()
-    sub = tmp_path / "sub" / "__pycache__"  # a kernel in a subpackage that calls mod.py
-    sub.mkdir(parents=True)
-    (sub / "k.g-1.py311.nbc").write_text("compiled against x = 2")
-    invalidate_stale_numba_cache(tmp_path)
-    assert (sub / "k.g-1.py311.nbc").exists()
-    (tmp_path / "mod.py").write_text("x = 3\n")
-    invalidate_stale_numba_cache(tmp_path)  # an edit anywhere drops the caches everywhere
-    assert not (sub / "k.g-1.py311.nbc").exists()
+    pkg = tmp_path / "pkg"
+    files = _fake_package(pkg)
+    _compiled(files)
+    invalidate_stale_numba_cache(pkg)           # no stamp yet: nothing on disk can be trusted
+    assert _kept(files) == set()
+    _compiled(files)
+    invalidate_stale_numba_cache(pkg)           # same sources: kept
+    assert _kept(files) == {"kern", "k2", "lone"}
+    (pkg / "report.py").write_text((pkg / "report.py").read_text() + '"""A docstring."""\n')
+    invalidate_stale_numba_cache(pkg)           # a file no kernel imports: every kernel kept
+    assert _kept(files) == {"kern", "k2", "lone"}
+    (pkg / "consts.py").write_text("X = 2\n")
+    invalidate_stale_numba_cache(pkg)           # a constant two kernels see: both dropped, lone.py kept
+    assert _kept(files) == {"lone"}
+    _compiled(files)
+    invalidate_stale_numba_cache(pkg)
+    (pkg / "sub" / "k2.py").write_text((pkg / "sub" / "k2.py").read_text().replace("return 2", "return 5"))
+    invalidate_stale_numba_cache(pkg)           # the kernel itself: only its cache
+    assert _kept(files) == {"kern", "lone"}
+
+
+def test_the_simulation_kernels_depend_on_no_file_outside_the_simulation():
+    """fraytool's own graph: editing golden/, farm/, commands/ or the renderer's Python leaves every kernel of
+    sim/ and collision/ compiled (docs/testing.md "The kernel cache")."""
+    from fraytool._numba_cache import kernel_dependencies
+
+    package = Path(__file__).resolve().parent.parent / "fraytool"
+    deps = kernel_dependencies(package)
+    sim = {rel: d for rel, d in deps.items() if rel.startswith(("sim/", "collision/"))}
+    assert "sim/kernels/mesh_contact.py" in sim and "collision/ccd.py" in sim["sim/kernels/mesh_contact.py"]
+    outside = {dep for d in sim.values() for dep in d if not dep.startswith(("sim/", "collision/"))}
+    assert outside <= {"kinds.py", "grid.py"}, outside
 
 
 def test_numba_cache_in_numba_cache_dir_dropped_when_sources_change(tmp_path, monkeypatch):
@@ -417,7 +457,7 @@ def test_numba_cache_in_numba_cache_dir_dropped_when_sources_change(tmp_path, mo
     package = tmp_path / "pkg"
     (package / "sim" / "kernels").mkdir(parents=True)
     (package / "mod.py").write_text("x = 1\n")
-    (package / "sim" / "kernels" / "k.py").write_text("y = 1\n")
+    (package / "sim" / "kernels" / "k.py").write_text(KERNEL.format(imports="from pkg.mod import x", value="x"))
     user = tmp_path / "numba_cache"
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(user))
     folder = user / UserProvidedCacheLocator.get_suitable_cache_subpath(str(package / "sim" / "kernels" / "k.py"))
@@ -426,6 +466,9 @@ def test_numba_cache_in_numba_cache_dir_dropped_when_sources_change(tmp_path, mo
     folder.mkdir(parents=True)
     (folder / "k.f-1.py311.nbi").write_text("compiled")
     invalidate_stale_numba_cache(package)                 # same sources: kept, and not cold
+    assert (folder / "k.f-1.py311.nbi").exists() and not numba_cache.COLD
+    (package / "other.py").write_text("z = 1\n")         # a file no kernel imports: kept, not cold
+    invalidate_stale_numba_cache(package)
     assert (folder / "k.f-1.py311.nbi").exists() and not numba_cache.COLD
     (package / "mod.py").write_text("x = 2\n")           # a file its kernels may call
     invalidate_stale_numba_cache(package)

@@ -7,6 +7,8 @@ import pytest
 
 from fraytool.scene import schema
 
+pytestmark = pytest.mark.fast  # `pytest -m fast` (docs/testing.md)
+
 DOC = (Path(__file__).resolve().parent.parent / "docs" / "scene-format.md").read_text()
 
 

@@ -12,6 +12,9 @@ from pathlib import Path
 
 
 from helpers import small_scene_text
+import pytest
+
+pytestmark = pytest.mark.fast  # `pytest -m fast` (docs/testing.md)
 
 BASE = small_scene_text(frames=4, steps_per_frame=4, nx=10, ny=10) + """
 [cloth.tearing]

@@ -2,7 +2,10 @@
 12 flat arguments (grouped beyond that), and writes only to arguments named `*_out` / `*_inout`."""
 from pathlib import Path
 
+import pytest
 from kernel_convention import MAX_FLAT_ARGUMENTS, kernel_problems, package_problems
+
+pytestmark = pytest.mark.fast  # `pytest -m fast` (docs/testing.md)
 
 PACKAGE = Path(__file__).resolve().parent.parent / "fraytool"
 

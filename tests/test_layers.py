@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import ast
 from pathlib import Path
+import pytest
+
+pytestmark = pytest.mark.fast  # `pytest -m fast` (docs/testing.md)
 
 PACKAGE = Path(__file__).resolve().parents[1] / "fraytool"
 

@@ -5,6 +5,8 @@ from fraytool.commands.main import main
 from fraytool.scene import load_scene, parse_scene, scene_hash
 from helpers import BALL, small_scene_text
 
+pytestmark = pytest.mark.fast  # `pytest -m fast` (docs/testing.md)
+
 
 
 @pytest.fixture

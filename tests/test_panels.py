@@ -158,6 +158,23 @@ def test_hemmed_border_crossings_never_split_raw_ones_do():
             assert model.crossing_hemmed.sum() == border.sum()
 
 
+def test_a_hem_doubles_the_break_strain_of_the_yarn_segments_along_it_only():
+    """The same disc, raw and hemmed, draws the same break strains; the hem doubles those of the structural
+    springs with both ends on the border (the folded-over yarn), not those from the border inwards."""
+    from fraytool.kinds import STRUCT_WARP, STRUCT_WEFT
+
+    shape = f"outline_m = {toml_points(circle(0.04, 90))}"
+    raw, hemmed = panel(shape + '\nedge = "raw"'), panel(shape + '\nedge = "hemmed"')
+    border = (raw.crossing_weft_springs < 0).any(axis=1) | (raw.crossing_warp_springs < 0).any(axis=1)
+    a, b = raw.spring_crossing_a, raw.spring_crossing_b
+    structural = (raw.spring_kind == STRUCT_WEFT) | (raw.spring_kind == STRUCT_WARP)
+    along, inward = structural & border[a] & border[b], structural & (border[a] != border[b])
+    assert along.sum() > 20 and inward.sum() > 20
+    ratio = hemmed.spring_break_strain / raw.spring_break_strain
+    np.testing.assert_allclose(ratio[along], 2.0)
+    np.testing.assert_allclose(ratio[~along], 1.0)
+
+
 def test_yarn_pieces_of_a_round_panel_run_inside_it():
     """Untorn, every weft row and warp column of a disc is one piece from border to border, with clean
     (not frayed) ends."""

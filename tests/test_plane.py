@@ -6,6 +6,8 @@ import pytest
 from fraytool.scene import parse_scene
 from fraytool.sim.builder import build_model
 
+pytestmark = pytest.mark.fast  # `pytest -m fast` (docs/testing.md)
+
 SCENE = """
 [time]
 step_s = 0.0002

@@ -1,6 +1,9 @@
 """The README is read by newcomers in two minutes: short, no dated figures, every command named."""
 import re
 from pathlib import Path
+import pytest
+
+pytestmark = pytest.mark.fast  # `pytest -m fast` (docs/testing.md)
 
 ROOT = Path(__file__).resolve().parent.parent
 README = (ROOT / "README.md").read_text()

@@ -3,6 +3,9 @@ the scene differs from the golden's (by key and value, as the scene file writes 
 from fraytool.scene import load_scene, scene_hash
 from fraytool.scene.load import key_changes, simulation_keys
 from fraytool.scene.overrides import parse_assignment
+import pytest
+
+pytestmark = pytest.mark.fast  # `pytest -m fast` (docs/testing.md)
 
 
 def _load(name, *sets):

@@ -15,6 +15,9 @@ from fraytool.sim.stages import plan_syncs
 from fraytool.sim.stages.base import (COARSE_VIEWS, FORCES, HANGING, POSITIONS, SLAVED, SLAVED_NEAR_HOT,
                                       STALES_VIEWS, START_POSITIONS, StepContext)
 from fraytool.sim.state import State
+import pytest
+
+pytestmark = pytest.mark.fast  # `pytest -m fast` (docs/testing.md)
 
 ROOT = Path(__file__).resolve().parent.parent
 

@@ -89,6 +89,22 @@ def test_a_tear_map_sets_each_springs_mean_break_strain(tmp_path):
     np.testing.assert_allclose(model.spring_break_strain[right], 0.30)
 
 
+def test_a_tear_map_is_read_with_its_top_row_at_the_top_of_the_panel(tmp_path):
+    """An asymmetric map (top half white, bottom half black): the springs in the upper half of the cloth (large
+    v, the panel's top as the image shows it) get the white strain, those in the lower half the black one."""
+    img = np.zeros((16, 16), np.uint8)
+    img[:8, :] = 255
+    Image.fromarray(img).save(tmp_path / "map.png")
+    (tmp_path / "s.toml").write_text(scene(cloth='tear_map = "map.png"\ntear_map_strain = [0.15, 0.30]', spread=0.0))
+    model = build_model(load_scene(tmp_path / "s.toml"))
+    m = mids(model)
+    structural = (model.spring_kind == STRUCT_WEFT) | (model.spring_kind == STRUCT_WARP)
+    top, bottom = structural & (m[:, 1] > 7.6 * S), structural & (m[:, 1] < 7.4 * S)
+    assert top.sum() > 100 and bottom.sum() > 100
+    np.testing.assert_allclose(model.spring_break_strain[top], 0.30)
+    np.testing.assert_allclose(model.spring_break_strain[bottom], 0.15)
+
+
 @pytest.mark.parametrize("case,image,fragment", [
     ("wrong shape", (40, 10), "give an image of that shape"),
     ("not an image", None, "not an image"),
@@ -125,6 +141,22 @@ def test_scissors_cut_along_their_path_at_a_constant_speed_and_leave_clean_ends(
                          sim.state.spring_alive)
     assert not pieces.broken_start.any() and not pieces.broken_end.any()
     assert (pieces.kind == 0).sum() == 32  # every weft yarn in two pieces
+
+
+def test_scissors_cut_each_spring_in_the_step_that_reaches_it():
+    """Step by step: after the step ending at time T, the springs the scissors reach by T are cut and no
+    others (a cut one step late, or early, shows at some step)."""
+    extra = "[[cuts]]\npath_m = [[0.022, -0.002], [0.022, 0.062]]\nstart_s = 0.0\nend_s = 0.0039\n"
+    spec = parse_scene(scene(extra, frames=2), "c.toml")
+    sim = Simulation(spec)
+    weft = sim.model.weft_structural_spring[:, 5]
+    reach = 0.0039 * (np.arange(16) + 0.5) / 16  # none within 7e-6 s of a step's end: no rounding tie
+    dt = spec.time.step_s
+    steps = int(np.ceil(0.0039 / dt)) + 2
+    assert steps >= 18  # the cut crosses the yarns within a few steps each: a one-step slip shows
+    for k in range(1, steps + 1):
+        sim.step()
+        np.testing.assert_array_equal(~sim.state.spring_alive[weft], reach <= k * dt + 1e-12, err_msg=f"step {k}")
 
 
 def test_scissors_need_tearing_on():
