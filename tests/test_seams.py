@@ -151,6 +151,53 @@ def test_stitches_break_one_by_one_the_most_strained_first():
     assert stage.summary(state) == {"stitches": st.size, "broken_stitches": st.size}
 
 
+def test_stitches_take_the_seams_break_strain_stiffness_and_length():
+    """With no spread, every stitch's break strain is the seam's exactly, its stiffness the seam's and its rest
+    length the yarn spacing (stitch_length_m unset)."""
+    model = build_model(parse_scene(two_panels(seam(strain=0.2, k=40.0)), "p.toml"))
+    st = model.spring_kind == STITCH
+    assert st.sum() == 8
+    np.testing.assert_array_equal(model.spring_break_strain[st], 0.2)
+    np.testing.assert_array_equal(model.spring_base_stiffness_n_per_m[st], 40.0)
+    np.testing.assert_allclose(model.spring_rest_length_m[st], S, rtol=1e-15)
+
+
+@pytest.mark.parametrize("past", [0.002, -0.002])
+def test_a_stitch_breaks_as_soon_as_it_passes_its_break_strain(past):
+    """One stitch stretched to its break strain + 0.002 breaks in the next step; at - 0.002 it holds."""
+    spec = parse_scene(two_panels(seam(strain=0.2)), "p.toml")
+    sim = Simulation(spec)
+    state, model = sim.state, sim.model
+    st = np.flatnonzero(model.spring_kind == STITCH)
+    s = st[3]
+    a, b = model.spring_crossing_a[s], model.spring_crossing_b[s]
+    x = state.particle_position_m
+    direction = (x[b] - x[a]) / np.linalg.norm(x[b] - x[a])
+    x[b] = x[a] + (1.0 + 0.2 + past) * S * direction
+    stage = next(g for g in sim.solver._plan.stages if g.name == "seams")
+    stage.run(state, sim.solver.context, spec.time.step_s)
+    assert state.spring_alive[s] == (past < 0)
+    assert state.spring_alive[st].sum() == st.size - (past > 0)
+
+
+def test_a_seams_figures_name_its_first_and_last_break_frames():
+    from fraytool.sim.tear_control_figures import tear_control_figures, tracked_springs
+
+    spec = parse_scene(two_panels(seam(strain=0.2) + seam(sa=3, sb=1, strain=0.3)), "p.toml")
+    model = build_model(spec)
+    tracked = tracked_springs(model)
+    assert tracked.size == (model.spring_kind == STITCH).sum()
+    broken = np.zeros(model.spring_count, bool)
+    frames = np.full(tracked.size, -1)
+    first_seam = np.flatnonzero(model.spring_seam[tracked] == 0)
+    broken[tracked[first_seam[[1, 4, 6]]]] = True
+    frames[first_seam[[1, 4, 6]]] = [9, 3, 7]
+    figures = tear_control_figures(model, broken, frames, spec)
+    assert figures["seams"][0] == {"index": 0, "panels": ["a", "b"], "stitches": first_seam.size, "broken": 3,
+                                   "first_break_frame": 3, "last_break_frame": 9}
+    assert figures["seams"][1]["broken"] == 0 and figures["seams"][1]["first_break_frame"] is None
+
+
 def test_simulate_json_reports_stitches_and_broken_stitches(tmp_path):
     """Two panels pulled apart by bars on their outer edges: the weak seam opens (stitches break),
     and --json says how many of how many."""

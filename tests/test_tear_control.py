@@ -60,14 +60,19 @@ def mids(model):
     return 0.5 * (uv[model.spring_crossing_a] + uv[model.spring_crossing_b])
 
 
-def test_a_weak_line_scales_the_break_strain_of_the_springs_in_its_band_only():
+@pytest.mark.parametrize("width_m", [0.004, 0.0054])
+def test_a_weak_line_scales_the_break_strain_of_the_springs_in_its_band_only(width_m):
+    """The band is width_m wide about the line: 0.0054 puts a row of spring middles (0.00283 m off the diagonal)
+    just outside it, so a band 5 % wider would take them in."""
     plain = build_model(parse_scene(scene(), "a.toml"))
-    line = "[[weak_lines]]\npoints_m = [[0.0, 0.0], [0.06, 0.06]]\nwidth_m = 0.004\nfactor = 0.6\n"
+    line = f"[[weak_lines]]\npoints_m = [[0.0, 0.0], [0.06, 0.06]]\nwidth_m = {width_m}\nfactor = 0.6\n"
     weak = build_model(parse_scene(scene(line), "b.toml"))
     m = mids(plain)
     # distance to the diagonal u = v, computed here
     dist = np.abs(m[:, 0] - m[:, 1]) / np.sqrt(2.0)
-    inside = (dist <= 0.002) & (m[:, 0] <= 0.06) & (m[:, 1] <= 0.06)
+    inside = (dist <= 0.5 * width_m) & (m[:, 0] <= 0.06) & (m[:, 1] <= 0.06)
+    if width_m == 0.0054:
+        assert ((dist > 0.5 * width_m) & (dist <= 0.55 * width_m)).sum() > 20
     floor = 0.12 * 1.01
     expect = np.where(inside, np.maximum(plain.spring_break_strain * 0.6, floor), plain.spring_break_strain)
     np.testing.assert_allclose(weak.spring_break_strain, expect, rtol=1e-12)

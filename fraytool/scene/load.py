@@ -428,6 +428,11 @@ simulated by an older solver are neither resumed nor reused but simulated again.
 before the strain limit in scenes that tear (docs/tearing.md). (1, implicit: everything before.)"""
 
 
+MESH_REVISION = 2
+"""Part of scene_hash for scenes with a mesh body: raised when mesh contact changes their frames. 2: the
+friction's limit is the push over all passes (a mass's second pass no longer drops it)."""
+
+
 def scene_hash(spec: SceneSpec) -> str:
     """Stable digest of everything that affects the simulation (not camera/render/output), and of the
     solver revision (SIM_REVISION): the keys of simulation_keys."""
@@ -435,6 +440,8 @@ def scene_hash(spec: SceneSpec) -> str:
     if "panels" in d:
         d["panels"] = [[p.name for p in spec.all_panels], d["panels"]]  # seams and attachments name them
     d["sim_revision"] = SIM_REVISION
+    if any(b.shape == "mesh" for b in spec.bodies):
+        d["mesh_revision"] = MESH_REVISION
     blob = json.dumps(d, sort_keys=True, default=list).encode()
     return hashlib.sha256(blob).hexdigest()[:16]
 

@@ -80,35 +80,102 @@ def segments_cross(a0: np.ndarray, a1: np.ndarray, b0: np.ndarray, b1: np.ndarra
 
 
 def outline_problems(outline: np.ndarray) -> list:
-    """A polygon fit for a panel: at least 3 corners, no zero-length edge, no edge crossing another."""
+    """A polygon fit for a panel: at least 3 corners, no zero-length edge, no edge crossing another. The
+    crossing test bins the edges on a grid and tests only edges that share a cell (a pattern exported from a
+    CAD tool has thousands of points: benchmarks/outline_check.py times 2,000 and 20,000)."""
     k = outline.shape[0]
     if k < 3:
         return [("outline_m", outline.tolist(), "needs at least 3 points [u, v] (a polygon)")]
-    for e in range(k):
-        if np.array_equal(outline[e], outline[(e + 1) % k]):
-            return [("outline_m", f"[... {k} points]", f"points {e} and {(e + 1) % k} are equal (an edge of length 0)")]
-    for e in range(k):
-        for f in range(e + 2, k):
-            if e == 0 and f == k - 1:
-                continue  # neighbours through the closing edge
-            if segments_cross(outline[e], outline[(e + 1) % k], outline[f], outline[(f + 1) % k]):
-                return [("outline_m", f"[... {k} points]",
-                         f"edges {e} (points {e}-{(e + 1) % k}) and {f} (points {f}-{(f + 1) % k}) cross: a panel's "
-                         "outline must not cross itself")]
+    nxt = np.roll(outline, -1, axis=0)
+    same = np.flatnonzero((outline == nxt).all(axis=1))
+    if same.size:
+        e = int(same[0])
+        return [("outline_m", f"[... {k} points]", f"points {e} and {(e + 1) % k} are equal (an edge of length 0)")]
+    pair = first_crossing_edges(outline)
+    if pair is not None:
+        e, f = pair
+        return [("outline_m", f"[... {k} points]",
+                 f"edges {e} (points {e}-{(e + 1) % k}) and {f} (points {f}-{(f + 1) % k}) cross: a panel's "
+                 "outline must not cross itself")]
     return []
 
 
+def first_crossing_edges(outline: np.ndarray) -> Optional[tuple[int, int]]:
+    """The first pair (e, f), e < f, in that order, of non-neighbouring edges of the closed polygon that share a
+    point (as segments_cross), or None. Edges are binned by their bounding boxes on a grid of about k cells;
+    only pairs sharing a cell are tested, all at once."""
+    k = outline.shape[0]
+    a, b = outline, np.roll(outline, -1, axis=0)
+    lo, hi = np.minimum(a, b), np.maximum(a, b)
+    origin = outline.min(axis=0)
+    extent = np.maximum(outline.max(axis=0) - origin, 1e-300)
+    cells = max(1, int(math.sqrt(k)))
+    c0 = np.clip(np.floor((lo - origin) / extent * cells), 0, cells - 1).astype(np.int64)
+    c1 = np.clip(np.floor((hi - origin) / extent * cells), 0, cells - 1).astype(np.int64)
+    spans = (c1 - c0 + 1)
+    count = spans[:, 0] * spans[:, 1]
+    edge = np.repeat(np.arange(k), count)
+    local = np.arange(int(count.sum())) - np.repeat(np.cumsum(count) - count, count)
+    cx = c0[edge, 0] + local % spans[edge, 0]
+    cy = c0[edge, 1] + local // spans[edge, 0]
+    cell = cy * cells + cx
+    order = np.lexsort((edge, cell))
+    cell, edge = cell[order], edge[order]
+    starts = np.flatnonzero(np.r_[True, cell[1:] != cell[:-1]])
+    sizes = np.diff(np.r_[starts, cell.size])
+    pairs = []
+    for start, size in zip(starts[sizes > 1], sizes[sizes > 1]):
+        members = edge[start:start + size]
+        i, j = np.triu_indices(size, 1)
+        pairs.append(np.stack([members[i], members[j]], axis=1))
+    if not pairs:
+        return None
+    pairs = np.unique(np.sort(np.concatenate(pairs), axis=1), axis=0)
+    e, f = pairs[:, 0], pairs[:, 1]
+    keep = (f - e >= 2) & ~((e == 0) & (f == k - 1))  # neighbours share a corner by construction
+    e, f = e[keep], f[keep]
+    hit = _segments_cross_rows(a[e], b[e], a[f], b[f])
+    if not hit.any():
+        return None
+    first = np.lexsort((f[hit], e[hit]))[0]
+    return int(e[hit][first]), int(f[hit][first])
+
+
+def _segments_cross_rows(a0, a1, b0, b1) -> np.ndarray:
+    """segments_cross for rows of segments (N, 2 each), the same tests in the same arithmetic."""
+    def orient(p, q, r):
+        return (q[:, 0] - p[:, 0]) * (r[:, 1] - p[:, 1]) - (q[:, 1] - p[:, 1]) * (r[:, 0] - p[:, 0])
+
+    def on(p, q, r):
+        return ((np.minimum(p[:, 0], q[:, 0]) <= r[:, 0]) & (r[:, 0] <= np.maximum(p[:, 0], q[:, 0]))
+                & (np.minimum(p[:, 1], q[:, 1]) <= r[:, 1]) & (r[:, 1] <= np.maximum(p[:, 1], q[:, 1])))
+
+    d1, d2 = orient(b0, b1, a0), orient(b0, b1, a1)
+    d3, d4 = orient(a0, a1, b0), orient(a0, a1, b1)
+    proper = ((d1 > 0) != (d2 > 0)) & ((d3 > 0) != (d4 > 0)) & (d1 != 0) & (d2 != 0) & (d3 != 0) & (d4 != 0)
+    touch = (((d1 == 0) & on(b0, b1, a0)) | ((d2 == 0) & on(b0, b1, a1))
+             | ((d3 == 0) & on(a0, a1, b0)) | ((d4 == 0) & on(a0, a1, b1)))
+    return proper | touch
+
+
 def inside_polygon(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
-    """Even-odd test of points (N, 2) against a closed polygon (K, 2): True inside; shape (N,), bool."""
+    """Even-odd test of points (N, 2) against a closed polygon (K, 2): True inside; shape (N,), bool. Each
+    edge toggles only the points whose v it straddles (found by a sort), so the cost follows the points near
+    each edge's span, not K x N."""
     inside = np.zeros(points.shape[0], bool)
     x, y = points[:, 0], points[:, 1]
+    order = np.argsort(y, kind="stable")
+    ys = y[order]
     k = polygon.shape[0]
-    for e in range(k):
+    p0, p1 = polygon, np.roll(polygon, -1, axis=0)
+    ylo, yhi = np.minimum(p0[:, 1], p1[:, 1]), np.maximum(p0[:, 1], p1[:, 1])
+    first = np.searchsorted(ys, ylo, side="left")   # straddles: ylo <= y < yhi ((y0 > y) != (y1 > y))
+    last = np.searchsorted(ys, yhi, side="left")
+    for e in np.flatnonzero(last > first):
         (x0, y0), (x1, y1) = polygon[e], polygon[(e + 1) % k]
-        straddles = (y0 > y) != (y1 > y)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            xc = x0 + (y - y0) * (x1 - x0) / (y1 - y0)
-        inside ^= straddles & (x < xc)
+        sel = order[first[e]:last[e]]
+        xc = x0 + (y[sel] - y0) * (x1 - x0) / (y1 - y0)
+        inside[sel] ^= x[sel] < xc
     return inside
 
 

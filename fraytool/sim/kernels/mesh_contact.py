@@ -19,7 +19,11 @@ equally close triangles: Baerentzen & Aanaes 2005, "Signed distance computation 
 weighted pseudonormal", whose sign this choice reproduces); for an open mesh (two-sided) away from the
 surface on the mass's side. Up to PASSES passes per mass (a concave corner). Coulomb friction as for the
 analytic bodies (fraytool.sim.kernels.rigid_contact): on the mass's displacement relative to the
-surface point it touches, whose move over the step includes the animation's.
+surface point it touches, whose move over the step includes the animation's, limited by mu times the push
+over all passes (a second pass that moves a mass left a rounding error inside the margin must not take
+the first pass's push out of the friction: tests/test_mesh_magnitudes.py, the slope), along the deepest
+push's normal, less the other passes' pushes (in a concave corner the wall's push is no sliding along the
+floor).
 
 Yarn segments (`collide_mesh_segments`): a segment between two masses against the mesh's sharp edges
 (borders and creases, fraytool.meshes.SHARP_DEG), which can pass between two masses. Whether the edge
@@ -321,6 +325,7 @@ def _mesh_range(particles, lo, hi, m, frame, meshes_in, margin_m, particles_in, 
     tris = meshes_in.triangles
     l0 = np.empty(3)
     l1 = np.empty(3)
+    pass_normal = np.empty((PASSES, 3))
     hits = 0
     for i in range(lo, hi):
         p = particles[i]
@@ -335,17 +340,24 @@ def _mesh_range(particles, lo, hi, m, frame, meshes_in, margin_m, particles_in, 
                          max(l0[0], l1[0]) + pad, max(l0[1], l1[1]) + pad, max(l0[2], l1[2]) + pad):
             continue
         touched = False
-        nx = ny = nz = depth = 0.0
+        nx = ny = nz = depth = deepest = 0.0
         tri = -1
         w0 = w1 = w2 = 0.0
+        passes = 0
+        main_pass = 0
         for _ in range(PASSES):
             moved, x0, x1, x2, mx, my, mz, dd, tj, u0, u1, u2 = _resolve_point(m, meshes_in, l0, l1, margin_m,
                                                                                margin_m, stack_out)
             if not moved:
                 break
-            touched = True
             l1[0], l1[1], l1[2] = x0, x1, x2
-            nx, ny, nz, depth, tri, w0, w1, w2 = mx, my, mz, dd, tj, u0, u1, u2
+            if not touched or dd > deepest:  # the friction's normal and surface point: the deepest push's
+                nx, ny, nz, deepest, tri, w0, w1, w2 = mx, my, mz, dd, tj, u0, u1, u2
+                main_pass = passes
+            pass_normal[passes, 0], pass_normal[passes, 1], pass_normal[passes, 2] = mx, my, mz
+            passes += 1
+            touched = True
+            depth += max(dd, 0.0)  # the push over every pass: a later pass may move it a rounding error only
         if not touched:
             continue
         hits += 1
@@ -368,6 +380,16 @@ def _mesh_range(particles, lo, hi, m, frame, meshes_in, margin_m, particles_in, 
         rx = px - prev_position_m[p, 0] - mvx
         ry = py - prev_position_m[p, 1] - mvy
         rz = pz - prev_position_m[p, 2] - mvz
+        for q in range(passes):  # another face's push (a concave corner) is no sliding along this one
+            if q == main_pass:
+                continue
+            qx = rot[0, 0] * pass_normal[q, 0] + rot[0, 1] * pass_normal[q, 1] + rot[0, 2] * pass_normal[q, 2]
+            qy = rot[1, 0] * pass_normal[q, 0] + rot[1, 1] * pass_normal[q, 1] + rot[1, 2] * pass_normal[q, 2]
+            qz = rot[2, 0] * pass_normal[q, 0] + rot[2, 1] * pass_normal[q, 1] + rot[2, 2] * pass_normal[q, 2]
+            rq = rx * qx + ry * qy + rz * qz
+            rx -= rq * qx
+            ry -= rq * qy
+            rz -= rq * qz
         px, py, pz = coulomb_friction(px, py, pz, rx, ry, rz, gx, gy, gz, friction * max(depth, 0.0))
         particle_position_m_inout[p, 0] = px
         particle_position_m_inout[p, 1] = py
