@@ -65,7 +65,7 @@ CASES = {
     "orientation keys out of order": (_KINEMATIC + 'path_rotation_deg = [[0.1, 0.0, 0.0, 0.0], [0.05, 0.0, 90.0, 0.0]]\n',
                                       ["[bodies.0] path_rotation_deg", "times from 0 to 1e6 s and increasing"]),
     "zero quaternion": (_KINEMATIC + 'path_quaternion = [[0.0, 1.0, 0.0, 0.0, 0.0], [0.1, 0.0, 0.0, 0.0, 0.0]]\n',
-                        ["[bodies.0] path_quaternion", "quaternions (w, x, y, z) not all zero"]),
+                        ["[bodies.0] path_quaternion", "quaternions (w, x, y, z) of norm at least 1e-6"]),
     "quaternion key of 4 numbers": (_KINEMATIC + 'path_quaternion = [[0.0, 1.0, 0.0, 0.0]]\n',
                                     ["[bodies.0] path_quaternion", "[t, w, x, y, z]"]),
     "euler and quaternion keys": (_KINEMATIC + 'path_rotation_deg = [[0.0, 0.0, 0.0, 0.0]]\n'

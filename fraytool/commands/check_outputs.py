@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Optional
 
 from fraytool.errors import InputError
+from fraytool.files import not_a_regular_file
 from fraytool.io.frame_record import dead_writer, is_temp_name
 from fraytool.io.frame_store import FrameStore
 from fraytool.render.encode import png_settings
@@ -83,8 +84,12 @@ def folder_report(out_dir: Path, spec: Optional[SceneSpec]) -> dict:
                             f"(a run stopped at frame {complete}; `fraytool simulate --resume` finishes it)")
     png_dirs = sorted(d for d in out_dir.glob("png*") if d.is_dir())      # png/, png_wireframe/, png_beside/
     exr_dirs = sorted(d for d in out_dir.glob("exr*") if d.is_dir())
-    pngs = [p for d in png_dirs for p in sorted(d.glob("*.png"))]
-    exrs = [p for d in exr_dirs for p in sorted(d.glob("*.exr"))]
+    special = [(p, why) for d in (store.dir, *png_dirs, *exr_dirs, out_dir) if d.is_dir() for p in sorted(d.iterdir())
+               if not p.is_dir() for why in [not_a_regular_file(p)] if why is not None and why != "no such file"]
+    problems += [f"{p}: {why}" for p, why in special if not any(str(p) in line for line in problems)]
+    skip = {p for p, _ in special}
+    pngs = [p for d in png_dirs for p in sorted(d.glob("*.png")) if p not in skip]
+    exrs = [p for d in exr_dirs for p in sorted(d.glob("*.exr")) if p not in skip]
     problems += [f"{p}: damaged PNG (unreadable or a chunk CRC fails)" for p in pngs if png_settings(p) is None]
     for d in png_dirs:
         problems += mixed_png_sets(d)
@@ -95,7 +100,7 @@ def folder_report(out_dir: Path, spec: Optional[SceneSpec]) -> dict:
                      if exr_settings(p) is None]
     problems += [f"{p}: partial {suffix[1:].upper()} of a killed render (removed by the next render)"
                  for suffix in (".mp4", ".mov") for p in sorted(out_dir.glob(f".*.partial-*{suffix}"))]
-    videos = [p for suffix in (".mp4", ".mov") for p in sorted(out_dir.glob(f"*{suffix}"))]
+    videos = [p for suffix in (".mp4", ".mov") for p in sorted(out_dir.glob(f"*{suffix}")) if p not in skip]
     problems += [f"{p}: damaged video ({why})" for p in videos for why in [_video_problem(p)] if why]
     for folder in (store.dir, *png_dirs, *exr_dirs, out_dir):
         if folder.is_dir():
@@ -115,6 +120,8 @@ def png_header(path: Path) -> Optional[tuple[int, int, int, int]]:
     """(width, height, bit depth, channels) from a PNG's IHDR chunk, or None if it has none."""
     import struct
 
+    if not_a_regular_file(path) is not None:
+        return None
     try:
         with open(path, "rb") as f:
             head = f.read(29)

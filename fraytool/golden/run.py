@@ -47,8 +47,10 @@ def recorded_sets(golden_dir: Path, scene_name: str) -> list[str]:
     """The --set overrides a scene's golden was made with (its golden.json); [] without a readable golden."""
     import json
 
+    from fraytool.files import regular_files_only
+
     try:
-        meta = json.loads((Path(golden_dir) / scene_name / store.METADATA).read_text())
+        meta = json.loads(regular_files_only(Path(golden_dir) / scene_name / store.METADATA).read_text())
         sets = meta["settings"]["set"]
     except (OSError, ValueError, KeyError, TypeError):
         return []

@@ -61,22 +61,57 @@ def read(golden_dir: Path, spec: SceneSpec, command: str) -> tuple[dict, dict[in
     the command that makes it when it is missing or damaged."""
     from fraytool.render.png16 import read_png16
 
+    from fraytool.files import not_a_regular_file
+
     folder = scene_dir(golden_dir, spec)
+
+    def damaged(why: str) -> InputError:
+        return InputError(f"{folder}: the golden of scene {spec.name} is damaged ({why}); make it again with "
+                          f"`{command}`")
+
+    def readable(name: str) -> Path:
+        why = not_a_regular_file(folder / name)
+        if why == "no such file":
+            raise InputError(f"{folder}: no golden for scene {spec.name} ({name} missing): make it with `{command}`")
+        if why is not None:
+            raise damaged(f"{name}: {why}")
+        return folder / name
+
     try:
-        meta = json.loads((folder / METADATA).read_text())
-        frames = {}
-        for entry in meta["frames"]:
-            f = int(entry["frame"])
-            yarns = np.load(folder / f"yarns_{f:06d}.npz")
-            frames[f] = {"image": read_png16(folder / f"frame_{f:06d}.png")[..., :3], "points": yarns["points_m"],
-                         "offsets": yarns["offsets"], "torn_springs": int(entry["torn_springs"])}
-    except FileNotFoundError as exc:
-        raise InputError(f"{folder}: no golden for scene {spec.name} ({Path(exc.filename).name} missing): make it "
-                         f"with `{command}`") from None
-    except (OSError, ValueError, KeyError) as exc:
-        raise InputError(f"{folder}: the golden of scene {spec.name} is damaged ({type(exc).__name__}: {exc}); "
-                         f"make it again with `{command}`") from None
+        meta = json.loads(readable(METADATA).read_text())
+    except (OSError, ValueError, UnicodeDecodeError) as exc:
+        raise damaged(f"{METADATA}: {type(exc).__name__}: {str(exc)[:120]}") from None
+    entries = meta.get("frames") if isinstance(meta, dict) else None
+    if not isinstance(entries, list) or not entries or not all(
+            isinstance(e, dict) and _is_int(e.get("frame")) and _is_int(e.get("torn_springs")) for e in entries):
+        raise damaged(f"{METADATA}: not a golden's metadata (a `frames` list of {{frame, torn_springs}} integers)")
+    frames = {}
+    for entry in entries:
+        f = entry["frame"]
+        if not 0 <= f < spec.time.frames:
+            raise damaged(f"{METADATA} lists frame {f}, outside the scene's frames 0..{spec.time.frames - 1}")
+        try:
+            with np.load(readable(f"yarns_{f:06d}.npz"), allow_pickle=False) as yarns:
+                points, offsets = np.asarray(yarns["points_m"]), np.asarray(yarns["offsets"])
+            image = read_png16(readable(f"frame_{f:06d}.png"))
+        except InputError:
+            raise
+        except Exception as exc:  # zipfile, PNG and format errors of a damaged or foreign file: one line
+            raise damaged(f"frame {f}: {type(exc).__name__}: {str(exc)[:120]}") from None
+        if points.ndim != 2 or points.shape[1] != 3 or not np.issubdtype(points.dtype, np.floating) \
+                or offsets.ndim != 1 or not np.issubdtype(offsets.dtype, np.integer) or offsets.size < 1 \
+                or offsets[0] != 0 or offsets[-1] != len(points) or (np.diff(offsets) < 0).any():
+            raise damaged(f"yarns_{f:06d}.npz: points_m {points.shape} {points.dtype} and offsets {offsets.shape} "
+                          f"{offsets.dtype} are not yarn pieces")
+        if image.ndim != 3 or image.shape[2] not in (3, 4):
+            raise damaged(f"frame_{f:06d}.png: {image.shape} is not an RGB image")
+        frames[f] = {"image": image[..., :3], "points": points, "offsets": offsets,
+                     "torn_springs": int(entry["torn_springs"])}
     return meta, frames
+
+
+def _is_int(value) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
 
 
 def settings_differences(meta: dict, spec: SceneSpec, sets: list[str], renderer: str) -> list[str]:

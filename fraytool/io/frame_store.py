@@ -26,6 +26,8 @@ from typing import Optional
 
 import numpy as np
 
+from fraytool.files import not_a_regular_file, regular_files_only
+
 from fraytool import __version__
 from fraytool.errors import OutputError
 from fraytool.io.failure import LAST_GOOD_STATE, UNSTABLE_JSON
@@ -77,6 +79,9 @@ def load_verified(path: Path, scene_hash: Optional[str]) -> dict[str, np.ndarray
     """The arrays of a checksummed .npz (without `scene_hash` and `checksum`); DamagedFile if it is
     missing, unreadable, fails its checksum, or (scene_hash given) belongs to another scene."""
     path = Path(path)
+    why = not_a_regular_file(path)
+    if why is not None and why != "no such file":
+        raise DamagedFile(path, why)
     try:
         with np.load(path, allow_pickle=False) as data:
             arrays = {k: data[k] for k in data.files}
@@ -134,7 +139,7 @@ class FrameStore:
     def manifest(self) -> Optional[dict]:
         """The manifest if it parses and its checksum holds, else None."""
         try:
-            data = json.loads((self.dir / MANIFEST).read_text())
+            data = json.loads(regular_files_only(self.dir / MANIFEST).read_text())
         except (OSError, ValueError):
             return None
         if not isinstance(data, dict) or data.get("checksum") != _manifest_checksum(data):
@@ -149,6 +154,9 @@ class FrameStore:
         path = self.dir / MANIFEST
         if not path.exists():
             return f"{path}: missing"
+        why = not_a_regular_file(path)
+        if why is not None:
+            return f"{path}: {why}"
         try:
             data = json.loads(path.read_text())
         except (OSError, ValueError) as exc:
@@ -170,7 +178,7 @@ class FrameStore:
         for p in self.dir.iterdir():
             if p.name == MANIFEST:
                 try:
-                    json.loads(p.read_text())
+                    json.loads(regular_files_only(p).read_text())
                     return False  # valid JSON, not ours
                 except (OSError, ValueError):
                     continue  # a damaged manifest of ours

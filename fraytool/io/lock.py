@@ -62,6 +62,13 @@ def pid_alive(pid: int) -> bool:
 
 
 def _read(path: Path) -> Optional[dict]:
+    from fraytool.files import not_a_regular_file
+
+    why = not_a_regular_file(path)
+    if why == "no such file":
+        return None
+    if why is not None:
+        return {}  # a lock that is no lock: someone else's file
     try:
         data = json.loads(path.read_text())
         return data if isinstance(data, dict) else {}

@@ -68,6 +68,10 @@ def write_png(path: Path, image: np.ndarray, settings_digest: str = "") -> None:
 
 def png_settings(path: Path) -> Optional[tuple[str, tuple[int, int]]]:
     """(settings digest, (width, height)) of a PNG written by write_png, or None if unreadable."""
+    from fraytool.files import is_regular_file
+
+    if not is_regular_file(path):
+        return None
     try:
         with Image.open(path) as img:
             img.verify()  # chunk CRCs: a damaged PNG is drawn again, never reused

@@ -63,7 +63,7 @@ class Key:
             "path_deg": "an array of [t, rx, ry, rz] arrays of finite numbers, times from 0 to 1e6 s and "
                         "increasing, angles [degrees]",
             "path_quat": "an array of [t, w, x, y, z] arrays of finite numbers, times from 0 to 1e6 s and "
-                         "increasing, quaternions (w, x, y, z) not all zero",
+                         "increasing, quaternions (w, x, y, z) of norm at least 1e-6",
             "table2d": "equal-length rows of the integers 0 and 1 (not true / false)",
         }[self.kind]
         bounds = []
@@ -186,7 +186,7 @@ class Key:
             if not all(math.isfinite(v) for v in rows[-1]) or rows[-1][0] > PATH_MAX_TIME_S \
                     or any(abs(v) > self.hi for v in rows[-1][1:] if self.hi is not None):
                 return False, None
-            if self.kind == "path_quat" and not any(rows[-1][1:]):
+            if self.kind == "path_quat" and not math.hypot(*rows[-1][1:]) >= MIN_QUATERNION_NORM:
                 return False, None
         times = [r[0] for r in rows]
         if any(b <= a for a, b in zip(times, times[1:])) or any(t < 0 for t in times):
@@ -211,6 +211,9 @@ def keys_of(cls: type) -> dict[str, Key]:
 
 PATH_MAX_TIME_S = 1.0e6
 """Latest keyframe time of a path [s]."""
+MIN_QUATERNION_NORM = 1e-6
+"""Smallest norm of an orientation key (w, x, y, z) before it is normalised: a key of norm 1e-200 squares
+to 0 and would turn the body into NaN."""
 PATH_WIDTHS = {"path": 4, "path_deg": 4, "path_quat": 5}
 """Numbers per key of each path kind: the time, then a position, Euler angles or a quaternion."""
 

@@ -243,6 +243,7 @@ def _panel(where: str, c: dict, springs: dict, strain: StrainSpec, tear: Tearing
     shape_rules = rules.cloth_shape_problems(cloth.warp_yarns, cloth.weft_yarns, cloth.outline_m, cloth.mask,
                                              cloth.mask_size_m, cloth.grain_deg)
     problems.extend(where, shape_rules)
+    problems.extend(where, rules.wrap_problems(cloth.spacing_m, cloth.wrap_radius_m))
     if not shape_rules:
         problems.extend(where, panel_shape.shape_problems(cloth, scene_file))
     grid = panel_shape.grid_size(cloth, scene_file) if not shape_rules else None

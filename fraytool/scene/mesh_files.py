@@ -110,11 +110,18 @@ def file_problems(file: str, prim: str, scene_file: str) -> list[tuple[str, str,
         return [("file", file, problem)]
     try:
         files = sequence_files(path) if is_sequence(path) else [path]
+    except OSError as exc:  # a name over 255 bytes, a folder that cannot be listed
+        return [("file", file[:80] + ("..." if len(file) > 80 else ""), f"cannot be read: {exc.strerror}")]
     except MeshFileError as exc:
         return [("file", file, str(exc).split(": ", 1)[1])]
+    from fraytool.files import not_a_regular_file
+
     for f in files:
-        if not f.is_file():
+        why = not_a_regular_file(f)
+        if why == "no such file":
             return [("file", file, f"not found ({f})")]
+        if why is not None:
+            return [("file", file, f"cannot read {f.name[:60]}{'...' if len(f.name) > 60 else ''}: {why}")]
         try:
             with open(f, "rb") as handle:
                 handle.read(1)
@@ -247,7 +254,10 @@ def _read_usd(path: Path, prim_path: str) -> tuple[np.ndarray, list[np.ndarray],
     times = samples if samples else [Usd.TimeCode.Default()]
     keys = []
     for t in times:
-        p = np.asarray(points.Get(t), np.float64).reshape(-1, 3)
+        value = points.Get(t)
+        if value is None or len(value) == 0:
+            raise MeshFileError(f"{path}: {prim_path} has no points" + (f" at time sample {t}" if samples else ""))
+        p = np.asarray(value, np.float64).reshape(-1, 3)
         m = np.asarray(xformable.ComputeLocalToWorldTransform(t), np.float64)  # row vectors: p' = [p 1] M
         keys.append(metres * (p @ m[:3, :3] + m[3, :3]))
     if any(k.shape != keys[0].shape for k in keys):

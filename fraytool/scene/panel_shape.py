@@ -22,6 +22,9 @@ from typing import Optional
 
 import numpy as np
 
+MAX_IMAGE_PIXELS = 64_000_000
+"""Largest mask or tear map, in pixels (8000 x 8000): more than any panel's crossings (MAX_GRID); a header
+claiming more is refused before its pixels are decoded."""
 MIN_CROSSINGS = 4
 """Fewest crossings of a shaped panel: one cell of 2 x 2."""
 MAX_GRID = 4096
@@ -184,19 +187,49 @@ def read_grey(path: Path, key: str) -> np.ndarray:
     not an image."""
     from PIL import Image, UnidentifiedImageError
 
+    from fraytool.files import not_a_regular_file
+
+    why = not_a_regular_file(path)
+    if why == "no such file":
+        raise PanelShapeError([(key, str(path), "no such file (relative to the scene file)")])
+    if why is not None:
+        raise PanelShapeError([(key, str(path), f"{why}: give a greyscale PNG")])
     try:
-        with Image.open(path) as im:
+        with _image_header_first(Image), Image.open(path) as im:
+            width, height = im.size
+            if width * height > MAX_IMAGE_PIXELS:
+                raise PanelShapeError([(key, str(path), f"its header claims {width} x {height} pixels, more than "
+                                                        f"{MAX_IMAGE_PIXELS:,} (a panel needs no more than one per "
+                                                        "crossing)")])
             im.load()
             a = np.asarray(im.convert("F"), dtype=np.float64)
             peak = 65535.0 if im.mode.startswith("I") else 255.0
+    except PanelShapeError:
+        raise
     except FileNotFoundError:
         raise PanelShapeError([(key, str(path), "no such file (relative to the scene file)")]) from None
-    except (UnidentifiedImageError, OSError, ValueError) as exc:
+    except (UnidentifiedImageError, OSError, ValueError, Image.DecompressionBombError, EOFError) as exc:
         raise PanelShapeError([(key, str(path), f"not an image PIL can read ({type(exc).__name__}); give a "
                                                 "greyscale PNG")]) from None
     if a.size == 0 or min(a.shape) < 1:
         raise PanelShapeError([(key, str(path), "an empty image")])
     return np.clip(a / peak, 0.0, 1.0)
+
+
+class _image_header_first:
+    """Open an image with PIL's decompression-bomb check off, so that read_grey sees the size its header claims
+    and refuses it by name (MAX_IMAGE_PIXELS) before any pixel is decoded."""
+
+    def __init__(self, image_module):
+        self.image = image_module
+
+    def __enter__(self):
+        self.saved = self.image.MAX_IMAGE_PIXELS
+        self.image.MAX_IMAGE_PIXELS = None
+
+    def __exit__(self, *exc):
+        self.image.MAX_IMAGE_PIXELS = self.saved
+        return False
 
 
 def resolve(file: str, scene_file: str) -> Path:

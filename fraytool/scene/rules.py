@@ -44,6 +44,15 @@ def cloth_problems(spacing_m: float, thickness_m: float) -> list[Problem]:
     return []
 
 
+def wrap_problems(spacing_m: float, wrap_radius_m: float) -> list[Problem]:
+    """[cloth] wrap_radius_m: a cylinder at least four yarn spacings round (neighbouring crossings a quarter
+    turn apart at most); tighter, neighbours fold onto each other (one full turn puts them on one point)."""
+    if 0.0 < wrap_radius_m < spacing_m * 2.0 / math.pi:
+        return [("wrap_radius_m", wrap_radius_m, f"must be 0 (flat) or at least {spacing_m * 2.0 / math.pi:.6g} "
+                                                 f"(2 spacing_m / pi: four crossings round the cylinder)")]
+    return []
+
+
 def cloth_shape_problems(warp_yarns: int, weft_yarns: int, outline_m, mask: str, mask_size_m,
                          grain_deg: float) -> list[Problem]:
     """[cloth]: a rectangle of warp_yarns x weft_yarns, or a shape (outline_m or mask) that sets the grid."""

@@ -305,6 +305,7 @@ class ModelBuilder:
         v = self._check(method, {**_CLOTH, **_SPRINGS}, args)
         table, problems = rules.weave_table(v["weave"], v["twill"], v["satin_shafts"], v["table"])
         self._raise(method, problems + rules.cloth_problems(v["spacing_m"], v["thickness_m"])
+                    + rules.wrap_problems(v["spacing_m"], v["wrap_radius_m"])
                     + rules.cloth_shape_problems(v["warp_yarns"], v["weft_yarns"], v["outline_m"], v["mask"],
                                                  v["mask_size_m"], v["grain_deg"])
                     + rules.tear_map_problems(v["tear_map"], v["tear_map_strain"]))

@@ -24,13 +24,53 @@ TEARING_BYTES_PER_CROSSING = 1400
 """Extra for tearing at yarn level and self-collision (measured about 950 B more), with margin."""
 
 
+BYTES_PER_STITCH = 200
+"""A stitch's spring slot in the Model and State (about a structural spring's), with margin."""
+BYTES_PER_STITCH_CANDIDATE = 64
+"""Placing the stitches (fraytool.sim.seam_layout.stitch_pairs) measures every stitch point against every
+crossing beside its edge: three float64 (N, C, 2) temporaries and their norms, per point and candidate."""
+
+
 def estimate_bytes(spec: SceneSpec) -> int:
-    """Peak resident memory [bytes] a simulation of `spec` is expected to need."""
-    crossings = crossing_count(spec.cloth, spec.source_file)
+    """Peak resident memory [bytes] a simulation of `spec` is expected to need: every panel's crossings, the
+    seams' stitches (and placing them) and the mesh bodies."""
+    crossings = sum(crossing_count(panel, spec.source_file) for panel in spec.all_panels)
     per = BYTES_PER_CROSSING
     if spec.cloth.tearing.enabled or spec.self_collision.enabled:
         per += TEARING_BYTES_PER_CROSSING
-    return BASE_BYTES + crossings * per + mesh_bytes(spec)
+    return BASE_BYTES + crossings * per + mesh_bytes(spec) + sum(seam_bytes(spec).values())
+
+
+def seam_bytes(spec: SceneSpec) -> dict[int, int]:
+    """Memory each [[seams]] entry needs [bytes]: its stitches (the edge's length over stitch_spacing_m) and
+    placing them (each stitch point against the crossings beside the edge)."""
+    from fraytool.sim.seam_layout import SEAM_REACH_SPACINGS
+
+    out = {}
+    names = [p.name for p in spec.all_panels]
+    for k, seam in enumerate(spec.seams):
+        if seam.panel_a not in names:
+            continue  # loading says so
+        length_m = _edge_length_m(spec.all_panels[names.index(seam.panel_a)], seam.segment_a)
+        spacing_m = spec.cloth.spacing_m
+        stitches = length_m / max(seam.stitch_spacing_m, 1e-300) + 1.0
+        beside = (length_m / spacing_m + 1.0) * (2.0 * SEAM_REACH_SPACINGS + 1.0)
+        out[k] = int(min(stitches * (BYTES_PER_STITCH + BYTES_PER_STITCH_CANDIDATE * beside), 2.0**62))
+    return out
+
+
+def _edge_length_m(cloth, segment: int) -> float:
+    """Length [m] of a panel's outline segment (a rectangle's corners, outline_m or the mask's rectangle)."""
+    if cloth.outline_m:
+        corners = [tuple(p) for p in cloth.outline_m]
+    else:
+        w, h = (cloth.mask_size_m if cloth.mask else
+                ((cloth.warp_yarns - 1) * cloth.spacing_m, (cloth.weft_yarns - 1) * cloth.spacing_m))
+        corners = [(0.0, 0.0), (w, 0.0), (w, h), (0.0, h)]
+    if not corners:
+        return 0.0
+    a, b = corners[segment % len(corners)], corners[(segment + 1) % len(corners)]
+    return float(((a[0] - b[0]) ** 2 + (a[1] - b[1]) ** 2) ** 0.5)
 
 
 def crossing_count(cloth, scene_file: str = "") -> int:
@@ -90,6 +130,18 @@ def memory_problem(spec: SceneSpec) -> Optional[str]:
         return None
     c = spec.cloth
     meshes = mesh_bytes(spec)
+    seams = seam_bytes(spec)
+    if seams and max(seams.values()) > need // 2:
+        k = max(seams, key=seams.get)
+        return (f"{spec.source}: [seams.{k}] stitch_spacing_m = {spec.seams[k].stitch_spacing_m:g}: its stitches need "
+                f"about {gib(seams[k])} and the whole simulation about {gib(need)}; this machine has {gib(have)} "
+                "available; space the stitches further apart (about the yarn spacing), or pass --force to try anyway")
+    if len(spec.all_panels) > 1:
+        sizes = [crossing_count(p, spec.source_file) for p in spec.all_panels]
+        big = max(range(len(sizes)), key=sizes.__getitem__)
+        return (f"{spec.source}: [cloth.{big}] ({spec.all_panels[big].name or 'the panel'}, {sizes[big]} crossings of "
+                f"{sum(sizes)} in {len(sizes)} panels): the simulation needs about {gib(need)} and this machine has "
+                f"{gib(have)} available; use smaller panels, or pass --force to try anyway")
     if meshes > need // 2:
         return (f"{spec.source}: [bodies] mesh files: the meshes need about {gib(meshes)} and the whole simulation "
                 f"about {gib(need)}; this machine has {gib(have)} available; use a coarser mesh, "

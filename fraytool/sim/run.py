@@ -51,7 +51,11 @@ def check_step(spec: SceneSpec, model: Model, stream=None) -> float:
             raise SceneError([msg])
         print(f"fraytool: warning: {msg}", file=stream or sys.stderr)
     from fraytool.sim.attachment_warnings import empty_attachment_warnings
-    from fraytool.sim.seam_layout import seam_start_warnings
+    from fraytool.sim.seam_layout import seam_start_errors, seam_start_warnings
+
+    errors = seam_start_errors(spec, model)
+    if errors:
+        raise SceneError(errors)
     from fraytool.sim.mesh_report import open_mesh_warnings
     from fraytool.sim.units import mesh_scale_warnings
 
@@ -97,11 +101,13 @@ def simulate_to_disk(spec: SceneSpec, out_dir: Path, frames: Optional[int] = Non
     files are reported on `stream`, and the run continues from the checkpoint when it follows the
     last good frame, else from frame 0 (deterministic: frames that verify are not rewritten)."""
     stream = stream or sys.stderr
+    built = build_model(spec) if model is None else model
+    check_step(spec, built, stream)  # bad input (SceneError) before anything is written
     with OutputLock(out_dir, "simulate"):
         store = FrameStore(out_dir)
         for p in store.sweep_temp_files():
             print(f"fraytool: removed {p} (a temp file of a write that was killed)", file=stream)
-        return _simulate_locked(spec, store, frames, resume, progress, stream, model, digest)
+        return _simulate_locked(spec, store, frames, resume, progress, stream, model, digest, built)
 
 
 def _store_info(spec: SceneSpec, model: Model, total: int) -> dict:
@@ -145,10 +151,9 @@ def _resume_point(spec: SceneSpec, model: Model, store: FrameStore, digest: str,
 
 def _simulate_locked(spec: SceneSpec, store: FrameStore, frames: Optional[int], resume: bool,
                      progress: Optional[bool], stream, given: Optional[Model] = None,
-                     digest: Optional[str] = None) -> dict:
+                     digest: Optional[str] = None, built: Optional[Model] = None) -> dict:
     total = spec.time.frames if frames is None else frames
-    model = build_model(spec) if given is None else given
-    check_step(spec, model, stream)
+    model = built if built is not None else (build_model(spec) if given is None else given)
     digest = digest or shot_hash(spec, given)
     topology = shot_topology(spec, model)
     point = _resume_point(spec, model, store, digest, total, stream, topology) if resume else None

@@ -69,6 +69,37 @@ def border_crossings(crossing_weft_springs: np.ndarray, crossing_warp_springs: n
     return (np.asarray(crossing_weft_springs) < 0).any(axis=1) | (np.asarray(crossing_warp_springs) < 0).any(axis=1)
 
 
+MAX_START_STRETCH = 100.0
+"""A stitch that starts longer than this many times its rest length is refused: the panels lie too far apart
+to be joined by a spring (its first pull would fling the edges away: an unstable run)."""
+
+
+def seam_start_errors(spec, model) -> list[str]:
+    """One line per [[seams]] entry whose stitches start, at the panels' rest positions, longer than
+    MAX_START_STRETCH x their rest length: the panels are placed too far apart to sew (Model.spring_seam
+    says which stitches are whose)."""
+    seam_of = np.asarray(model.spring_seam)
+    if not seam_of.size:
+        return []
+    rest = np.asarray(model.crossing_rest_position_m, dtype=np.float64)
+    a, b = np.asarray(model.spring_crossing_a), np.asarray(model.spring_crossing_b)
+    out = []
+    for s, seam in enumerate(getattr(spec, "seams", ())):
+        mine = np.flatnonzero(seam_of == s)
+        if not mine.size:
+            continue
+        length_m = np.linalg.norm(rest[b[mine]] - rest[a[mine]], axis=1)
+        rest_m = np.asarray(model.spring_rest_length_m)[mine]
+        worst = int(np.argmax(length_m / rest_m))
+        if length_m[worst] > MAX_START_STRETCH * rest_m[worst]:
+            out.append(f"{spec.source}: [seams.{s}] panel {seam.panel_a!r} segment {seam.segment_a} to panel "
+                       f"{seam.panel_b!r} segment {seam.segment_b}: a stitch starts {length_m[worst]:.4g} m long, "
+                       f"{length_m[worst] / rest_m[worst]:.0f} times its {1e3 * rest_m[worst]:.3g} mm: the panels are "
+                       f"placed too far apart to sew (at most {MAX_START_STRETCH:g} times); place the edges together "
+                       "(origin_m, rotation_deg, wrap_radius_m)")
+    return out
+
+
 def seam_start_warnings(spec, model) -> list[str]:
     """One line per [[seams]] entry some of whose stitches start, at the panels' rest positions, longer than
     rest length x (1 + their own break strain): they break in the first steps."""
