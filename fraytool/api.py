@@ -18,7 +18,7 @@ FOLDER --usd`), with the same checks; errors are raised (fraytool.errors), not t
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Optional, Sequence
+from typing import Optional
 
 from fraytool.scene import SceneSpec
 from fraytool.sim.model import Model
@@ -36,20 +36,28 @@ def simulate(spec: SceneSpec, out_dir: str | Path, *, model: Optional[Model] = N
 
 def render(target: str | Path, *, out_dir: Optional[str | Path] = None, frames: Optional[str] = None,
            png: bool = False, video: bool = True, exr: bool = False, motion_blur: float = 0.0,
-           motion_samples: Optional[int] = None, options: Sequence[str] = ()) -> Path:
+           motion_samples: Optional[int] = None, **more) -> Path:
     """Render a shot folder (or a scene file or shipped scene's name) as `fraytool render` does; returns the
     output folder. `frames` is a range "START:END[:STEP]"; `motion_blur` and `motion_samples` are
-    --motion-blur and --motion-samples (0: no blur); `options` are more of the command's flags, e.g.
-    ("--resolution", "640x360", "--alpha")."""
-    from fraytool.commands.render import render_command
+    --motion-blur and --motion-samples (0: no blur); `more` are the other fields of
+    fraytool.render.options.RenderRequest, e.g. resolution=(640, 360), alpha=True, samples=0, fov=30.
+    The values are checked as the command line's are (InputError naming the flag)."""
+    import dataclasses
 
-    argv = ["render", str(target)] + _common(out_dir, frames) + (["--png"] if png else []) \
-        + ([] if video else ["--no-mp4"]) + (["--exr"] if exr else []) \
-        + (["--motion-blur", str(motion_blur)] if motion_blur else []) \
-        + (["--motion-samples", str(motion_samples)] if motion_samples is not None else []) + list(options)
-    args = _parse(argv)
-    render_command(args)
-    return _out_dir(args)
+    from fraytool.commands.render import render as render_shot
+    from fraytool.errors import InputError
+    from fraytool.render.options import RenderRequest
+
+    known = {f.name for f in dataclasses.fields(RenderRequest)} - {"out"}
+    unknown = sorted(set(more) - known)
+    if unknown:
+        raise InputError(f"fraytool.api.render: unknown option {', '.join(unknown)}; allowed: {', '.join(sorted(known))}")
+    request = RenderRequest(out=str(out_dir) if out_dir is not None else None, frames=frames, png=png, video=video,
+                            exr=exr, motion_blur=motion_blur or None, motion_samples=motion_samples, **more)
+    render_shot(str(target), request)
+    from fraytool.commands.target import load_target
+
+    return load_target(str(target), request.sets).output_dir(request.out)
 
 
 def export_usd(target: str | Path, usd_path: str | Path, *, out_dir: Optional[str | Path] = None,
@@ -76,8 +84,5 @@ def _parse(argv: list[str]):
     except SystemExit:
         raise InputError(f"fraytool.api: bad arguments for `fraytool {' '.join(argv)}` (see the message above)") from None
 
-
-def _out_dir(args) -> Path:
-    from fraytool.commands.target import load_target
 
     return load_target(args.scene, args.sets or ()).output_dir(args.out)

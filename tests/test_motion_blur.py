@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -235,11 +234,10 @@ def test_sub_frame_rotations_are_slerped():
     assert np.allclose(interpolate_rotation(about_z(170), about_z(-170), 0.5), about_z(180), atol=1e-9)  # short way
 
 
-def _args(**kw) -> SimpleNamespace:
-    base = dict(png=True, no_mp4=True, resolution=None, samples=None, camera_position=None, camera_target=None,
-                fov=None, frames=None, motion_blur=None, motion_samples=None)
-    base.update(kw)
-    return SimpleNamespace(**base)
+def _args(**kw):
+    from fraytool.render.options import RenderRequest
+
+    return RenderRequest(png=True, video=False, **kw)
 
 
 def test_the_python_api_renders_with_motion_blur(ball, tmp_path):
@@ -247,7 +245,7 @@ def test_the_python_api_renders_with_motion_blur(ball, tmp_path):
 
     scene, _ = ball
     out = api.render(scene, out_dir=tmp_path / "api", frames="1:2", png=True, video=False, motion_blur=0.5,
-                     motion_samples=SAMPLES, options=("--alpha",))
+                     motion_samples=SAMPLES, alpha=True)
     streak = SPEED_M_S * 0.5 * FRAME_S * PIXELS_PER_M
     assert extent_px(centre_row(png(out, 1)), 0.5 / SAMPLES) == pytest.approx(
         2 * RADIUS_M * PIXELS_PER_M + streak, abs=1.0)

@@ -127,7 +127,7 @@ def test_the_python_api_renders_and_exports_a_folder(tmp_path):
     out = tmp_path / "api"
     api.simulate(spec, out, model=model, progress=False)
     path.unlink()
-    assert api.render(out, png=True, video=False, options=("--resolution", "160x120")) == out
+    assert api.render(out, png=True, video=False, resolution=(160, 120)) == out
     assert sorted(p.name for p in (out / "png").iterdir()) == [f"frame_{k:06d}.png" for k in range(4)]
     usd = api.export_usd(out, tmp_path / "api.usda")
     stage = Usd.Stage.Open(str(usd))
@@ -185,7 +185,7 @@ def test_the_readme_python_example_runs(tmp_path):
     assert 'load_scene("fig7_square_grab")' in block and "model=model" in block
     code = block.replace('load_scene("fig7_square_grab")', 'load_scene("fig7_square_grab", [("time.frames", 3)])') \
         .replace('api.render("outputs/weak_line", png=True)',
-                 'api.render("outputs/weak_line", png=True, options=("--resolution", "160x90"))')
+                 'api.render("outputs/weak_line", png=True, resolution=(160, 90))')
     pytest.importorskip("pxr")
     r = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stderr

@@ -16,6 +16,7 @@ from fraytool.io.frame_store import FrameStore
 from fraytool.io.lock import OutputLock
 from fraytool.render.job import build_job
 from fraytool.render.motion_blur import frames_needed
+from fraytool.render.options import RenderRequest
 from fraytool.scene import SceneSpec
 from fraytool.sim.model import Model
 
@@ -110,30 +111,37 @@ def _on_sigterm(signum, frame):  # pragma: no cover - exercised through a subpro
 
 
 def render_command(args, stream: Optional[TextIO] = None) -> int:
+    """`fraytool render` from its parsed command line."""
+    return render(args.scene, RenderRequest.from_args(args), stream)
+
+
+def render(scene: str, request: RenderRequest, stream: Optional[TextIO] = None) -> int:
+    """Render `scene` (a scene file, a shipped scene's name or a shot's folder) as `request` asks; 0 on
+    success (InputError, RunError otherwise). SIGTERM cleans up as Ctrl-C does (in the main thread)."""
     import signal
     import threading
 
     if threading.current_thread() is not threading.main_thread():
-        return _render(args, stream)
+        return _render(scene, request, stream)
     previous = signal.signal(signal.SIGTERM, _on_sigterm)
     try:
-        return _render(args, stream)
+        return _render(scene, request, stream)
     finally:
         signal.signal(signal.SIGTERM, previous)
 
 
-def _render(args, stream: Optional[TextIO]) -> int:
+def _render(scene: str, args: RenderRequest, stream: Optional[TextIO]) -> int:
     stream = stream or sys.stderr
-    target = load_target(args.scene, getattr(args, "sets", None) or (), force=bool(getattr(args, "force", False)))
+    target = load_target(scene, args.sets, force=args.force)
     spec = target.spec
-    job = build_job(spec, args, target.output_dir(getattr(args, "out", None)), shot_folder=target.out_dir is not None)
+    job = build_job(spec, args, target.output_dir(args.out), shot_folder=target.out_dir is not None)
     if job.exr:
         try:
             import OpenEXR  # noqa: F401  (a dependency of fraytool; missing only in a broken installation)
         except ImportError:
             raise RunError('--exr needs the OpenEXR package, which is not installed: pip install "openexr>=3.2" '
                            '(or reinstall fraytool)') from None
-    if job.codec == "prores" and not getattr(args, "alpha", False):
+    if job.codec == "prores" and not args.alpha:
         print("fraytool: --codec prores: ProRes 4444 carries alpha, so the background is transparent (as with "
               "--alpha, for the PNGs and EXRs too)", file=stream)
     from fraytool.render.context import create_context, describe
@@ -141,7 +149,7 @@ def _render(args, stream: Optional[TextIO]) -> int:
 
     ctx = create_context()
     try:
-        if getattr(args, "verbose", False):
+        if args.verbose:
             print(describe(ctx), file=stream)
             print(f"MSAA samples: {clamp_samples(ctx, job.samples)} (asked {job.samples})"
                   + (f"; supersampled {job.spec.render.supersample} x {job.spec.render.supersample}"

@@ -78,20 +78,18 @@ def load_shot(shot: Shot):
 
 def render_job_for(shot: Shot, out_dir: Path, frames: FrameRange):
     """The RenderJob `fraytool render` would make for this shot (PNG on), restricted to `frames`."""
-    from types import SimpleNamespace
-
     from fraytool.render.job import build_job
+    from fraytool.render.options import RenderRequest
 
     spec = load_shot(shot)
     r = shot.render
     prores = r.codec == "prores"
-    args = SimpleNamespace(png=True, no_mp4=False, out=str(out_dir), frames=r.frames,
-                           resolution=f"{r.resolution[0]}x{r.resolution[1]}" if r.resolution else None,
-                           samples=r.samples, camera_position=None, camera_target=None, fov=None,
-                           wireframe=r.wireframe, alpha=bool(r.alpha), depth=16 if prores else r.depth,
-                           exr=bool(r.exr), codec=r.codec or "h264", fit=bool(r.fit),
-                           motion_blur=r.motion_blur, motion_samples=r.motion_samples, supersample=r.supersample)
-    job = build_job(spec, args, out_dir)
+    request = RenderRequest(png=True, video=True, out=str(out_dir), frames=r.frames, resolution=r.resolution,
+                            samples=r.samples, wireframe=r.wireframe, alpha=bool(r.alpha),
+                            depth=16 if prores else r.depth, exr=bool(r.exr), codec=r.codec or "h264",
+                            fit=bool(r.fit), motion_blur=r.motion_blur, motion_samples=r.motion_samples,
+                            supersample=r.supersample)
+    job = build_job(spec, request, out_dir)
     return job, replace(job, frames=frames)
 
 

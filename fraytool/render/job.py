@@ -32,6 +32,7 @@ from fraytool.render.encode import VIDEO_SUFFIX
 from fraytool.render.motion_blur import MotionBlur, motion_blur_from
 from fraytool.render.options import (
     FrameRange,
+    RenderRequest,
     check_fov,
     check_samples,
     check_supersample,
@@ -186,6 +187,11 @@ def with_overrides(spec: SceneSpec, *, resolution=None, samples=None, camera_pos
     return dataclasses.replace(spec, camera=cam, render=render)
 
 
+def _text(vector) -> str:
+    """A camera vector as --camera-position gives it ("X,Y,Z"), from text or 3 numbers."""
+    return vector if isinstance(vector, str) else ",".join(repr(float(v)) for v in vector)
+
+
 def parse_depth(value) -> int:
     """--depth: 8 or 16 (bits per channel of the PNGs)."""
     if str(value).strip() in ("8", "16"):
@@ -193,19 +199,18 @@ def parse_depth(value) -> int:
     raise InputError(f"--depth {value!r}: expected 8 or 16 (bits per channel of the PNGs)")
 
 
-def build_job(spec: SceneSpec, args, out: Path, shot_folder: bool = False) -> RenderJob:
-    """Validate the `fraytool render` flags (an argparse namespace: png, no_mp4, resolution, samples,
-    camera_position, camera_target, fov, frames, wireframe, alpha, depth, exr, codec, motion_blur,
-    motion_samples; missing ones take their defaults) against the scene and resolve them into a RenderJob writing to `out`
-    (`shot_folder`: the scene is a simulated shot's, fixed; an error's hint then says so)."""
-    png = bool(getattr(args, "png", False)) or spec.output.png
-    video = spec.output.mp4 and not getattr(args, "no_mp4", False)
-    exr = bool(getattr(args, "exr", False))
-    codec = getattr(args, "codec", None) or "h264"
+def build_job(spec: SceneSpec, args: RenderRequest, out: Path, shot_folder: bool = False) -> RenderJob:
+    """Check the render options (fraytool.render.options.RenderRequest) against the scene, the one place
+    they are checked, and resolve them into a RenderJob writing to `out` (`shot_folder`: the scene is a
+    simulated shot's, fixed; an error's hint then says so)."""
+    png = args.png or spec.output.png
+    video = spec.output.mp4 and args.video
+    exr = args.exr
+    codec = args.codec or "h264"
     if codec not in VIDEO_SUFFIX:
         raise InputError(f"--codec {codec!r}: expected one of {', '.join(VIDEO_SUFFIX)}")
-    png_bits = parse_depth(getattr(args, "depth", None) or 8)
-    blur = motion_blur_from(getattr(args, "motion_blur", None), getattr(args, "motion_samples", None))
+    png_bits = parse_depth(args.depth or 8)
+    blur = motion_blur_from(args.motion_blur, args.motion_samples)
     if codec == "prores" and not video:
         raise InputError("--codec prores chooses the video codec, but no video is written (--no-mp4, or the "
                          "scene's [output] mp4 = false): drop one of them")
@@ -215,19 +220,22 @@ def build_job(spec: SceneSpec, args, out: Path, shot_folder: bool = False) -> Re
         raise InputError("--depth 16 sets the bit depth of the PNG sequence, and no PNGs are written: add --png"
                          + ("" if exr else " (or use --exr for float frames)"))
     h264 = video and codec == "h264"
-    resolution = parse_resolution(args.resolution, need_even=h264) if args.resolution else None
+    size = args.resolution
+    if isinstance(size, (tuple, list)):
+        size = "x".join(str(v) for v in size)
+    resolution = parse_resolution(size, need_even=h264) if size else None
     if resolution is None and h264:
         w, h = spec.render.resolution
         if w % 2 or h % 2:
             raise InputError(f"{spec.source}: [render] resolution = [{w}, {h}]: the MP4 (H.264, yuv420p) needs "
                              "an even width and height; fix the scene, pass --resolution WxH, or write PNGs or "
                              "EXRs only (--no-mp4) or ProRes (--codec prores)")
-    position = parse_vec3("--camera-position", args.camera_position) if args.camera_position else None
-    target = parse_vec3("--camera-target", args.camera_target) if args.camera_target else None
+    position = parse_vec3("--camera-position", _text(args.camera_position)) if args.camera_position else None
+    target = parse_vec3("--camera-target", _text(args.camera_target)) if args.camera_target else None
     spec = with_overrides(spec, resolution=resolution, samples=check_samples(args.samples),
-                          supersample=check_supersample(getattr(args, "supersample", None)),
+                          supersample=check_supersample(args.supersample),
                           camera_position=position, camera_target=target, fov=check_fov(args.fov),
-                          fit=bool(getattr(args, "fit", False)))
+                          fit=args.fit)
     if args.frames:
         frames, ranged = parse_frame_range(args.frames, spec.time.frames, shot_folder), True
     else:
@@ -240,7 +248,7 @@ def build_job(spec: SceneSpec, args, out: Path, shot_folder: bool = False) -> Re
         where = ", ".join(f for f, v in (("--camera-position", position), ("--camera-target", target)) if v)
         raise InputError(f"{where or spec.source + ': [camera]'}: {exc}") from None
     # ProRes 4444 carries alpha, which is what it is for: --codec prores renders a transparent background
-    alpha = bool(getattr(args, "alpha", False)) or codec == "prores"
+    alpha = args.alpha or codec == "prores"
     return RenderJob(spec=spec, out_dir=out, frames=frames, ranged=ranged,
-                     wireframe=getattr(args, "wireframe", None) or "off", png=png, video=video, alpha=alpha,
+                     wireframe=args.wireframe or "off", png=png, video=video, alpha=alpha,
                      png_bits=png_bits, exr=exr, codec=codec, motion_blur=blur)

@@ -14,6 +14,54 @@ MAX_SIDE = 8192
 
 
 @dataclass(frozen=True)
+class RenderRequest:
+    """What a render is asked for, beyond the scene: the `fraytool render` flags as one typed record. The
+    command line (`from_args`), fraytool.api.render and the farm's tasks (from a shot's
+    fraytool.farm.shots.RenderOptions) each make one; build_job
+    (fraytool.render.job) checks it against the scene, once, and resolves it into a RenderJob. None: the
+    scene's own setting. Values are as the flags give them (resolution "WxH" or (w, h), numbers or text)."""
+
+    out: Optional[str] = None
+    """Output folder (-o); None: the shot's folder or outputs/<scene>/."""
+    frames: Optional[str] = None
+    """START:END[:STEP], END exclusive; None: every frame."""
+    resolution: object = None
+    samples: Optional[int] = None
+    supersample: object = None
+    png: bool = False
+    depth: object = None
+    """Bits per channel of the PNGs: 8 or 16 (None: 8)."""
+    exr: bool = False
+    video: bool = True
+    """False: --no-mp4."""
+    codec: Optional[str] = None
+    alpha: bool = False
+    wireframe: Optional[str] = None
+    motion_blur: object = None
+    motion_samples: object = None
+    camera_position: object = None
+    """"X,Y,Z" or 3 numbers (--camera-position)."""
+    camera_target: object = None
+    fov: Optional[float] = None
+    fit: bool = False
+    verbose: bool = False
+    force: bool = False
+    sets: tuple = ()
+    """--set KEY=VALUE overrides of the scene file."""
+
+    @classmethod
+    def from_args(cls, args) -> "RenderRequest":
+        """The options of a parsed `fraytool render` command line (an argparse namespace)."""
+        return cls(out=args.out, frames=args.frames, resolution=args.resolution, samples=args.samples,
+                   supersample=args.supersample, png=bool(args.png), depth=args.depth, exr=bool(args.exr),
+                   video=not args.no_mp4, codec=args.codec, alpha=bool(args.alpha), wireframe=args.wireframe,
+                   motion_blur=args.motion_blur, motion_samples=args.motion_samples,
+                   camera_position=args.camera_position, camera_target=args.camera_target, fov=args.fov,
+                   fit=bool(args.fit), verbose=bool(args.verbose), force=bool(args.force),
+                   sets=tuple(args.sets or ()))
+
+
+@dataclass(frozen=True)
 class FrameRange:
     start: int
     end: int
