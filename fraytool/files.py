@@ -29,6 +29,16 @@ def not_a_regular_file(path: str | os.PathLike) -> Optional[str]:
     return f"not a regular file but {KINDS.get(stat.S_IFMT(mode), 'a special file')}"
 
 
+def scene_path(file: str, scene_file: str) -> Path:
+    """A file named by a scene (a mesh, a mask, a tear map): `~` expanded; absolute as given; else relative
+    to the folder of `scene_file` (SceneSpec.source_file), or to the working folder when there is none. The
+    one rule for every file a scene names."""
+    p = Path(file).expanduser()
+    if p.is_absolute():
+        return p
+    return (Path(scene_file).parent if scene_file else Path.cwd()) / p
+
+
 def is_regular_file(path: str | os.PathLike) -> bool:
     return not_a_regular_file(path) is None
 

@@ -21,7 +21,7 @@ from fraytool.collision.ccd import DELTA_REL
 from fraytool.collision.cubic import coplanarity_bernstein, cubic_range
 from fraytool.collision.interval import round_down, round_up
 from ccd_queries import load_ccd_query_dir
-from fraytool.collision.segment import segment_closest_params_rows
+from fraytool.geometry.segments import segment_closest_params_rows
 
 DATA_DIR = Path(__file__).parent / "data" / "ccd-sample-queries"
 QUERY_COUNT = 1324
@@ -437,14 +437,15 @@ def test_numba_cache_dropped_for_the_kernels_whose_sources_changed(tmp_path, mon
 
 def test_the_simulation_kernels_depend_on_no_file_outside_the_simulation():
     """fraytool's own graph: editing golden/, farm/, commands/ or the renderer's Python leaves every kernel of
-    sim/ and collision/ compiled (docs/testing.md "The kernel cache")."""
+    sim/ and collision/ compiled (docs/testing.md "The kernel cache"): they see only sim/, collision/,
+    geometry/ and kinds.py."""
     from fraytool._numba_cache import kernel_dependencies
 
     package = Path(__file__).resolve().parent.parent / "fraytool"
     deps = kernel_dependencies(package)
     sim = {rel: d for rel, d in deps.items() if rel.startswith(("sim/", "collision/"))}
     assert "sim/kernels/mesh_contact.py" in sim and "collision/ccd.py" in sim["sim/kernels/mesh_contact.py"]
-    outside = {dep for d in sim.values() for dep in d if not dep.startswith(("sim/", "collision/"))}
+    outside = {dep for d in sim.values() for dep in d if not dep.startswith(("sim/", "collision/", "geometry/"))}
     assert outside <= {"kinds.py", "grid.py"}, outside
 
 

@@ -20,7 +20,7 @@ LAYER = {
     "collision": 2, "io": 2,
     "scene": 1,
     # leaf modules: import nothing of fraytool but other leaves
-    "kinds": 0, "errors": 0, "grid": 0, "progress": 0, "resources": 0, "resident_memory": 0, "_numba_cache": 0, "files": 0,
+    "kinds": 0, "errors": 0, "grid": 0, "progress": 0, "resources": 0, "resident_memory": 0, "_numba_cache": 0, "files": 0, "geometry": 0,
     "threads": 0, "meshes": 0, "rotation": 0, "": 0,
 }
 """Layer of each top-level package or module of fraytool (higher imports lower, never the reverse)."""

@@ -242,7 +242,7 @@ def test_self_collision_leaves_touching_yarns_at_the_contact_distance():
     yarns stay a thickness apart centre to centre between layers, CONTACT_FRACTION = 0.5 of it between
     segments). fold_pile folds its cloth over itself: at the end of a frame no two yarn segments that
     share no mass are closer than the contact distance, and some pair is right at it (they touch)."""
-    from fraytool.collision.segment import segment_closest_params
+    from fraytool.geometry.segments import segment_closest_params
     from fraytool.scene import load_scene
     from fraytool.sim.simulation import Simulation
     from fraytool.sim.stages.self_collision import CONTACT_FRACTION

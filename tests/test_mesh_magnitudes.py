@@ -12,26 +12,21 @@ import pytest
 from fraytool.meshes import SHARP_DEG
 from fraytool.scene.mesh_files import MeshFileError, read_asset, sharp_edges
 from fraytool.sim.builder import ModelBuilder
-from fraytool.sim.solver import SolverExplicitPBD
 
 pytestmark = pytest.mark.fast
 
-THICKNESS = 0.0008
+from test_mesh_bodies import THICKNESS  # noqa: E402  (the mesh tests' cloth and stepping)
+from test_mesh_bodies import _cloth as _mesh_cloth  # noqa: E402
+from test_mesh_bodies import _run as _mesh_run  # noqa: E402
 
 
 def _cloth(builder, n=8, spacing=0.004, y=0.0):
-    half = 0.5 * (n - 1) * spacing
-    builder.add_cloth(warp_yarns=n, weft_yarns=n, spacing_m=spacing, thickness_m=THICKNESS,
-                      mass_per_crossing_kg=2e-5, structural_n_per_m=20.0, origin_m=(-half, y, -half))
+    _mesh_cloth(builder, n=n, spacing=spacing, y=y)
 
 
 def _run(model, steps, dt=2e-4):
-    state = model.state()
-    solver = SolverExplicitPBD(model)
-    for _ in range(steps):
-        solver.step(state, dt)
-    solver.complete(state, dt)
-    return state.particle_position_m[:model.crossing_count]
+    """The crossings' positions after `steps` steps."""
+    return _mesh_run(model, steps, dt).particle_position_m[:model.crossing_count]
 
 
 SHEET_V = np.array([[-0.1, 0, -0.1], [0.1, 0, -0.1], [0.1, 0, 0.1], [-0.1, 0, 0.1]], float)

@@ -15,7 +15,7 @@ from fraytool.sim.kernels.bodies import bodies_in
 from fraytool.sim.kernels.rigid_contact import surface_distances
 from fraytool.sim.record import frame_record
 from fraytool.sim.rigid import kinematic_orientation, kinematic_position
-from fraytool.sim.paths import quat_to_matrix
+from fraytool.geometry.rotations import quat_to_matrix
 from helpers import small_scene_text
 
 STEP_S = 4e-4

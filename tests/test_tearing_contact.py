@@ -8,7 +8,7 @@ from fraytool.grid import crossing_normals
 from fraytool.scene import parse_scene
 from fraytool.sim.builder import build_model
 from fraytool.sim.tearing import YarnTearing, topology_problems
-from fraytool.collision.segment import segment_closest_params
+from fraytool.geometry.segments import segment_closest_params
 from fraytool.sim.tearing.contact import crossing_pair_correction
 from tearing_reference import (assert_named_close, closest_points_reference,
                                             project_couples_reference, state_dict)

@@ -83,7 +83,7 @@ from fraytool.collision.interval import (
     round_down,
     round_up,
 )
-from fraytool.collision.segment import segment_closest_params_rows
+from fraytool.geometry.segments import segment_closest_params_rows
 
 DELTA_REL = 1e-6
 """Spatial tolerance of a hit relative to the largest |coordinate|: a hit means the segments come

@@ -34,7 +34,7 @@ import numba as nb
 import numpy as np
 
 from fraytool.collision.ccd import DELTA_REL, edge_edge_ccd_kernel
-from fraytool.collision.segment import segment_closest_params_rows
+from fraytool.geometry.segments import segment_closest_params_rows
 
 SEPARATION_REL = 2.0**-40
 """Relative separation above which the CCD pre-test skips a pair: far above the few ulps of the

@@ -49,14 +49,13 @@ import numpy as np
 
 from fraytool import __version__
 from fraytool.errors import InputError, RunError
-from fraytool.rotation import quaternion_wxyz
+from fraytool.geometry.rotations import quaternion_wxyz, rotation_from_y
 from fraytool.export.usd_camera import define_camera
 from fraytool.export.velocities import (FrameSource, Stencil, body_velocities, mesh_vertex_velocities,
                                         yarn_point_velocities)
 from fraytool.io.frame_record import FrameRecord
 from fraytool.kinds import SHAPE_BOX, SHAPE_MESH, SHAPE_PLANE, SHAPE_SPHERE
 from fraytool.meshes import MeshTable
-from fraytool.render.bodies import rotation_from_y
 from fraytool.render.color import srgb_to_linear
 from fraytool.render.encode import partial_path, remove_stale_partials
 from fraytool.render.geometry import YarnStyle, yarn_curves

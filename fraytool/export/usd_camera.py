@@ -19,7 +19,7 @@ from typing import Sequence
 
 import numpy as np
 
-from fraytool.rotation import quaternion_wxyz
+from fraytool.geometry.rotations import quaternion_wxyz
 from fraytool.render.camera import Camera
 from fraytool.scene.spec import CameraSpec
 

@@ -27,7 +27,7 @@ from typing import Callable, Iterable, Mapping, Sequence
 
 import numpy as np
 
-from fraytool.rotation import rotation_vector
+from fraytool.geometry.rotations import rotation_vector
 from fraytool.io.frame_record import FrameRecord
 from fraytool.meshes import MeshTable
 from fraytool.render.yarns import yarn_pieces

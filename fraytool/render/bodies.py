@@ -13,6 +13,8 @@ from typing import Mapping
 
 import numpy as np
 
+from fraytool.geometry.rotations import rotation_from_y
+
 from fraytool.kinds import SHAPE_BOX, SHAPE_MESH, SHAPE_PLANE, SHAPE_SPHERE
 from fraytool.meshes import MeshTable, vertex_normals
 
@@ -63,17 +65,6 @@ def unit_quad() -> UnitMesh:
     p = np.array([[-1, 0, -1], [-1, 0, 1], [1, 0, 1], [1, 0, -1]], dtype=np.float32)
     n = np.tile(np.array([0, 1, 0], dtype=np.float32), (4, 1))
     return UnitMesh(np.concatenate([p, n], axis=1), np.array([0, 1, 2, 0, 2, 3], dtype=np.uint32))
-
-
-def rotation_from_y(normal: np.ndarray) -> np.ndarray:
-    """A rotation taking +y to the unit vector `normal`."""
-    n = np.asarray(normal, dtype=np.float64)
-    n = n / np.linalg.norm(n)
-    helper = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 0.0, 1.0])
-    x = np.cross(n, helper)
-    x /= np.linalg.norm(x)
-    z = np.cross(x, n)
-    return np.stack([x, n, z], axis=1)
 
 
 @dataclass(frozen=True)

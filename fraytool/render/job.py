@@ -50,9 +50,9 @@ PASS_SUFFIX = {"off": "", "only": "_wireframe", "beside": "_beside"}
 RENDER_REVISION = 3
 """A hand-kept revision of the renderer; its code and shaders are hashed by themselves (renderer_code_digest)."""
 
-RENDERER_MODULES = ("render", "grid.py", "kinds.py", "meshes.py", "rotation.py")
+RENDERER_MODULES = ("render", "grid.py", "kinds.py", "meshes.py", "geometry")
 """What the renderer's pixels are computed by, under the fraytool package: the render package and the
-leaf modules it draws with (rotation.py: the quaternions motion blur turns bodies by)."""
+leaf modules it draws with (geometry: the quaternions motion blur turns bodies by)."""
 
 
 def renderer_code_digest(package_dir: Path | None = None) -> str:

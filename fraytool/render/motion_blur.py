@@ -25,7 +25,7 @@ from typing import Callable, Optional
 import numpy as np
 
 from fraytool.errors import InputError
-from fraytool.rotation import quaternion_wxyz
+from fraytool.geometry.rotations import quaternion_wxyz
 from fraytool.io.frame_record import FrameRecord
 
 SHUTTER_RANGE = (0.0, 1.0)

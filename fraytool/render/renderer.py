@@ -47,7 +47,8 @@ import moderngl
 import numpy as np
 
 from fraytool.meshes import MeshTable
-from fraytool.render.bodies import BodySet, mesh_draw_vertices, rotation_from_y, unit_cube, unit_quad, unit_sphere
+from fraytool.geometry.rotations import rotation_from_y
+from fraytool.render.bodies import BodySet, mesh_draw_vertices, unit_cube, unit_quad, unit_sphere
 from fraytool.render.camera import Camera, gl_matrix_bytes
 from fraytool.render.color import (
     WIREFRAME_BASE_SRGB,

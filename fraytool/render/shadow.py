@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from fraytool.kinds import SHAPE_BOX, SHAPE_SPHERE
-from fraytool.render.bodies import rotation_from_y
+from fraytool.geometry.rotations import rotation_from_y
 
 MARGIN_TEXELS = 4
 """Empty texels kept around the casters, so the PCF footprint at their edge reads cleared depth."""

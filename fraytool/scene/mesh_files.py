@@ -23,6 +23,8 @@ from typing import Optional
 
 import numpy as np
 
+from fraytool.files import scene_path
+
 MESH_SUFFIXES = (".obj", ".ply", ".stl", ".gltf", ".glb")
 USD_SUFFIXES = (".usd", ".usda", ".usdc", ".usdz")
 BYTES_PER_FILE_BYTE = 16
@@ -50,13 +52,8 @@ class MeshAsset:
     """(E, 2) int32: border edges of an open mesh and edges whose faces turn by more than SHARP_DEG."""
 
 
-def resolve(file: str, scene_file: str) -> Path:
-    """The mesh file named in a scene: relative to the folder of `scene_file` (SceneSpec.source_file; the
-    working folder when "") or as given if absolute."""
-    p = Path(file).expanduser()
-    if p.is_absolute():
-        return p
-    return (Path(scene_file).parent if scene_file else Path.cwd()) / p
+resolve = scene_path
+"""The file a mesh body names (fraytool.files.scene_path: the one rule for a scene's files)."""
 
 
 def is_sequence(path: Path) -> bool:

@@ -22,6 +22,8 @@ from typing import Optional
 
 import numpy as np
 
+from fraytool.files import scene_path
+
 MAX_IMAGE_PIXELS = 64_000_000
 """Largest mask or tear map, in pixels (8000 x 8000): more than any panel's crossings (MAX_GRID); a header
 claiming more is refused before its pixels are decoded."""
@@ -232,12 +234,8 @@ class _image_header_first:
         return False
 
 
-def resolve(file: str, scene_file: str) -> Path:
-    """A file named by a scene: relative to the scene file's folder (or the working folder)."""
-    p = Path(file)
-    if p.is_absolute() or not scene_file:
-        return p
-    return Path(scene_file).parent / p
+resolve = scene_path
+"""The image a panel names (fraytool.files.scene_path: the one rule for a scene's files)."""
 
 
 def panel_shape(cloth, scene_file: str = "") -> PanelShape:

@@ -52,7 +52,8 @@ from fraytool.scene.spec import (
 from fraytool.scene.panel_shape import (PanelShapeError, crossing_fraction_along, distance_to_polyline, panel_shape,
                                        sample_map, tear_map_image)
 from fraytool.sim.model import Model
-from fraytool.sim.paths import orientation_keys, quat_to_matrix
+from fraytool.geometry.rotations import euler_rotation, quat_to_matrix
+from fraytool.sim.paths import orientation_keys
 from fraytool.sim.seam_layout import border_crossings, stitch_pairs
 
 Vec3 = tuple[float, float, float]
@@ -93,16 +94,6 @@ def _unit(v) -> np.ndarray:
 def crossing_index(i: int | np.ndarray, j: int | np.ndarray, warp_yarns: int):
     """Crossing of warp yarn i and weft yarn j."""
     return j * warp_yarns + i
-
-
-def euler_rotation(deg: tuple[float, float, float]) -> np.ndarray:
-    """Rotation matrix R = Rz @ Ry @ Rx from x, y, z Euler angles in degrees."""
-    ax, ay, az = (math.radians(d) for d in deg)
-    cx, sx, cy, sy, cz, sz = math.cos(ax), math.sin(ax), math.cos(ay), math.sin(ay), math.cos(az), math.sin(az)
-    rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
-    ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
-    rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
-    return rz @ ry @ rx
 
 
 def select_crossings(att: AttachmentSpec, nx: int, ny: int, rest: np.ndarray,

@@ -39,65 +39,11 @@ from typing import Callable, Sequence
 
 import numpy as np
 
+from fraytool.geometry.rotations import (quat_conjugate, quat_exp, quat_from_euler_deg, quat_log,  # noqa: F401
+                                          quat_multiply, quat_to_matrix, slerp)
 from fraytool.kinds import INTERPOLATION_NAMES
 
 LINEAR, CATMULL_ROM = INTERPOLATION_NAMES
-
-
-# --- quaternions (w, x, y, z), Hamilton product ------------------------------------------------------
-
-def quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Hamilton product a b: the rotation b, then a."""
-    aw, ax, ay, az = a
-    bw, bx, by, bz = b
-    return np.array([aw * bw - ax * bx - ay * by - az * bz,
-                     aw * bx + ax * bw + ay * bz - az * by,
-                     aw * by - ax * bz + ay * bw + az * bx,
-                     aw * bz + ax * by - ay * bx + az * bw])
-
-
-def quat_conjugate(q: np.ndarray) -> np.ndarray:
-    """q* = (w, -x, -y, -z), the inverse of a unit quaternion."""
-    return np.array([q[0], -q[1], -q[2], -q[3]])
-
-
-def quat_log(q: np.ndarray) -> np.ndarray:
-    """log q of a unit quaternion: the vector (theta / 2) axis, for q = (cos theta/2, sin theta/2 axis)."""
-    v = np.asarray(q[1:], float)
-    s = float(np.linalg.norm(v))
-    if s < 1e-300:
-        return np.zeros(3)
-    return math.atan2(s, float(q[0])) * v / s
-
-
-def quat_exp(v: np.ndarray) -> np.ndarray:
-    """exp of the pure quaternion (0, v): (cos |v|, sin |v| v / |v|), a unit quaternion."""
-    half = float(np.linalg.norm(v))
-    if half < 1e-300:
-        return np.array([1.0, 0.0, 0.0, 0.0])
-    return np.concatenate([[math.cos(half)], math.sin(half) * np.asarray(v, float) / half])
-
-
-def slerp(a: np.ndarray, b: np.ndarray, u: float) -> np.ndarray:
-    """Spherical linear interpolation a (a* b)^u = a exp(u log(a* b)) (Shoemake 1985); u outside [0, 1]
-    extrapolates along the same great circle (the Catmull-Rom pyramid needs it)."""
-    return quat_multiply(a, quat_exp(u * quat_log(quat_multiply(quat_conjugate(a), b))))
-
-
-def quat_from_euler_deg(deg: Sequence[float]) -> np.ndarray:
-    """The unit quaternion of x, y, z Euler angles [degrees] with the convention of rotation_deg,
-    R = Rz Ry Rx (fraytool.sim.builder.euler_rotation): q = qz qy qx, q_axis = (cos a/2, sin a/2 axis)."""
-    qx, qy, qz = (np.concatenate([[math.cos(math.radians(a) / 2)], math.sin(math.radians(a) / 2) * e])
-                  for a, e in zip(deg, np.eye(3)))
-    return quat_multiply(qz, quat_multiply(qy, qx))
-
-
-def quat_to_matrix(q: np.ndarray) -> np.ndarray:
-    """Rotation matrix of a unit quaternion (w, x, y, z) (body to world)."""
-    w, x, y, z = q
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
 
 
 def orientation_keys(rows: Sequence[Sequence[float]], euler_deg: bool) -> np.ndarray:

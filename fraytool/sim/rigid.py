@@ -11,7 +11,8 @@ import numpy as np
 
 from fraytool.sim.model import Model
 from fraytool.kinds import MOTION_DYNAMIC, MOTION_KINEMATIC
-from fraytool.sim.paths import LINEAR, angular_velocity_rad_s, path_orientation, path_position_m, quat_to_matrix
+from fraytool.geometry.rotations import quat_to_matrix
+from fraytool.sim.paths import LINEAR, angular_velocity_rad_s, path_orientation, path_position_m
 from fraytool.sim.state import State
 
 

@@ -45,6 +45,9 @@ import numba as nb
 import numpy as np
 
 from fraytool.collision.ccd import edge_edge_ccd_kernel
+from fraytool.geometry.frames import rotate, to_body, to_world
+from fraytool.geometry.segments import segment_closest_params
+from fraytool.geometry.triangles import closest_on_triangle, triangle_normal
 from fraytool.sim.kernels.rigid_contact import coulomb_friction
 
 PASSES = 3
@@ -56,6 +59,11 @@ EDGE_ROUNDS = 4
 """Rounds of a segment's move off one edge (the closest points slide as it moves)."""
 STACK = 64
 """BVH traversal stack (trees are balanced: depth about log2(primitives / LEAF_SIZE) + 1)."""
+
+Push = namedtuple("Push", ["moved", "x0", "x1", "x2", "nx", "ny", "nz", "depth", "triangle", "w0", "w1", "w2"])
+"""A mass's push off a mesh in one pass (_resolve_point), body frame: moved, the new point (x0, x1, x2), the
+unit normal, the depth moved along it [m], the triangle and the barycentric weights of the touched point."""
+NO_PUSH = Push(False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1, 0.0, 0.0, 0.0)
 
 MeshesIn = namedtuple("MeshesIn", [
     "body",            # (M,) int64: body index of mesh m
@@ -95,45 +103,6 @@ def next_leaf(stack_inout, top, child, box, lo0, lo1, lo2, hi0, hi1, hi2):
 
 
 @nb.njit(cache=True, inline="always")
-def closest_on_triangle(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz):
-    """Closest point of triangle abc to p and its barycentric weights (wa, wb, wc): the Voronoi-region
-    walk of Ericson, "Real-Time Collision Detection" §5.1.5."""
-    abx, aby, abz = bx - ax, by - ay, bz - az
-    acx, acy, acz = cx - ax, cy - ay, cz - az
-    apx, apy, apz = px - ax, py - ay, pz - az
-    d1 = abx * apx + aby * apy + abz * apz
-    d2 = acx * apx + acy * apy + acz * apz
-    if d1 <= 0.0 and d2 <= 0.0:
-        return ax, ay, az, 1.0, 0.0, 0.0
-    bpx, bpy, bpz = px - bx, py - by, pz - bz
-    d3 = abx * bpx + aby * bpy + abz * bpz
-    d4 = acx * bpx + acy * bpy + acz * bpz
-    if d3 >= 0.0 and d4 <= d3:
-        return bx, by, bz, 0.0, 1.0, 0.0
-    vc = d1 * d4 - d3 * d2
-    if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
-        v = d1 / (d1 - d3)
-        return ax + v * abx, ay + v * aby, az + v * abz, 1.0 - v, v, 0.0
-    cpx, cpy, cpz = px - cx, py - cy, pz - cz
-    d5 = abx * cpx + aby * cpy + abz * cpz
-    d6 = acx * cpx + acy * cpy + acz * cpz
-    if d6 >= 0.0 and d5 <= d6:
-        return cx, cy, cz, 0.0, 0.0, 1.0
-    vb = d5 * d2 - d1 * d6
-    if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
-        w = d2 / (d2 - d6)
-        return ax + w * acx, ay + w * acy, az + w * acz, 1.0 - w, 0.0, w
-    va = d3 * d6 - d5 * d4
-    if va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
-        w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
-        return bx + w * (cx - bx), by + w * (cy - by), bz + w * (cz - bz), 0.0, 1.0 - w, w
-    denom = 1.0 / (va + vb + vc)
-    v = vb * denom
-    w = vc * denom
-    return ax + abx * v + acx * w, ay + aby * v + acy * w, az + abz * v + acz * w, 1.0 - v - w, v, w
-
-
-@nb.njit(cache=True, inline="always")
 def _dot3(a, b):
     """a . b of two 3-vectors, written out: no BLAS (numba runs `@` on arrays through scipy's)."""
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
@@ -153,8 +122,8 @@ def _vertex(vertices, i):
 @nb.njit(cache=True)
 def _resolve_point(m, meshes_in, l0, l1, margin_m, reach_m, stack_out):
     """One pass for a mass going from l0 to l1 (body frame) against mesh m, looking for the nearest
-    surface within reach_m (>= margin_m) of l1. Returns (moved, new point (3), unit normal (3), depth,
-    triangle, barycentric weights (3)); depth is how far it was moved along the normal."""
+    surface within reach_m (>= margin_m) of l1. Returns a Push: whether it moved, the new point, the unit
+    normal, the depth (how far it was moved along the normal), the triangle and its barycentric weights."""
     va, vb = meshes_in.vertex_start_m, meshes_in.vertex_end_m
     tris = meshes_in.triangles
     box = meshes_in.tri_box
@@ -190,12 +159,8 @@ def _resolve_point(m, meshes_in, l0, l1, margin_m, reach_m, stack_out):
             b0x, b0y, b0z = _vertex(va, ib)
             c0x, c0y, c0z = _vertex(va, ic)
             # plane distances at both ends (unnormalised normals)
-            n0x = (b0y - a0y) * (c0z - a0z) - (b0z - a0z) * (c0y - a0y)
-            n0y = (b0z - a0z) * (c0x - a0x) - (b0x - a0x) * (c0z - a0z)
-            n0z = (b0x - a0x) * (c0y - a0y) - (b0y - a0y) * (c0x - a0x)
-            n1x = (b1y - a1y) * (c1z - a1z) - (b1z - a1z) * (c1y - a1y)
-            n1y = (b1z - a1z) * (c1x - a1x) - (b1x - a1x) * (c1z - a1z)
-            n1z = (b1x - a1x) * (c1y - a1y) - (b1y - a1y) * (c1x - a1x)
+            n0x, n0y, n0z = triangle_normal(a0x, a0y, a0z, b0x, b0y, b0z, c0x, c0y, c0z)
+            n1x, n1y, n1z = triangle_normal(a1x, a1y, a1z, b1x, b1y, b1z, c1x, c1y, c1z)
             s0 = (l0[0] - a0x) * n0x + (l0[1] - a0y) * n0y + (l0[2] - a0z) * n0z
             s1 = (l1[0] - a1x) * n1x + (l1[1] - a1y) * n1y + (l1[2] - a1z) * n1z
             if (s0 > 0.0 and s1 < 0.0) or (s0 < 0.0 and s1 > 0.0 and not closed):
@@ -234,26 +199,22 @@ def _resolve_point(m, meshes_in, l0, l1, margin_m, reach_m, stack_out):
         a1x, a1y, a1z = _vertex(vb, tris[j, 0])
         b1x, b1y, b1z = _vertex(vb, tris[j, 1])
         c1x, c1y, c1z = _vertex(vb, tris[j, 2])
-        nx = (b1y - a1y) * (c1z - a1z) - (b1z - a1z) * (c1y - a1y)
-        ny = (b1z - a1z) * (c1x - a1x) - (b1x - a1x) * (c1z - a1z)
-        nz = (b1x - a1x) * (c1y - a1y) - (b1y - a1y) * (c1x - a1x)
+        nx, ny, nz = triangle_normal(a1x, a1y, a1z, b1x, b1y, b1z, c1x, c1y, c1z)
         nl = math.sqrt(nx * nx + ny * ny + nz * nz)
         nx, ny, nz = cross_side * nx / nl, cross_side * ny / nl, cross_side * nz / nl
         sd = (l1[0] - a1x) * nx + (l1[1] - a1y) * ny + (l1[2] - a1z) * nz
         depth = margin_m - sd
         x0, x1, x2 = l1[0] + depth * nx, l1[1] + depth * ny, l1[2] + depth * nz
         _, _, _, w0, w1, w2 = closest_on_triangle(x0, x1, x2, a1x, a1y, a1z, b1x, b1y, b1z, c1x, c1y, c1z)
-        return True, x0, x1, x2, nx, ny, nz, depth, j, w0, w1, w2
+        return Push(True, x0, x1, x2, nx, ny, nz, depth, j, w0, w1, w2)
     if best_tri < 0:
-        return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1, 0.0, 0.0, 0.0
+        return NO_PUSH
     d = math.sqrt(best_d2)
     j = best_tri
     a1x, a1y, a1z = _vertex(vb, tris[j, 0])
     b1x, b1y, b1z = _vertex(vb, tris[j, 1])
     c1x, c1y, c1z = _vertex(vb, tris[j, 2])
-    fx = (b1y - a1y) * (c1z - a1z) - (b1z - a1z) * (c1y - a1y)
-    fy = (b1z - a1z) * (c1x - a1x) - (b1x - a1x) * (c1z - a1z)
-    fz = (b1x - a1x) * (c1y - a1y) - (b1y - a1y) * (c1x - a1x)
+    fx, fy, fz = triangle_normal(a1x, a1y, a1z, b1x, b1y, b1z, c1x, c1y, c1z)
     fl = math.sqrt(fx * fx + fy * fy + fz * fz)
     fx, fy, fz = fx / fl, fy / fl, fz / fl
     ex, ey, ez = l1[0] - bq0, l1[1] - bq1, l1[2] - bq2
@@ -262,7 +223,7 @@ def _resolve_point(m, meshes_in, l0, l1, margin_m, reach_m, stack_out):
         inside = ex * fx + ey * fy + ez * fz < 0.0
         sd = -d if inside else d
         if sd >= margin_m:
-            return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1, 0.0, 0.0, 0.0
+            return NO_PUSH
         if d > tiny:
             sign = -1.0 if inside else 1.0
             nx, ny, nz = sign * ex / d, sign * ey / d, sign * ez / d
@@ -270,7 +231,7 @@ def _resolve_point(m, meshes_in, l0, l1, margin_m, reach_m, stack_out):
             nx, ny, nz = fx, fy, fz
     else:
         if d >= margin_m:
-            return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1, 0.0, 0.0, 0.0
+            return NO_PUSH
         sd = d
         if d > tiny:
             nx, ny, nz = ex / d, ey / d, ez / d
@@ -279,8 +240,8 @@ def _resolve_point(m, meshes_in, l0, l1, margin_m, reach_m, stack_out):
             side = (l0[0] - a0x) * fx + (l0[1] - a0y) * fy + (l0[2] - a0z) * fz
             sign = -1.0 if side < 0.0 else 1.0
             nx, ny, nz = sign * fx, sign * fy, sign * fz
-    return True, bq0 + margin_m * nx, bq1 + margin_m * ny, bq2 + margin_m * nz, nx, ny, nz, margin_m - sd, j, \
-        bw0, bw1, bw2
+    return Push(True, bq0 + margin_m * nx, bq1 + margin_m * ny, bq2 + margin_m * nz, nx, ny, nz, margin_m - sd, j,
+                bw0, bw1, bw2)
 
 
 @nb.njit(cache=True, inline="always")
@@ -331,11 +292,9 @@ def _mesh_range(particles, lo, hi, m, frame, meshes_in, margin_m, particles_in, 
         p = particles[i]
         if particle_inv_mass[p] == 0.0:
             continue
-        for a in range(3):
-            l1[a] = rot[0, a] * (particle_position_m_inout[p, 0] - c1[0]) + rot[1, a] * (
-                particle_position_m_inout[p, 1] - c1[1]) + rot[2, a] * (particle_position_m_inout[p, 2] - c1[2])
-            l0[a] = rot0[0, a] * (prev_position_m[p, 0] - c0[0]) + rot0[1, a] * (prev_position_m[p, 1] - c0[1]) \
-                + rot0[2, a] * (prev_position_m[p, 2] - c0[2])
+        l1[0], l1[1], l1[2] = to_body(rot, c1, particle_position_m_inout[p, 0], particle_position_m_inout[p, 1],
+                                      particle_position_m_inout[p, 2])
+        l0[0], l0[1], l0[2] = to_body(rot0, c0, prev_position_m[p, 0], prev_position_m[p, 1], prev_position_m[p, 2])
         if not _overlaps(box, root, min(l0[0], l1[0]) - pad, min(l0[1], l1[1]) - pad, min(l0[2], l1[2]) - pad,
                          max(l0[0], l1[0]) + pad, max(l0[1], l1[1]) + pad, max(l0[2], l1[2]) + pad):
             continue
@@ -346,18 +305,18 @@ def _mesh_range(particles, lo, hi, m, frame, meshes_in, margin_m, particles_in, 
         passes = 0
         main_pass = 0
         for _ in range(PASSES):
-            moved, x0, x1, x2, mx, my, mz, dd, tj, u0, u1, u2 = _resolve_point(m, meshes_in, l0, l1, margin_m,
-                                                                               margin_m, stack_out)
-            if not moved:
+            push = _resolve_point(m, meshes_in, l0, l1, margin_m, margin_m, stack_out)
+            if not push.moved:
                 break
-            l1[0], l1[1], l1[2] = x0, x1, x2
-            if not touched or dd > deepest:  # the friction's normal and surface point: the deepest push's
-                nx, ny, nz, deepest, tri, w0, w1, w2 = mx, my, mz, dd, tj, u0, u1, u2
+            l1[0], l1[1], l1[2] = push.x0, push.x1, push.x2
+            if not touched or push.depth > deepest:  # the friction's normal and surface point: the deepest push's
+                nx, ny, nz, deepest, tri = push.nx, push.ny, push.nz, push.depth, push.triangle
+                w0, w1, w2 = push.w0, push.w1, push.w2
                 main_pass = passes
-            pass_normal[passes, 0], pass_normal[passes, 1], pass_normal[passes, 2] = mx, my, mz
+            pass_normal[passes, 0], pass_normal[passes, 1], pass_normal[passes, 2] = push.nx, push.ny, push.nz
             passes += 1
             touched = True
-            depth += max(dd, 0.0)  # the push over every pass: a later pass may move it a rounding error only
+            depth += max(push.depth, 0.0)  # the push over every pass: a later pass may move it a rounding error only
         if not touched:
             continue
         hits += 1
@@ -367,12 +326,8 @@ def _mesh_range(particles, lo, hi, m, frame, meshes_in, margin_m, particles_in, 
         sx = w0 * (vb[ia, 0] - va[ia, 0]) + w1 * (vb[ib, 0] - va[ib, 0]) + w2 * (vb[ic, 0] - va[ic, 0])
         sy = w0 * (vb[ia, 1] - va[ia, 1]) + w1 * (vb[ib, 1] - va[ib, 1]) + w2 * (vb[ic, 1] - va[ic, 1])
         sz = w0 * (vb[ia, 2] - va[ia, 2]) + w1 * (vb[ib, 2] - va[ib, 2]) + w2 * (vb[ic, 2] - va[ic, 2])
-        px = c1[0] + rot[0, 0] * l1[0] + rot[0, 1] * l1[1] + rot[0, 2] * l1[2]
-        py = c1[1] + rot[1, 0] * l1[0] + rot[1, 1] * l1[1] + rot[1, 2] * l1[2]
-        pz = c1[2] + rot[2, 0] * l1[0] + rot[2, 1] * l1[1] + rot[2, 2] * l1[2]
-        gx = rot[0, 0] * nx + rot[0, 1] * ny + rot[0, 2] * nz
-        gy = rot[1, 0] * nx + rot[1, 1] * ny + rot[1, 2] * nz
-        gz = rot[2, 0] * nx + rot[2, 1] * ny + rot[2, 2] * nz
+        px, py, pz = to_world(rot, c1, l1[0], l1[1], l1[2])
+        gx, gy, gz = rotate(rot, nx, ny, nz)
         mvx = c1[0] - c0[0] + rot0[0, 0] * sx + rot0[0, 1] * sy + rot0[0, 2] * sz + _turned(rot, rot0, 0, l1)
         mvy = c1[1] - c0[1] + rot0[1, 0] * sx + rot0[1, 1] * sy + rot0[1, 2] * sz + _turned(rot, rot0, 1, l1)
         mvz = c1[2] - c0[2] + rot0[2, 0] * sx + rot0[2, 1] * sy + rot0[2, 2] * sz + _turned(rot, rot0, 2, l1)
@@ -383,9 +338,7 @@ def _mesh_range(particles, lo, hi, m, frame, meshes_in, margin_m, particles_in, 
         for q in range(passes):  # another face's push (a concave corner) is no sliding along this one
             if q == main_pass:
                 continue
-            qx = rot[0, 0] * pass_normal[q, 0] + rot[0, 1] * pass_normal[q, 1] + rot[0, 2] * pass_normal[q, 2]
-            qy = rot[1, 0] * pass_normal[q, 0] + rot[1, 1] * pass_normal[q, 1] + rot[1, 2] * pass_normal[q, 2]
-            qz = rot[2, 0] * pass_normal[q, 0] + rot[2, 1] * pass_normal[q, 1] + rot[2, 2] * pass_normal[q, 2]
+            qx, qy, qz = rotate(rot, pass_normal[q, 0], pass_normal[q, 1], pass_normal[q, 2])
             rq = rx * qx + ry * qy + rz * qz
             rx -= rq * qx
             ry -= rq * qy
@@ -430,32 +383,9 @@ def collide_meshes(
 
 
 @nb.njit(cache=True, inline="always")
-def _segment_closest(p0, p1, q0, q1):
-    """Parameters (s, u) of the closest points of segments p0 p1 and q0 q1 (Ericson §5.1.9)."""
-    d1 = p1 - p0
-    d2 = q1 - q0
-    r = p0 - q0
-    a = _dot3(d1, d1)
-    e = _dot3(d2, d2)
-    f = _dot3(d2, r)
-    if a <= 1e-300 and e <= 1e-300:
-        return 0.0, 0.0
-    if a <= 1e-300:
-        return 0.0, min(max(f / e, 0.0), 1.0)
-    c = _dot3(d1, r)
-    if e <= 1e-300:
-        return min(max(-c / a, 0.0), 1.0), 0.0
-    b = _dot3(d1, d2)
-    denom = a * e - b * b
-    s = min(max((b * f - c * e) / denom, 0.0), 1.0) if denom > 1e-14 * a * e else 0.0
-    u = (b * s + f) / e
-    if u < 0.0:
-        u = 0.0
-        s = min(max(-c / a, 0.0), 1.0)
-    elif u > 1.0:
-        u = 1.0
-        s = min(max((b - c) / a, 0.0), 1.0)
-    return s, u
+def _closest_params(p0, p1, q0, q1):
+    """(s, u) of the closest points of segments p0 p1 and q0 q1 (3-vectors): fraytool.geometry.segments."""
+    return segment_closest_params(p0[0], p0[1], p0[2], p1[0], p1[1], p1[2], q0[0], q0[1], q0[2], q1[0], q1[1], q1[2])
 
 
 @nb.njit(cache=True)
@@ -486,13 +416,13 @@ def _segment_pass(m, meshes_in, seg_start, seg_end_inout, inverse_masses, margin
             e = meshes_in.edge_order[q]
             e0s, e1s = va[meshes_in.edges[e, 0]], va[meshes_in.edges[e, 1]]
             e0e, e1e = vb[meshes_in.edges[e, 0]], vb[meshes_in.edges[e, 1]]
-            s1, u1 = _segment_closest(la1, lb1, e0e, e1e)
+            s1, u1 = _closest_params(la1, lb1, e0e, e1e)
             wx = la1 + s1 * (lb1 - la1) - (e0e + u1 * (e1e - e0e))
             dist = math.sqrt(_dot3(wx, wx))
             # did the edge pass through the segment during the step? (interval CCD, no false negative)
             crossed, _ = edge_edge_ccd_kernel(la0, lb0, e0s, e1s, la1, lb1, e0e, e1e, 0.0)
             if crossed:  # back to the side of the start: along the common normal, oriented by then
-                s0, u0 = _segment_closest(la0, lb0, e0s, e1s)
+                s0, u0 = _closest_params(la0, lb0, e0s, e1s)
                 w0 = la0 + s0 * (lb0 - la0) - (e0s + u0 * (e1s - e0s))
                 n = np.cross(lb1 - la1, e1e - e0e)
                 nl = math.sqrt(_dot3(n, n))
@@ -522,7 +452,7 @@ def _segment_pass(m, meshes_in, seg_start, seg_end_inout, inverse_masses, margin
                 for c in range(3):
                     seg_end_inout[0, c] += ca * lam * n[c]
                     seg_end_inout[1, c] += cb * lam * n[c]
-                s1, u1 = _segment_closest(la1, lb1, e0e, e1e)
+                s1, u1 = _closest_params(la1, lb1, e0e, e1e)
                 wx = la1 + s1 * (lb1 - la1) - (e0e + u1 * (e1e - e0e))
                 sep = _dot3(wx, n)
                 if sep >= margin_m * (1.0 - 1e-6):
@@ -556,9 +486,7 @@ def _segment_through(m, meshes_in, seg_end_inout, inverse_masses, margin_m, stac
             ax, ay, az = _vertex(vb, tris[j, 0])
             bx, by, bz = _vertex(vb, tris[j, 1])
             cx, cy, cz = _vertex(vb, tris[j, 2])
-            nx = (by - ay) * (cz - az) - (bz - az) * (cy - ay)
-            ny = (bz - az) * (cx - ax) - (bx - ax) * (cz - az)
-            nz = (bx - ax) * (cy - ay) - (by - ay) * (cx - ax)
+            nx, ny, nz = triangle_normal(ax, ay, az, bx, by, bz, cx, cy, cz)
             da = (la1[0] - ax) * nx + (la1[1] - ay) * ny + (la1[2] - az) * nz
             db = (lb1[0] - ax) * nx + (lb1[1] - ay) * ny + (lb1[2] - az) * nz
             if not ((da > 0.0 and db < 0.0) or (da < 0.0 and db > 0.0)):
@@ -577,9 +505,10 @@ def _segment_through(m, meshes_in, seg_end_inout, inverse_masses, margin_m, stac
     sm = 0.5 * (first + last)
     deep = la1 + sm * (lb1 - la1)
     reach = 0.5 * (last - first) * math.sqrt(_dist2(la1, lb1)) + margin_m
-    moved, x0, x1, x2, _, _, _, _, _, _, _, _ = _resolve_point(m, meshes_in, deep, deep, margin_m, reach, stack_out)
-    if not moved:
+    push = _resolve_point(m, meshes_in, deep, deep, margin_m, reach, stack_out)
+    if not push.moved:
         return 0
+    x0, x1, x2 = push.x0, push.x1, push.x2
     wa, wb = inverse_masses
     ca = (1.0 - sm) * wa
     cb = sm * wb
@@ -638,11 +567,11 @@ def collide_mesh_segments(
                     continue
                 for end_ in range(2):
                     p = segments[s, end_]
-                    for a in range(3):
-                        end[end_, a] = rot[0, a] * (particle_position_m_inout[p, 0] - c1[0]) + rot[1, a] * (
-                            particle_position_m_inout[p, 1] - c1[1]) + rot[2, a] * (particle_position_m_inout[p, 2] - c1[2])
-                        start[end_, a] = rot0[0, a] * (prev_position_m[p, 0] - c0[0]) + rot0[1, a] * (
-                            prev_position_m[p, 1] - c0[1]) + rot0[2, a] * (prev_position_m[p, 2] - c0[2])
+                    end[end_, 0], end[end_, 1], end[end_, 2] = to_body(
+                        rot, c1, particle_position_m_inout[p, 0], particle_position_m_inout[p, 1],
+                        particle_position_m_inout[p, 2])
+                    start[end_, 0], start[end_, 1], start[end_, 2] = to_body(
+                        rot0, c0, prev_position_m[p, 0], prev_position_m[p, 1], prev_position_m[p, 2])
                 if not _overlaps(box, root, min(start[0, 0], start[1, 0], end[0, 0], end[1, 0]) - pad,
                                  min(start[0, 1], start[1, 1], end[0, 1], end[1, 1]) - pad,
                                  min(start[0, 2], start[1, 2], end[0, 2], end[1, 2]) - pad,
@@ -663,9 +592,8 @@ def collide_mesh_segments(
                     for end_ in range(2):
                         p = segments[s, end_]
                         moved_now[p] = True
-                        for a in range(3):
-                            particle_position_m_inout[p, a] = c1[a] + rot[a, 0] * end[end_, 0] + rot[a, 1] * end[end_, 1] \
-                                + rot[a, 2] * end[end_, 2]
+                        particle_position_m_inout[p, 0], particle_position_m_inout[p, 1], \
+                            particle_position_m_inout[p, 2] = to_world(rot, c1, end[end_, 0], end[end_, 1], end[end_, 2])
         contacts += swept
         if swept == 0:
             break
@@ -684,8 +612,7 @@ def mesh_distances(m, meshes_in, bodies_in, reach_m, x, distance_out):
     stack = np.empty(STACK, np.int64)
     l1 = np.empty(3)
     for i in range(x.shape[0]):
-        for a in range(3):
-            l1[a] = rot[0, a] * (x[i, 0] - c[0]) + rot[1, a] * (x[i, 1] - c[1]) + rot[2, a] * (x[i, 2] - c[2])
+        l1[0], l1[1], l1[2] = to_body(rot, c, x[i, 0], x[i, 1], x[i, 2])
         best = np.inf
         stack[0] = meshes_in.tri_node_start[m]
         top = 1
@@ -730,11 +657,9 @@ def place_outside_meshes(
             p = particles[i]
             if particle_inv_mass[p] == 0.0:
                 continue
-            for a in range(3):
-                local[a] = rot[0, a] * (particle_position_m_inout[p, 0] - c[0]) + rot[1, a] * (
-                    particle_position_m_inout[p, 1] - c[1]) + rot[2, a] * (particle_position_m_inout[p, 2] - c[2])
-            moved, x0, x1, x2, _, _, _, _, _, _, _, _ = _resolve_point(m, meshes_in, local, local, margin_m, margin_m,
-                                                                      stack)
-            if moved:
-                for a in range(3):
-                    particle_position_m_inout[p, a] = c[a] + rot[a, 0] * x0 + rot[a, 1] * x1 + rot[a, 2] * x2
+            local[0], local[1], local[2] = to_body(rot, c, particle_position_m_inout[p, 0],
+                                                   particle_position_m_inout[p, 1], particle_position_m_inout[p, 2])
+            push = _resolve_point(m, meshes_in, local, local, margin_m, margin_m, stack)
+            if push.moved:
+                particle_position_m_inout[p, 0], particle_position_m_inout[p, 1], particle_position_m_inout[p, 2] = \
+                    to_world(rot, c, push.x0, push.x1, push.x2)

@@ -39,7 +39,7 @@ import numpy as np
 
 from fraytool.collision.narrow import (_apart_at_end, _apart_boxes_end, _lines_apart, _outside_reach, _share_end,
                                        end_segment_boxes, segment_cross)
-from fraytool.collision.segment import segment_closest_params
+from fraytool.geometry.segments import segment_closest_params
 
 
 @nb.njit(cache=True, fastmath=False)

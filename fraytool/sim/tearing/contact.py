@@ -59,7 +59,7 @@ import numba as nb
 import numpy as np
 
 from fraytool.collision.ccd import edge_edge_ccd_kernel
-from fraytool.collision.segment import segment_closest_params
+from fraytool.geometry.segments import segment_closest_params
 from fraytool.kinds import SHEAR
 
 SIN_PARALLEL = 1e-2

@@ -1,4 +1,4 @@
-"""Closest points of two segments in plain floating point (numba kernels).
+"""Closest points of two segments in plain floating point (numba kernels): the one routine of fraytool.
 
 Used by the CCD search only to *choose* a separating direction and to measure the distance at
 a candidate contact time (acceptance); the discards never depend on its rounding.
