@@ -215,18 +215,16 @@ def _module_imports(tree: ast.Module, rel: str, package: str, by_module: dict[st
     stack = list(tree.body)
     while stack:
         node = stack.pop()
-        if isinstance(node, (ast.If, ast.Try)):
-            stack.extend(node.body + node.orelse + getattr(node, "finalbody", [])
+        if isinstance(node, (ast.If, ast.Try, ast.With)):
+            stack.extend(node.body + getattr(node, "orelse", []) + getattr(node, "finalbody", [])
                          + [s for h in getattr(node, "handlers", []) for s in h.body])
         elif isinstance(node, ast.Import):
             names = [a.name for a in node.names]
             out.update(by_module[n] for n in names if n in by_module)
         elif isinstance(node, ast.ImportFrom):
             base = node.module or ""
-            if node.level:  # relative: from the module's package
-                anchor = here.split(".")[:-node.level] if not rel.endswith("__init__.py") else \
-                    here.split(".")[:len(here.split(".")) - node.level + 1]
-                base = ".".join(anchor + ([base] if base else []))
+            if node.level:  # relative: from the module's package (an __init__'s `here` ends in .__init__)
+                base = ".".join(here.split(".")[:-node.level] + ([base] if base else []))
             for a in node.names:
                 target = by_module.get(f"{base}.{a.name}") or by_module.get(base)
                 if target is not None:

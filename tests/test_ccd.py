@@ -435,6 +435,18 @@ def test_numba_cache_dropped_for_the_kernels_whose_sources_changed(tmp_path, mon
     assert _kept(files) == {"kern", "lone"}
 
 
+def test_a_relative_import_in_a_packages_init_is_followed(tmp_path):
+    """kern.py imports helper from pkg.sub, whose __init__ takes it from .helpers: helpers.py is a dependency."""
+    from fraytool._numba_cache import kernel_dependencies
+
+    pkg = tmp_path / "pkg"
+    (pkg / "sub").mkdir(parents=True)
+    (pkg / "sub" / "__init__.py").write_text("from .helpers import helper\n")
+    (pkg / "sub" / "helpers.py").write_text("def helper():\n    return 1\n")
+    (pkg / "kern.py").write_text(KERNEL.format(imports="from pkg.sub import helper", value=1))
+    assert kernel_dependencies(pkg)["kern.py"] == ["kern.py", "sub/__init__.py", "sub/helpers.py"]
+
+
 def test_the_simulation_kernels_depend_on_no_file_outside_the_simulation():
     """fraytool's own graph: editing golden/, farm/, commands/ or the renderer's Python leaves every kernel of
     sim/ and collision/ compiled (docs/testing.md "The kernel cache"): they see only sim/, collision/,

@@ -230,3 +230,23 @@ def test_a_mesh_file_name_over_255_bytes_is_the_meshes_problem(tmp_path):
     body = f'[[bodies]]\nname = "thing"\nshape = "mesh"\nfile = "{name}"\n'
     line = simulate_refused(tmp_path, tc_scene(tmp_path, extra=body), "[bodies.0]", "file")
     assert "too long" in line and "output" not in line.lower()
+
+
+def test_a_fifo_where_the_folders_lock_goes_is_named_not_waited_on(tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    os.mkfifo(out / ".fraytool.lock")
+    run = fraytool("simulate", tc_scene(tmp_path), "-o", out, "--progress", "none")
+    assert run.returncode == 1 and "FIFO" in run.stderr and ".fraytool.lock" in run.stderr, run.stderr
+    assert "Traceback" not in run.stderr and (out / ".fraytool.lock").exists()
+
+
+def test_render_options_of_the_wrong_kind_are_input_errors(tmp_path):
+    from fraytool import api
+    from fraytool.errors import InputError
+
+    with pytest.raises(InputError, match="--wireframe 'besides'"):
+        api.render(tc_scene(tmp_path), out_dir=tmp_path / "o", png=True, wireframe="besides")
+    with pytest.raises(InputError, match="--fov '30'"):
+        api.render(tc_scene(tmp_path), out_dir=tmp_path / "o", png=True, fov="30")
+    assert not (tmp_path / "o").exists()

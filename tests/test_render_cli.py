@@ -258,3 +258,15 @@ def test_a_change_of_the_simulation_simulates_again_and_names_the_key(tmp_path, 
     assert "simulating 2 frames" in err
     assert "world.gravity_m_s2: [0.0, -9.81, 0.0] -> [0.0, -8.5, 0.0]" in err, err
     assert (tmp_path / "other" / "frames" / "manifest.json").is_file()
+
+
+def test_a_scene_with_files_names_only_the_keys_that_changed(tmp_path, monkeypatch, capsys):
+    """mannequin_snag names its mesh relative to its scene file: the frames' saved scene has no file of its own,
+    and its mesh must still be read from the scene's folder, not named as a changed key."""
+    monkeypatch.chdir(tmp_path)
+    assert main(["simulate", "mannequin_snag", "--frames", "2", "--progress", "none"]) == 0
+    capsys.readouterr()
+    assert main(["render", "mannequin_snag", "-o", "other", "--frames", "0:2", "--png", "--no-mp4", "--resolution",
+                 "64x36", "--set", "world.gravity_m_s2=[0.0, -8.0, 0.0]", "--progress", "none"]) == 0
+    err = capsys.readouterr().err
+    assert "world.gravity_m_s2: [0.0, -9.81, 0.0] -> [0.0, -8.0, 0.0]" in err and "bodies.0.file" not in err, err

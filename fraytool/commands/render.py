@@ -7,6 +7,7 @@ render. See docs/rendering.md.
 from __future__ import annotations
 
 import sys
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Optional, Sequence, TextIO
 
@@ -70,6 +71,8 @@ def _holds(store: FrameStore, digest: str, needed: int) -> bool:
 
 
 def _why_again(spec: SceneSpec, digest: str, needed: int, stores: list) -> list[str]:
+    import dataclasses
+
     """Why frames already on disk for this scene cannot be reused: the simulation keys that differ from the
     first of `stores` that holds a shot of the same name, or that it holds too few frames (none: nothing to
     say)."""
@@ -86,8 +89,10 @@ def _why_again(spec: SceneSpec, digest: str, needed: int, stores: list) -> list[
         if old_spec.name != spec.name:
             continue
         if store.matches(digest):
-            return [f"not reusing the frames in {store.dir}: it holds {store.frames_complete()} intact frames of "
-                    f"the {needed} needed"]
+            good = store.survey(digest, frames=needed).good_frames
+            return [f"not reusing the frames in {store.dir}: {good} of the {needed} frames needed are intact"]
+        # a saved scene has no file of its own: its meshes, masks and tear maps are the scene file's
+        old_spec = dataclasses.replace(old_spec, source_file=old_spec.source_file or spec.source_file)
         changed = key_changes(simulation_keys(old_spec), simulation_keys(spec))
         if not changed:
             changed = ["no scene key: the Model (built or edited in Python), a file the scene reads, or the "
@@ -95,6 +100,26 @@ def _why_again(spec: SceneSpec, digest: str, needed: int, stores: list) -> list[
         return [f"not reusing the frames in {store.dir}: they were simulated with other settings: "
                 + "; ".join(changed)]
     return []
+
+
+def _digest(spec: SceneSpec, model: Optional[Model]) -> str:
+    from fraytool.sim.run import shot_hash
+
+    return shot_hash(spec, model)
+
+
+@contextmanager
+def _reading(store: FrameStore, out_dir: Path, digest: str, needed: int, stream: TextIO):
+    """While frames of another folder are read (look-dev into -o OTHER), hold that folder's lock too, so that
+    no simulation replaces them half way through; they must still be the shot's once it is held."""
+    if store.out_dir.resolve() == Path(out_dir).resolve():
+        yield
+        return
+    with OutputLock(store.out_dir, "render", wait_stream=stream):
+        if not _holds(store, digest, needed):
+            raise RunError(f"{store.dir}: its frames changed while this render waited for the folder; render again "
+                           "(it simulates what it needs)")
+        yield
 
 
 def _fmt(v) -> str:
@@ -162,20 +187,19 @@ def _render(scene: str, args: RenderRequest, stream: Optional[TextIO]) -> int:
         from fraytool.render.sequence import render_job
 
         with OutputLock(job.out_dir, "render", wait_stream=stream):
-            if job.spec.camera.fit:
-                # the fit covers the whole shot, so farm shards of one scene agree on the camera
-                store = ensure_frames(spec, job.out_dir, job.spec.time.frames, stream, target.model,
-                                      target.digest, target.frame_sources())
-                from fraytool.render.fit import fitted_job
+            # the fit covers the whole shot, so farm shards of one scene agree on the camera
+            needed = job.spec.time.frames if job.spec.camera.fit else frames_needed(job)
+            store = ensure_frames(spec, job.out_dir, needed, stream, target.model, target.digest,
+                                  target.frame_sources())
+            with _reading(store, job.out_dir, target.digest or _digest(spec, target.model), needed, stream):
+                if job.spec.camera.fit:
+                    from fraytool.render.fit import fitted_job
 
-                job = fitted_job(job, store)
-                cam = job.spec.camera
-                print(f"fraytool: --fit: camera at {_fmt(cam.position_m)} looking at {_fmt(cam.target_m)}",
-                      file=stream)
-            else:
-                store = ensure_frames(spec, job.out_dir, frames_needed(job), stream, target.model, target.digest,
-                                      target.frame_sources())
-            result = render_job(job, ctx, store, stream=stream)
+                    job = fitted_job(job, store)
+                    cam = job.spec.camera
+                    print(f"fraytool: --fit: camera at {_fmt(cam.position_m)} looking at {_fmt(cam.target_m)}",
+                          file=stream)
+                result = render_job(job, ctx, store, stream=stream)
     finally:
         ctx.release()
     if result.png_dir:

@@ -85,6 +85,10 @@ def read(golden_dir: Path, spec: SceneSpec, command: str) -> tuple[dict, dict[in
     if not isinstance(entries, list) or not entries or not all(
             isinstance(e, dict) and _is_int(e.get("frame")) and _is_int(e.get("torn_springs")) for e in entries):
         raise damaged(f"{METADATA}: not a golden's metadata (a `frames` list of {{frame, torn_springs}} integers)")
+    if not isinstance(meta.get("settings", {}), dict) or not (
+            "thickness_m" not in meta or (isinstance(meta["thickness_m"], (int, float))
+                                          and not isinstance(meta["thickness_m"], bool) and meta["thickness_m"] > 0)):
+        raise damaged(f"{METADATA}: `settings` must be a table and `thickness_m` a positive number")
     frames = {}
     for entry in entries:
         f = entry["frame"]

@@ -67,8 +67,8 @@ def _read(path: Path) -> Optional[dict]:
     why = not_a_regular_file(path)
     if why == "no such file":
         return None
-    if why is not None:
-        return {}  # a lock that is no lock: someone else's file
+    if why is not None:  # a FIFO or a folder where the lock goes: not fraytool's to wait on or remove
+        raise OutputError(f"{path}: {why}, where fraytool keeps the folder's lock: remove it, or write elsewhere (-o)")
     try:
         data = json.loads(path.read_text())
         return data if isinstance(data, dict) else {}

@@ -203,6 +203,8 @@ def build_job(spec: SceneSpec, args: RenderRequest, out: Path, shot_folder: bool
     """Check the render options (fraytool.render.options.RenderRequest) against the scene, the one place
     they are checked, and resolve them into a RenderJob writing to `out` (`shot_folder`: the scene is a
     simulated shot's, fixed; an error's hint then says so)."""
+    if args.wireframe not in (None, *PASS_SUFFIX):
+        raise InputError(f"--wireframe {args.wireframe!r}: expected one of {', '.join(PASS_SUFFIX)}")
     png = args.png or spec.output.png
     video = spec.output.mp4 and args.video
     exr = args.exr

@@ -153,6 +153,8 @@ def check_supersample(k) -> Optional[int]:
 
 
 def check_fov(fov: Optional[float]) -> Optional[float]:
+    if fov is not None and (isinstance(fov, bool) or not isinstance(fov, (int, float))):
+        raise InputError(f"--fov {fov!r}: expected a number of degrees from 1 to 170")
     if fov is not None and not (math.isfinite(fov) and 1.0 <= fov <= 170.0):
         raise InputError(f"--fov {fov:g}: expected a vertical field of view from 1 to 170 degrees")
     return fov

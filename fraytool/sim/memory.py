@@ -136,16 +136,16 @@ def memory_problem(spec: SceneSpec) -> Optional[str]:
         return (f"{spec.source}: [seams.{k}] stitch_spacing_m = {spec.seams[k].stitch_spacing_m:g}: its stitches need "
                 f"about {gib(seams[k])} and the whole simulation about {gib(need)}; this machine has {gib(have)} "
                 "available; space the stitches further apart (about the yarn spacing), or pass --force to try anyway")
+    if meshes > need // 2:
+        return (f"{spec.source}: [bodies] mesh files: the meshes need about {gib(meshes)} and the whole simulation "
+                f"about {gib(need)}; this machine has {gib(have)} available; use a coarser mesh, "
+                "or pass --force to try anyway")
     if len(spec.all_panels) > 1:
         sizes = [crossing_count(p, spec.source_file) for p in spec.all_panels]
         big = max(range(len(sizes)), key=sizes.__getitem__)
         return (f"{spec.source}: [cloth.{big}] ({spec.all_panels[big].name or 'the panel'}, {sizes[big]} crossings of "
                 f"{sum(sizes)} in {len(sizes)} panels): the simulation needs about {gib(need)} and this machine has "
                 f"{gib(have)} available; use smaller panels, or pass --force to try anyway")
-    if meshes > need // 2:
-        return (f"{spec.source}: [bodies] mesh files: the meshes need about {gib(meshes)} and the whole simulation "
-                f"about {gib(need)}; this machine has {gib(have)} available; use a coarser mesh, "
-                "or pass --force to try anyway")
     return (f"{spec.source}: [cloth] warp_yarns x weft_yarns = {c.warp_yarns} x {c.weft_yarns}: the simulation needs "
             f"about {gib(need)} and this machine has {gib(have)} available; use a smaller grid, "
             "or pass --force to try anyway")
