@@ -687,11 +687,12 @@ class ModelBuilder:
             out[structural[hit]] = np.minimum(out[structural[hit]], times)
         return out
 
-    def _stitches(self, uv: np.ndarray, crossing_panel: np.ndarray, border: np.ndarray):
+    def _stitches(self, uv: np.ndarray, crossing_panel: np.ndarray, border: np.ndarray, rest: np.ndarray):
         """The seams' stitches (docs/panels.md "Seams"), each seam's placed by fraytool.sim.seam_layout.stitch_pairs.
-        Returns (a, b, rest length [m], stiffness [N/m], break strain, seam index), the break strains drawn
-        after the cloth's from the same seeded stream."""
-        out_a, out_b, out_rest, out_k, out_break, out_seam = [], [], [], [], [], []
+        Returns (a, b, rest length [m], stiffness [N/m], break strain, seam index, whether each seam sewn the
+        other way round would start within its break strain), the break strains drawn after the cloth's
+        from the same seeded stream."""
+        out_a, out_b, out_rest, out_k, out_break, out_seam, reverse_fits = [], [], [], [], [], [], []
         for index, seam in enumerate(self.seams):
             pa, pb = self._panel_index("finalize", seam.panel_a), self._panel_index("finalize", seam.panel_b)
             pair = stitch_pairs(self._panels[pa].shape.outline_uv_m, seam.segment_a, pa,
@@ -705,9 +706,15 @@ class ModelBuilder:
             draw = seam.break_strain + self.tearing.break_strain_spread * self._rng.standard_normal(len(pair))
             out_break.append(np.maximum(draw, 1e-3))
             out_seam.append(np.full(len(pair), index, np.int32))
+            # the facts of the start warning (fraytool.sim.seam_layout), at hand here: the other way round
+            flipped = stitch_pairs(self._panels[pa].shape.outline_uv_m, seam.segment_a, pa,
+                                   self._panels[pb].shape.outline_uv_m, seam.segment_b, pb, not seam.reverse,
+                                   seam.stitch_spacing_m, uv, crossing_panel, border, self.cloth.spacing_m)
+            flipped_m = np.linalg.norm(rest[flipped[:, 1]] - rest[flipped[:, 0]], axis=1)
+            reverse_fits.append(bool(len(flipped)) and bool(flipped_m.max() <= length * (1.0 + out_break[-1].min())))
         cat = np.concatenate
         return (cat(out_a).astype(np.int32), cat(out_b).astype(np.int32), cat(out_rest), cat(out_k), cat(out_break),
-                cat(out_seam))
+                cat(out_seam), np.asarray(reverse_fits, bool))
 
     def finalize(self) -> Model:
         """Turn everything added into the immutable Model (typed arrays); the builder can go on."""
@@ -755,7 +762,7 @@ class ModelBuilder:
         mesh_arrays = _mesh_arrays(bodies, self._mesh_assets)
         mesh_radius = dict(zip(mesh_arrays["mesh_body"].tolist(), _mesh_radii(mesh_arrays)))
 
-        att_p, att_b, att_off = [], [], []
+        att_p, att_b, att_off, att_selected = [], [], [], []
         for att in self.attachments:
             body = names.index(att.body)
             k = self._panel_index("finalize", att.panel)
@@ -763,6 +770,7 @@ class ModelBuilder:
             local = grid[J:J + h, I:I + w]
             sel = local[local >= 0][select_crossings(att, w, h, rest[local[local >= 0]], local)]
             att_p.extend(sel.tolist())
+            att_selected.append(len(sel))
             att_b.extend([body] * len(sel))
             att_off.extend((rot[body].T @ (rest[sel] - body_pos0[body]).T).T.tolist())
         # A crossing held twice keeps its first holder.
@@ -784,8 +792,10 @@ class ModelBuilder:
         break_strain, spring_weak_line = self._break_strains(len(kind), 0.5 * (uv[a] + uv[b]), crossing_panel[a])
         cut_time = self._scissor_times(kind, a, b, uv, crossing_panel)
         spring_seam = np.zeros(0, np.int32)
+        seam_reverse_fits = np.zeros(0, bool)
         if self.seams:  # the stitches come after every spring of the cloth
-            st_a, st_b, st_rest, st_k, st_break, st_seam = self._stitches(uv, crossing_panel, border)
+            st_a, st_b, st_rest, st_k, st_break, st_seam, seam_reverse_fits = self._stitches(uv, crossing_panel,
+                                                                                              border, rest)
             spring_seam = np.concatenate([np.full(len(kind), -1, np.int32), st_seam])
             if spring_weak_line.size:
                 spring_weak_line = np.concatenate([spring_weak_line, np.full(st_a.size, -1, np.int32)])
@@ -878,6 +888,8 @@ class ModelBuilder:
             refine_near_bodies=mr.refine_near_bodies,
             spring_seam=spring_seam,
             spring_weak_line=spring_weak_line,
+            attachment_entry_crossings=np.asarray(att_selected, np.int64),
+            seam_reverse_fits=seam_reverse_fits,
         )
 
 

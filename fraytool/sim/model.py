@@ -25,7 +25,7 @@ def broken_cloth_springs(spring_kind: np.ndarray, spring_broken: np.ndarray) -> 
     return int(np.count_nonzero(spring_broken & (spring_kind != STITCH)))
 
 
-_DIGEST_SKIPS_EMPTY = ("spring_seam", "spring_weak_line")
+_DIGEST_SKIPS_EMPTY = ("spring_seam", "spring_weak_line", "attachment_entry_crossings", "seam_reverse_fits")
 
 
 def _empty_mesh(name: str) -> np.ndarray:
@@ -190,6 +190,12 @@ class Model:
     spring_seam: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int32))
     """The [[seams]] entry each spring is a stitch of, -1 for the cloth's own springs, shape (spring_count,),
     int32; empty where the scene has no seam (the per-seam figures, fraytool.sim.tear_control_figures)."""
+    attachment_entry_crossings: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    """Crossings each [[attachments]] entry selected when it was added (before a crossing held twice keeps its
+    first holder), shape (entries,), int64; an entry of 0 holds nothing (fraytool.sim.attachment_warnings)."""
+    seam_reverse_fits: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
+    """Per [[seams]] entry: sewn the other way round (reverse flipped), every stitch would start within its
+    break strain, shape (seams,), bool (the start warning's hint, fraytool.sim.seam_layout)."""
     spring_weak_line: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int32))
     """The last [[weak_lines]] entry that weakened each spring, -1 for none, shape (spring_count,), int32;
     empty where the scene has no weak line."""

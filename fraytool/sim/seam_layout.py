@@ -1,8 +1,10 @@
 """Where a seam's stitches go, and a warning when they start torn (docs/panels.md "Seams").
 
 `stitch_pairs` places one seam's stitches on the two panels' border crossings; the builder calls it for
-each [[seams]] entry, and `seam_start_warnings` calls it again on the built Model to measure each seam's
-stitches where the panels are placed. A stitch that starts longer than its rest length times
+each [[seams]] entry when it finalizes (and the other way round, for the warning's hint), recording in the
+Model which stitches are whose (spring_seam) and whether reversed they would fit (seam_reverse_fits);
+`seam_start_warnings` reads those facts from the Model and measures each seam's stitches where the panels
+are placed. A stitch that starts longer than its rest length times
 (1 + its break strain) breaks in the first steps: the seam opens before the shot begins. No range check
 sees that (each key is valid on its own); it is what sewing the wrong segment, leaving `reverse` the
 wrong way or placing the panels apart looks like, so it is named, with the seam and the lengths.
@@ -102,50 +104,28 @@ def seam_start_errors(spec, model) -> list[str]:
 
 def seam_start_warnings(spec, model) -> list[str]:
     """One line per [[seams]] entry some of whose stitches start, at the panels' rest positions, longer than
-    rest length x (1 + their own break strain): they break in the first steps."""
-    if not spec.seams:
+    rest length x (1 + their own break strain): they break in the first steps. From the Model alone: which
+    stitches are whose (spring_seam) and whether the seam sewn the other way round would fit
+    (seam_reverse_fits), as the builder placed them."""
+    seam_of = np.asarray(getattr(model, "spring_seam", np.zeros(0)))
+    reverse_fits = np.asarray(getattr(model, "seam_reverse_fits", np.zeros(0, bool)))
+    if not spec.seams or not seam_of.size:
         return []
-    from fraytool.scene.panel_shape import PanelShapeError, panel_shape
-
-    stitches = np.flatnonzero(np.asarray(model.spring_kind) == STITCH)
-    a_all = np.asarray(model.spring_crossing_a)[stitches]
-    b_all = np.asarray(model.spring_crossing_b)[stitches]
-    panels = spec.all_panels
-    names = [p.name for p in panels]
-    index = {name: k for k, name in enumerate(names)}
-    uv = np.asarray(model.crossing_plane_uv_m)
-    cpanel = np.asarray(model.crossing_panel)
-    border = border_crossings(model.crossing_weft_springs, model.crossing_warp_springs)
     rest = np.asarray(model.crossing_rest_position_m, dtype=np.float64)
-    outlines = {}
+    a_all, b_all = np.asarray(model.spring_crossing_a), np.asarray(model.spring_crossing_b)
     out = []
-    start = 0
     for s, seam in enumerate(spec.seams):
-        pa, pb = index.get(seam.panel_a, 0), index.get(seam.panel_b, 0)
-        try:  # the shape as the builder made it: a mask image relative to the scene file
-            for p in (pa, pb):
-                if p not in outlines:
-                    outlines[p] = panel_shape(panels[p], spec.source_file).outline_uv_m
-        except (PanelShapeError, OSError):
-            return out  # the mask moved since the shot was simulated: nothing to judge by
-        pair = stitch_pairs(outlines[pa], seam.segment_a, pa, outlines[pb], seam.segment_b, pb, seam.reverse,
-                            seam.stitch_spacing_m, uv, cpanel, border, float(model.spacing_m))
-        take = slice(start, start + len(pair))
-        start += len(pair)
-        if not (np.array_equal(a_all[take], pair[:, 0]) and np.array_equal(b_all[take], pair[:, 1])):
-            return out  # a Model edited after building: its stitches are not the scene's to judge
-        springs = stitches[take]
-        length_m = np.linalg.norm(rest[pair[:, 1]] - rest[pair[:, 0]], axis=1)
+        springs = np.flatnonzero(seam_of == s)
+        if not springs.size:
+            continue
+        length_m = np.linalg.norm(rest[b_all[springs]] - rest[a_all[springs]], axis=1)
         rest_m = np.asarray(model.spring_rest_length_m)[springs]
         limit_m = rest_m * (1.0 + np.asarray(model.spring_break_strain)[springs])
         torn = length_m > limit_m
         if not torn.any():
             continue
         worst = int(np.argmax(length_m / limit_m))
-        flipped = stitch_pairs(outlines[pa], seam.segment_a, pa, outlines[pb], seam.segment_b, pb, not seam.reverse,
-                               seam.stitch_spacing_m, uv, cpanel, border, float(model.spacing_m))
-        flipped_m = np.linalg.norm(rest[flipped[:, 1]] - rest[flipped[:, 0]], axis=1)
-        if len(flipped) and flipped_m.max() <= rest_m.min() * (1.0 + np.asarray(model.spring_break_strain)[springs].min()):
+        if s < reverse_fits.size and reverse_fits[s]:
             cause = (f"with reverse = {'false' if seam.reverse else 'true'} every stitch would start within it "
                      "(the two edges run the other way)")
         else:
@@ -153,7 +133,8 @@ def seam_start_warnings(spec, model) -> list[str]:
                      "segment_b, reverse and the panels' origin_m and rotation_deg")
         out.append(
             f"{spec.source}: [seams.{s}] panel {seam.panel_a!r} segment {seam.segment_a} to panel {seam.panel_b!r} "
-            f"segment {seam.segment_b}{' (reverse)' if seam.reverse else ''}: {int(torn.sum())} of {len(pair)} stitches "
-            f"start past their break strain (up to {1e3 * length_m[worst]:.3g} mm, rest {1e3 * rest_m[worst]:.3g} mm, "
-            f"breaking at {1e3 * limit_m[worst]:.3g} mm) and break in the first steps; {cause}")
+            f"segment {seam.segment_b}{' (reverse)' if seam.reverse else ''}: {int(torn.sum())} of {springs.size} "
+            f"stitches start past their break strain (up to {1e3 * length_m[worst]:.3g} mm, rest "
+            f"{1e3 * rest_m[worst]:.3g} mm, breaking at {1e3 * limit_m[worst]:.3g} mm) and break in the first steps; "
+            f"{cause}")
     return out
