@@ -49,6 +49,15 @@ def tc_scene(tmp_path, cloth="", extra=""):
     return path
 
 
+def image_scene(tmp_path, key):
+    """The scene with map.png as its mask (the shape sets the grid) or as its tear map."""
+    if key == "mask":
+        scene = tc_scene(tmp_path, cloth='mask = "map.png"\nmask_size_m = [0.06, 0.06]')
+        scene.write_text(scene.read_text().replace("warp_yarns = 16\nweft_yarns = 16\n", ""))
+        return scene
+    return tc_scene(tmp_path, cloth='tear_map = "map.png"\ntear_map_strain = [0.15, 0.3]')
+
+
 def simulate_refused(tmp_path, scene, *needles, env=None):
     out = tmp_path / "out"
     line = one_line_exit_2(fraytool("simulate", scene, "-o", out, "--progress", "none", env=env), *needles)
@@ -77,12 +86,7 @@ def test_a_2000_point_outline_that_crosses_itself_is_refused_in_seconds(tmp_path
 @pytest.mark.parametrize("key", ["mask", "tear_map"])
 def test_a_fifo_where_an_image_is_read_is_refused(tmp_path, key):
     os.mkfifo(tmp_path / "map.png")
-    cloth = ('mask = "map.png"\nmask_size_m = [0.06, 0.06]' if key == "mask" else
-             'tear_map = "map.png"\ntear_map_strain = [0.15, 0.3]')
-    scene = tc_scene(tmp_path, cloth=cloth)
-    if key == "mask":
-        scene.write_text(scene.read_text().replace("warp_yarns = 16\nweft_yarns = 16\n", ""))
-    simulate_refused(tmp_path, scene, key, "FIFO")
+    simulate_refused(tmp_path, image_scene(tmp_path, key), key, "FIFO")
 
 
 def test_a_fifo_for_a_frame_or_the_manifest_is_named_not_waited_on(tmp_path):
@@ -136,12 +140,7 @@ def png_header_only(width, height):
 @pytest.mark.parametrize("key", ["mask", "tear_map"])
 def test_an_image_header_claiming_20000_pixels_square_is_refused(tmp_path, key):
     (tmp_path / "map.png").write_bytes(png_header_only(20000, 20000))
-    cloth = ('mask = "map.png"\nmask_size_m = [0.06, 0.06]' if key == "mask" else
-             'tear_map = "map.png"\ntear_map_strain = [0.15, 0.3]')
-    scene = tc_scene(tmp_path, cloth=cloth)
-    if key == "mask":
-        scene.write_text(scene.read_text().replace("warp_yarns = 16\nweft_yarns = 16\n", ""))
-    simulate_refused(tmp_path, scene, key, "20000 x 20000")
+    simulate_refused(tmp_path, image_scene(tmp_path, key), key, "20000 x 20000")
 
 
 def test_a_wrap_radius_that_folds_neighbours_together_is_refused(tmp_path):

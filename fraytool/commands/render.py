@@ -102,12 +102,6 @@ def _why_again(spec: SceneSpec, digest: str, needed: int, stores: list) -> list[
     return []
 
 
-def _digest(spec: SceneSpec, model: Optional[Model]) -> str:
-    from fraytool.sim.run import shot_hash
-
-    return shot_hash(spec, model)
-
-
 @contextmanager
 def _reading(store: FrameStore, out_dir: Path, digest: str, needed: int, stream: TextIO):
     """While frames of another folder are read (look-dev into -o OTHER), hold that folder's lock too, so that
@@ -188,10 +182,12 @@ def _render(scene: str, args: RenderRequest, stream: Optional[TextIO]) -> int:
 
         with OutputLock(job.out_dir, "render", wait_stream=stream):
             # the fit covers the whole shot, so farm shards of one scene agree on the camera
+            from fraytool.sim.run import shot_hash
+
             needed = job.spec.time.frames if job.spec.camera.fit else frames_needed(job)
-            store = ensure_frames(spec, job.out_dir, needed, stream, target.model, target.digest,
-                                  target.frame_sources())
-            with _reading(store, job.out_dir, target.digest or _digest(spec, target.model), needed, stream):
+            digest = target.digest or shot_hash(spec, target.model)
+            store = ensure_frames(spec, job.out_dir, needed, stream, target.model, digest, target.frame_sources())
+            with _reading(store, job.out_dir, digest, needed, stream):
                 if job.spec.camera.fit:
                     from fraytool.render.fit import fitted_job
 

@@ -16,6 +16,7 @@ Pure NumPy and the image reader; no simulation. Problems come back as one line e
 from __future__ import annotations
 
 import math
+import threading
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
@@ -225,12 +226,16 @@ class _image_header_first:
     def __init__(self, image_module):
         self.image = image_module
 
+    _lock = threading.Lock()  # PIL's limit is one global: one such open at a time in a process
+
     def __enter__(self):
+        self._lock.acquire()
         self.saved = self.image.MAX_IMAGE_PIXELS
         self.image.MAX_IMAGE_PIXELS = None
 
     def __exit__(self, *exc):
         self.image.MAX_IMAGE_PIXELS = self.saved
+        self._lock.release()
         return False
 
 
