@@ -12,7 +12,7 @@ from fraytool.errors import SceneError
 from fraytool.kinds import BEND_WARP, BEND_WEFT, SHEAR, SHEAR_TWIN, STRUCT_WARP, STRUCT_WEFT
 from fraytool.scene import load_scene, parse_scene, schema
 from fraytool.sim import ModelBuilder, build_model
-from fraytool.sim.builder import ModelBuilderError
+from fraytool.sim.builder import ModelBuilderError, PanelConfig
 from helpers import assert_arrays_equal
 
 pytestmark = pytest.mark.fast  # `pytest -m fast` (docs/testing.md)
@@ -364,7 +364,7 @@ def test_a_failed_call_adds_nothing():
 T = schema.TOP
 METHOD_KEYS = {
     "__init__": {"seed": T["scene"]["seed"], **T["world"]},
-    "add_cloth": {**T["cloth"], **T["cloth.springs"]},
+    "PanelConfig": {**T["cloth"], **T["cloth.springs"]},
     "set_strain_limit": T["cloth.strain"],
     "set_tearing": T["cloth.tearing"],
     "set_self_collision": T["self_collision"],
@@ -375,7 +375,8 @@ METHOD_KEYS = {
 @pytest.mark.parametrize("method", sorted(METHOD_KEYS))
 def test_builder_arguments_are_the_scene_keys_with_their_defaults(method):
     keys = METHOD_KEYS[method]
-    params = {n: p for n, p in inspect.signature(getattr(ModelBuilder, method)).parameters.items() if n != "self"}
+    target = PanelConfig if method == "PanelConfig" else getattr(ModelBuilder, method)
+    params = {n: p for n, p in inspect.signature(target).parameters.items() if n != "self"}
     assert set(params) == set(keys)
     for name, p in params.items():
         if name == "enabled":
@@ -384,6 +385,30 @@ def test_builder_arguments_are_the_scene_keys_with_their_defaults(method):
             assert p.default is inspect.Parameter.empty, name
         else:
             assert p.default == keys[name].default, name
+
+
+def test_a_panel_config_is_one_record_for_add_cloth_and_add_panel_and_keywords_replace_its_values():
+    """The same PanelConfig makes two panels; a keyword given beside it wins; the Model is the one the
+    keywords alone make; a setting that is not a key, or a required one left out, is a TypeError."""
+    from fraytool.sim.builder import PanelConfig
+
+    shirt = PanelConfig(spacing_m=0.005, thickness_m=0.001, mass_per_crossing_kg=2e-5, structural_n_per_m=20.0,
+                        warp_yarns=6, weft_yarns=5, shear_n_per_m=3.0)
+    by_config = ModelBuilder(seed=2)
+    by_config.add_cloth(shirt)
+    assert by_config.add_panel("back", shirt, origin_m=(0.1, 0.0, 0.0), warp_yarns=4) == 1
+    by_keys = ModelBuilder(seed=2)
+    by_keys.add_cloth(spacing_m=0.005, thickness_m=0.001, mass_per_crossing_kg=2e-5, structural_n_per_m=20.0,
+                      warp_yarns=6, weft_yarns=5, shear_n_per_m=3.0)
+    by_keys.add_panel("back", spacing_m=0.005, thickness_m=0.001, mass_per_crossing_kg=2e-5,
+                      structural_n_per_m=20.0, warp_yarns=4, weft_yarns=5, shear_n_per_m=3.0, origin_m=(0.1, 0.0, 0.0))
+    a, b = by_config.finalize(), by_keys.finalize()
+    assert a.crossing_count == 6 * 5 + 4 * 5 and a.digest() == b.digest()
+    with pytest.raises(TypeError, match="'spacing'"):
+        ModelBuilder().add_cloth(shirt, spacing=0.004)
+    with pytest.raises(TypeError, match="'structural_n_per_m'"):
+        ModelBuilder().add_cloth(spacing_m=0.005, thickness_m=0.001, mass_per_crossing_kg=2e-5, warp_yarns=3,
+                                 weft_yarns=3)
 
 
 def test_body_methods_cover_every_body_key():
@@ -432,3 +457,44 @@ def test_an_attachment_that_holds_no_crossing_is_a_warning(centre, holds, tmp_pa
     assert warnings == [f"fraytool: warning: {path}: [attachments.0] body 'ball': region_radius_m = 0.01 around "
                         "region_center_m = [0, 0.1, 0.5] holds no crossing of panel 'cloth' (the nearest is 0.475 m "
                         "from the centre); the body holds nothing"]
+
+
+def test_a_model_built_in_python_carries_the_warnings_of_its_entries():
+    """The builder warns where the facts are at hand, so a Model built in code (no scene file) says too that
+    its attachment holds nothing: a 1 cm region 0.4 m off a 5 x 5 cloth at the origin."""
+    b = ModelBuilder()
+    b.add_cloth(spacing_m=0.01, thickness_m=0.001, mass_per_crossing_kg=1e-5, structural_n_per_m=10.0,
+                warp_yarns=5, weft_yarns=5)
+    b.add_sphere("ball", radius_m=0.01)
+    b.add_attachment("ball", region_center_m=(0.4, 0.0, 0.0), region_radius_m=0.01)
+    b.add_attachment("ball", corner="top_left")
+    model = b.finalize()
+    assert list(model.build_warnings) == b.warnings
+    assert len(model.build_warnings) == 1
+    line = model.build_warnings[0]
+    assert line.startswith("ModelBuilder: [attachments.0] body 'ball':") and "(the nearest is 0.36 m" in line
+    assert model.attachment_entry_crossings.tolist() == [0, 1]
+
+
+def test_a_hemmed_panel_doubles_its_border_yarns_break_strain_whichever_panel_it_is():
+    """The hem doubles the break strain of structural springs along the border of a hemmed panel, the second
+    panel's as well as the first's (it once did only where the first panel was hemmed)."""
+    def build(first_edge: str, second_edge: str):
+        b = ModelBuilder(seed=5)
+        args = dict(spacing_m=0.01, thickness_m=0.001, mass_per_crossing_kg=1e-5, structural_n_per_m=10.0,
+                    warp_yarns=4, weft_yarns=4)
+        b.add_cloth(**args, edge=first_edge)
+        b.add_panel("b", **args, edge=second_edge, origin_m=(0.1, 0.0, 0.0))
+        b.set_tearing(break_strain=0.2, break_strain_spread=0.0)
+        return b.finalize()
+
+    from fraytool.kinds import STRUCT_WARP, STRUCT_WEFT
+
+    m = build("raw", "hemmed")
+    structural = (m.spring_kind == STRUCT_WEFT) | (m.spring_kind == STRUCT_WARP)
+    on_border = m.crossing_hemmed[m.spring_crossing_a] & m.crossing_hemmed[m.spring_crossing_b]
+    second = m.crossing_panel[m.spring_crossing_a] == 1
+    assert (structural & on_border & second).sum() == 12  # 3 springs along each of the 4 sides
+    np.testing.assert_array_equal(m.spring_break_strain[structural & on_border], 0.4)
+    np.testing.assert_array_equal(m.spring_break_strain[structural & ~on_border], 0.2)
+    assert not (on_border & ~second).any()

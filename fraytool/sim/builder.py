@@ -26,15 +26,15 @@ from __future__ import annotations
 import dataclasses
 import inspect
 import math
+import typing
 from typing import Any, Callable, Optional, Sequence
 
 import numpy as np
 
 from fraytool.errors import SceneError
-from fraytool.kinds import (BEND_WARP, BEND_WEFT, MOTION_NAMES, SHAPE_NAMES, SHEAR, SHEAR_TWIN, STITCH, STRUCT_WARP,
-                            STRUCT_WEFT)
+from fraytool.kinds import SHEAR_TWIN
 from fraytool.scene import rules, schema
-from fraytool.scene.keys import Key, show
+from fraytool.scene.keys import REQUIRED, Key, show
 from fraytool.scene.spec import (
     AttachmentSpec,
     BodySpec,
@@ -50,17 +50,15 @@ from fraytool.scene.spec import (
     WeakLineSpec,
 )
 from fraytool.scene.panel_shape import (PanelShapeError, crossing_fraction_along, distance_to_polyline, panel_shape,
-                                       sample_map, tear_map_image)
+                                       tear_map_image)
+from fraytool.sim.attachment_warnings import empty_attachment_warning
+from fraytool.sim.body_layout import BodyLayout, body_fields, lay_out_body
+from fraytool.sim.cloth_assembly import crossing_fields, is_structural, numbering, spread, spring_fields, with_stitches
 from fraytool.sim.model import Model
-from fraytool.geometry.rotations import euler_rotation, quat_to_matrix
-from fraytool.sim.paths import orientation_keys
-from fraytool.sim.seam_layout import border_crossings, stitch_pairs
+from fraytool.sim.panel_layout import PanelLayout, lay_out_panel, structural_slots
+from fraytool.sim.seam_layout import seam_start_error, seam_start_warning, stitch_pairs
 
 Vec3 = tuple[float, float, float]
-
-_PLANE_AXES = {"xz": (0, 2), "xy": (0, 1), "yz": (1, 2)}
-"""[cloth] plane -> (the weft's axis, the warp's axis): the first letter's and the second's
-(docs/scene-format.md; scene_hash marks "yz", whose frames once ran the weft along z)."""
 
 _SCENE, _WORLD, _CLOTH, _SPRINGS = (schema.TOP[t] for t in ("scene", "world", "cloth", "cloth.springs"))
 _STRAIN, _TEARING, _SELF = (schema.TOP[t] for t in ("cloth.strain", "cloth.tearing", "self_collision"))
@@ -69,26 +67,9 @@ _BODY, _ATTACH, _CUT = schema.TOP["bodies"], schema.TOP["attachments"], schema.T
 _WEAK, _SEAM = schema.TOP["weak_lines"], schema.TOP["seams"]
 
 
-@dataclasses.dataclass(frozen=True)
-class _Panel:
-    """A panel added to the builder: its keys, its shape (which crossings of its grid exist) and its tear map."""
-
-    spec: ClothSpec
-    shape: Any
-    tear_map: Optional[np.ndarray]
-
-
 class ModelBuilderError(SceneError, ValueError):
     """Bad arguments to a ModelBuilder method: one line per problem, "ModelBuilder.method: arg = value:
     what is allowed". A SceneError (exit code 2 from the CLI) and a ValueError (for Python callers)."""
-
-
-def _unit(v) -> np.ndarray:
-    """v / |v|, scaled by its largest component first so that neither a huge vector (|v|^2 overflows
-    to inf, v / |v| to 0) nor a tiny one (|v|^2 underflows to 0) loses its direction."""
-    v = np.asarray(v, float)
-    v = v / np.abs(v).max()
-    return v / np.linalg.norm(v)
 
 
 def crossing_index(i: int | np.ndarray, j: int | np.ndarray, warp_yarns: int):
@@ -174,8 +155,70 @@ def _keys_doc(*tables: str) -> Callable:
     return decorate
 
 
+PANEL_KEYS: dict[str, Key] = {**_CLOTH, **_SPRINGS}
+"""A panel's settings: the keys of [cloth] and [cloth.springs], each with its one declaration."""
+
+
+def _panel_config_fields() -> list:
+    hints = {**typing.get_type_hints(ClothSpec), **typing.get_type_hints(SpringSpec)}
+    out = []
+    for name, k in PANEL_KEYS.items():
+        kind = hints.get(name, Optional[Sequence[Sequence[int]]])  # `table`: the weave repeat as rows of 0 / 1
+        out.append((name, kind) if k.default is REQUIRED else (name, kind, dataclasses.field(default=k.default)))
+    return out
+
+
+PanelConfig = dataclasses.make_dataclass("PanelConfig", _panel_config_fields(), frozen=True, kw_only=True)
+PanelConfig.__module__ = __name__
+PanelConfig.__doc__ = (
+    "One panel's settings, as one typed record (the keys of [cloth] and [cloth.springs], docs/scene-format.md; "
+    "spacing_m, thickness_m, mass_per_crossing_kg and structural_n_per_m required):\n\n"
+    "    shirt = PanelConfig(spacing_m=0.004, thickness_m=0.0008, mass_per_crossing_kg=2e-5, "
+    "structural_n_per_m=20.0)\n    builder.add_cloth(shirt, outline_m=front)\n    builder.add_panel(\"back\", shirt, "
+    "outline_m=back)\n\nKeywords given to add_cloth / add_panel replace the record's values.\n\n"
+    + "\n".join(f"    {name}: {k.allowed()}. {k.doc}" for name, k in PANEL_KEYS.items()))
+
+
+@dataclasses.dataclass
+class _PanelEntry:
+    """A panel as added: its layout, and what the cuts added since have done to its springs."""
+
+    layout: PanelLayout
+    precut: np.ndarray  # (S,) bool: cut before the shot (add_cut with start and end)
+    cut_time_s: np.ndarray  # (S,) when scissors cut the spring; inf for never
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class _Held:
+    """An attachment as added: the crossings it selected (Model numbering), its body, their offsets in the
+    body's frame."""
+
+    crossings: np.ndarray
+    body: int
+    offset_m: np.ndarray
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class _Stitches:
+    """A seam as added: its stitches (crossing pairs, Model numbering), their rest length and stiffness, and
+    whether sewn the other way round every stitch would start within the seam's break strain."""
+
+    pairs: np.ndarray
+    rest_length_m: np.ndarray
+    stiffness_n_per_m: np.ndarray
+    break_strain: float
+    reverse_fits: bool
+
+
 class ModelBuilder:
-    """Collects one cloth, its solver settings, rigid bodies and attachments; `finalize()` makes the Model.
+    """Collects cloth panels, their solver settings, rigid bodies, attachments, cuts, weak lines and seams;
+    `finalize()` makes the Model.
+
+    Each add_* does its work when it is called: a panel lays out its crossings and springs, a body its
+    frame, an attachment selects its crossings, a cut and a weak line mark the springs they meet, a seam
+    places its stitches; a warning is recorded where its facts are at hand (`warnings`, and the Model's
+    build_warnings). `finalize()` draws the random break strains (they depend on set_tearing, which may come
+    last), concatenates and validates (docs/architecture.md, "Where each derived fact is computed").
 
     Settings of the cloth that the solver reads (strain limiting, tearing, self-collision) have their
     own `set_*` method, one per scene table; without the call, the scene file's defaults hold
@@ -199,8 +242,19 @@ class ModelBuilder:
         self.cuts: list[CutSpec] = []
         self.weak_lines: list[WeakLineSpec] = []
         self.seams: list[SeamSpec] = []
-        self._panels: list[_Panel] = []
-        self._mesh_assets: dict[str, Any] = {}  # mesh body name -> fraytool.scene.mesh_files.MeshAsset
+        self.warnings: list[str] = []
+        """What the builder noticed that no range check can (an attachment holding nothing, a seam that starts
+        torn, an open mesh), one line each, naming the entry; the Model keeps them (Model.build_warnings)."""
+        self.source = "ModelBuilder"
+        """What the warnings name the entries after: the scene file for scene_builder."""
+        self.scene_file = ""
+        """Files named to add_mesh are found relative to it (scene_builder: the scene file); "" for the
+        current directory."""
+        self._panels: list[_PanelEntry] = []
+        self._bodies: list[BodyLayout] = []
+        self._held: list[_Held] = []
+        self._weak: list[tuple[int, np.ndarray]] = []  # per weak line: its panel, the panel's springs it weakens
+        self._stitches: list[_Stitches] = []
 
     # --- checking arguments ---------------------------------------------------------------------------
 
@@ -228,72 +282,41 @@ class ModelBuilder:
         self._raise(method, problems)
         return out
 
+    def _entry(self, table: str, index: int) -> str:
+        return f"{self.source}: [{table}.{index}]"
+
     # --- the cloth and its solver settings ----------------------------------------------------------
 
-    @_keys_doc("cloth", "cloth.springs")
-    def add_cloth(self, *, spacing_m: float, thickness_m: float,
-                  mass_per_crossing_kg: float, structural_n_per_m: float,
-                  warp_yarns: int = _CLOTH["warp_yarns"].default, weft_yarns: int = _CLOTH["weft_yarns"].default,
-                  outline_m: Sequence[Sequence[float]] = _CLOTH["outline_m"].default,
-                  mask: str = _CLOTH["mask"].default,
-                  mask_size_m: Sequence[float] = _CLOTH["mask_size_m"].default,
-                  grain_deg: float = _CLOTH["grain_deg"].default,
-                  edge: str = _CLOTH["edge"].default,
-                  tear_map: str = _CLOTH["tear_map"].default,
-                  tear_map_strain: Sequence[float] = _CLOTH["tear_map_strain"].default,
-                  origin_m: Sequence[float] = _CLOTH["origin_m"].default,
-                  plane: str = _CLOTH["plane"].default,
-                  weave: str = _CLOTH["weave"].default,
-                  twill: str = _CLOTH["twill"].default,
-                  satin_shafts: int = _CLOTH["satin_shafts"].default,
-                  table: Optional[Sequence[Sequence[int]]] = _CLOTH["table"].default,
-                  bend_n_per_m: float = _SPRINGS["bend_n_per_m"].default,
-                  shear_n_per_m: float = _SPRINGS["shear_n_per_m"].default,
-                  damping: float = _SPRINGS["damping"].default,
-                  name: str = "", rotation_deg: Sequence[float] = _CLOTH["rotation_deg"].default,
-                  wrap_radius_m: float = _CLOTH["wrap_radius_m"].default,
-                  warp_color: Optional[Sequence[float]] = None, weft_color: Optional[Sequence[float]] = None) -> None:
+    def add_cloth(self, config: Optional[PanelConfig] = None, /, **keys: Any) -> int:
         """The woven cloth: a grid of warp_yarns x weft_yarns crossings, spacing_m apart, in `plane`
         from `origin_m`, with its weave and springs ([cloth] and [cloth.springs]); or a panel cut from
         that grid by `outline_m` (a polygon in the plane [m]) or `mask` (a greyscale image file), its
-        weave turned by `grain_deg` (docs/panels.md). The first panel; add_panel adds more."""
+        weave turned by `grain_deg` (docs/panels.md). Its settings: a PanelConfig, keywords (the keys of
+        PanelConfig), or both (keywords win). The first panel; add_panel adds more. Returns its index (0)."""
         if self._panels:
             self._raise("add_cloth", [(None, None, "add_cloth makes the first panel and was already called; "
                                                    "add_panel adds more")])
-        self._add_panel("add_cloth", _given(locals()))
+        return self._add_panel("add_cloth", config, keys)
 
-    @_keys_doc("cloth", "cloth.springs")
-    def add_panel(self, name: str, *, spacing_m: float, thickness_m: float,
-                  mass_per_crossing_kg: float, structural_n_per_m: float,
-                  warp_yarns: int = _CLOTH["warp_yarns"].default, weft_yarns: int = _CLOTH["weft_yarns"].default,
-                  outline_m: Sequence[Sequence[float]] = _CLOTH["outline_m"].default,
-                  mask: str = _CLOTH["mask"].default,
-                  mask_size_m: Sequence[float] = _CLOTH["mask_size_m"].default,
-                  grain_deg: float = _CLOTH["grain_deg"].default,
-                  edge: str = _CLOTH["edge"].default,
-                  tear_map: str = _CLOTH["tear_map"].default,
-                  tear_map_strain: Sequence[float] = _CLOTH["tear_map_strain"].default,
-                  origin_m: Sequence[float] = _CLOTH["origin_m"].default,
-                  plane: str = _CLOTH["plane"].default,
-                  weave: str = _CLOTH["weave"].default,
-                  twill: str = _CLOTH["twill"].default,
-                  satin_shafts: int = _CLOTH["satin_shafts"].default,
-                  table: Optional[Sequence[Sequence[int]]] = _CLOTH["table"].default,
-                  bend_n_per_m: float = _SPRINGS["bend_n_per_m"].default,
-                  shear_n_per_m: float = _SPRINGS["shear_n_per_m"].default,
-                  damping: float = _SPRINGS["damping"].default,
-                  rotation_deg: Sequence[float] = _CLOTH["rotation_deg"].default,
-                  wrap_radius_m: float = _CLOTH["wrap_radius_m"].default,
-                  warp_color: Optional[Sequence[float]] = None, weft_color: Optional[Sequence[float]] = None) -> None:
+    def add_panel(self, name: str, config: Optional[PanelConfig] = None, /, **keys: Any) -> int:
         """One more cloth panel ([[cloth]] written again; docs/panels.md), with its own shape, weave, springs,
-        mass, place and colours. Every panel shares the first's spacing_m, thickness_m, damping and solver
-        settings; panels collide with each other through self-collision and are joined by add_seam."""
+        mass, place and colours, given as for add_cloth. Every panel shares the first's spacing_m, thickness_m,
+        damping and solver settings; panels collide with each other through self-collision and are joined by
+        add_seam. Returns the panel's index."""
         if not self._panels:
             self._raise("add_panel", [(None, None, "call add_cloth first (the first panel)")])
-        self._add_panel("add_panel", _given(locals()))
+        return self._add_panel("add_panel", config, {**keys, "name": name})
 
-    def _add_panel(self, method: str, args: dict) -> None:
-        v = self._check(method, {**_CLOTH, **_SPRINGS}, args)
+    def _add_panel(self, method: str, config: Optional[PanelConfig], keys: dict) -> int:
+        given = {**(dataclasses.asdict(config) if config is not None else {}), **keys}
+        unknown = [k for k in given if k not in PANEL_KEYS]
+        missing = [k for k, key in PANEL_KEYS.items() if key.default is REQUIRED and k not in given]
+        if unknown or missing:  # as a Python signature would say it
+            raise TypeError(f"ModelBuilder.{method}() " + "; ".join(
+                ([f"got an unexpected keyword argument {', '.join(map(repr, unknown))}"] if unknown else [])
+                + ([f"is missing the required setting {', '.join(map(repr, missing))}"] if missing else []))
+                + " (a panel's settings are the fields of PanelConfig: the keys of [cloth] and [cloth.springs])")
+        v = self._check(method, PANEL_KEYS, {k: given.get(k, key.default) for k, key in PANEL_KEYS.items()})
         table, problems = rules.weave_table(v["weave"], v["twill"], v["satin_shafts"], v["table"])
         self._raise(method, problems + rules.cloth_problems(v["spacing_m"], v["thickness_m"])
                     + rules.wrap_problems(v["spacing_m"], v["wrap_radius_m"])
@@ -310,7 +333,7 @@ class ModelBuilder:
             tear_map = tear_map_image(cloth) if cloth.tear_map else None
         except PanelShapeError as exc:
             self._raise(method, exc.problems)
-        first = self._panels[0].spec if self._panels else None
+        first = self._panels[0].layout.spec if self._panels else None
         if first is not None:
             shared = [(k, getattr(cloth, k), f"every panel shares the first panel's {k} = {getattr(first, k):g}")
                       for k in ("spacing_m", "thickness_m") if getattr(cloth, k) != getattr(first, k)]
@@ -322,13 +345,16 @@ class ModelBuilder:
             self._raise(method, shared)
         if cloth.outline_m or cloth.mask:  # the shape sets the grid
             cloth = dataclasses.replace(cloth, warp_yarns=shape.warp_yarns, weft_yarns=shape.weft_yarns)
-        self._panels.append(_Panel(cloth, shape, tear_map))
+        layout = lay_out_panel(cloth, shape, tear_map)
+        self._panels.append(_PanelEntry(layout, np.zeros(layout.spring_count, bool),
+                                        np.full(layout.spring_count, np.inf)))
         if first is None:
             self.cloth = cloth
+        return len(self._panels) - 1
 
     @property
     def panel_names(self) -> list[str]:
-        return [p.spec.name for p in self._panels]
+        return [p.layout.spec.name for p in self._panels]
 
     def _panel_index(self, method: str, name: str) -> int:
         """Index of the panel called `name` ("": the first)."""
@@ -337,6 +363,10 @@ class ModelBuilder:
         if name not in self.panel_names:
             self._raise(method, [("panel", name, "must name one of the panels: " + ", ".join(self.panel_names))])
         return self.panel_names.index(name)
+
+    def _crossing_start(self, panel: int) -> int:
+        """The Model's number of panel `panel`'s first crossing (panels keep their numbers as more are added)."""
+        return sum(p.layout.crossing_count for p in self._panels[:panel])
 
     @_keys_doc("cloth.strain")
     def set_strain_limit(self, *, limit: float = _STRAIN["limit"].default,
@@ -383,12 +413,13 @@ class ModelBuilder:
 
     # --- rigid bodies -------------------------------------------------------------------------------
 
-    def _add_body(self, method: str, shape: str, args: dict[str, Any]) -> int:
+    def _add_body(self, method: str, shape: str, args: dict[str, Any], mesh=None) -> int:
         v = self._check(method, _BODY, args)
         body = BodySpec(shape=shape, **v)
         self._raise(method, rules.body_name_problems(body.name, (b.name for b in self.bodies))
                     + rules.body_problems(body))
         self.bodies.append(body)
+        self._bodies.append(lay_out_body(body, mesh))
         return len(self.bodies) - 1
 
     @_keys_doc("bodies")
@@ -477,8 +508,8 @@ class ModelBuilder:
             self._raise("add_mesh", [(None, None, "give either file or vertices_m and triangles")])
         try:
             if file is not None:
-                path = mesh_files.resolve(str(file), "")
-                problems = mesh_files.file_problems(str(path), prim, "")
+                path = mesh_files.resolve(str(file), self.scene_file)
+                problems = mesh_files.file_problems(str(file), prim, self.scene_file)
                 if problems:
                     self._raise("add_mesh", problems)
                 if mesh_files.is_sequence(path) and frame_time_s <= 0.0:
@@ -490,8 +521,12 @@ class ModelBuilder:
         except mesh_files.MeshFileError as exc:
             raise ModelBuilderError([f"ModelBuilder.add_mesh: {exc}"]) from None
         args["file"] = str(file) if file is not None else "<arrays>"
-        index = self._add_body("add_mesh", "mesh", args)
-        self._mesh_assets[self.bodies[index].name] = asset
+        index = self._add_body("add_mesh", "mesh", args, mesh=asset)
+        if not asset.closed:
+            from fraytool.sim.mesh_report import border_edge_count, open_mesh_warning
+
+            self.warnings.append(open_mesh_warning(f"{self._entry('bodies', index)} file = {args['file']!r}",
+                                                   border_edge_count(asset.triangles), len(asset.triangles)))
         return index
 
     @_keys_doc("attachments")
@@ -510,9 +545,20 @@ class ModelBuilder:
                 self._raise("add_attachment", [("body", body, f"no body has this index ({len(self.bodies)} added)")])
             args["body"] = self.bodies[body].name
         att = AttachmentSpec(**self._check("add_attachment", _ATTACH, args))
-        c = self._panels[self._panel_index("add_attachment", att.panel)].spec
+        c = self._panels[self._panel_index("add_attachment", att.panel)].layout.spec
         self._raise("add_attachment", rules.attachment_problems(att, (b.name for b in self.bodies),
                                                                 c.warp_yarns, c.weft_yarns))
+        k = self._panel_index("add_attachment", att.panel)
+        panel = self._panels[k].layout
+        h, w = panel.grid.shape
+        chosen = select_crossings(att, w, h, panel.rest_m, panel.grid)
+        body = [bd.name for bd in self.bodies].index(att.body)
+        frame = self._bodies[body]
+        offset_m = (frame.rotation.T @ (panel.rest_m[chosen] - frame.initial_position_m).T).T
+        self._held.append(_Held(self._crossing_start(k) + chosen.astype(np.int64), body, offset_m.reshape(-1, 3)))
+        if not chosen.size:
+            self.warnings.append(empty_attachment_warning(self._entry("attachments", len(self.attachments)), att,
+                                                          panel))
         self.attachments.append(att)
 
     @_keys_doc("cuts")
@@ -528,8 +574,19 @@ class ModelBuilder:
         if self.cloth is None:
             self._raise("add_cut", [(None, None, "call add_cloth first (cuts are on its grid)")])
         cut = CutSpec(**self._check("add_cut", _CUT, _given(locals())))
-        c = self._panels[self._panel_index("add_cut", cut.panel)].spec
-        self._raise("add_cut", rules.cut_problems(cut, c.warp_yarns, c.weft_yarns))
+        entry = self._panels[self._panel_index("add_cut", cut.panel)]
+        p = entry.layout
+        self._raise("add_cut", rules.cut_problems(cut, p.spec.warp_yarns, p.spec.weft_yarns))
+        if not cut.path_m:  # a twin is born with its shear spring: a cut one has none
+            entry.precut |= springs_across(cut.start, cut.end, p.spring_a, p.spring_b, p.crossing_i, p.crossing_j) \
+                & (p.spring_kind != SHEAR_TWIN)
+        else:
+            structural = np.flatnonzero(is_structural(p.spring_kind))
+            f = crossing_fraction_along(p.uv_m[p.spring_a[structural]], p.uv_m[p.spring_b[structural]],
+                                        np.asarray(cut.path_m, float))
+            hit = ~np.isnan(f)
+            times = cut.start_s + f[hit] * (cut.end_s - cut.start_s)
+            entry.cut_time_s[structural[hit]] = np.minimum(entry.cut_time_s[structural[hit]], times)
         self.cuts.append(cut)
 
     @_keys_doc("weak_lines")
@@ -541,8 +598,11 @@ class ModelBuilder:
         if self.cloth is None:
             self._raise("add_weak_line", [(None, None, "call add_cloth first (weak lines are in its plane)")])
         line = WeakLineSpec(**self._check("add_weak_line", _WEAK, _given(locals())))
-        self._panel_index("add_weak_line", line.panel)
+        k = self._panel_index("add_weak_line", line.panel)
         self._raise("add_weak_line", rules.weak_line_problems(line))
+        p = self._panels[k].layout
+        self._weak.append((k, distance_to_polyline(p.spring_uv_m, np.asarray(line.points_m, float))
+                           <= 0.5 * line.width_m))
         self.weak_lines.append(line)
 
     @_keys_doc("seams")
@@ -558,166 +618,82 @@ class ModelBuilder:
         b = self._panels[self._panel_index("add_seam", seam.panel_b)]
         from fraytool.scene.load import seam_problems
 
-        self._raise("add_seam", seam_problems(seam, a.spec, b.spec))
+        self._raise("add_seam", seam_problems(seam, a.layout.spec, b.layout.spec))
+        self._stitches.append(self._place_stitches(len(self.seams), seam))
         self.seams.append(seam)
+
+    def _place_stitches(self, index: int, seam: SeamSpec) -> _Stitches:
+        """A seam's stitches on the panels as placed (fraytool.sim.seam_layout.stitch_pairs), refused when they
+        start too long to sew, and a warning when some start past the seam's break strain."""
+        pa, pb = self._panel_index("add_seam", seam.panel_a), self._panel_index("add_seam", seam.panel_b)
+        layouts = [p.layout for p in self._panels]
+        uv = np.concatenate([p.uv_m for p in layouts])
+        rest = np.concatenate([p.rest_m for p in layouts])
+        panel_of = np.concatenate([np.full(p.crossing_count, k, np.int32) for k, p in enumerate(layouts)])
+        border = np.concatenate([p.border for p in layouts])
+
+        def place(reverse: bool) -> np.ndarray:
+            return stitch_pairs(layouts[pa].shape.outline_uv_m, seam.segment_a, pa, layouts[pb].shape.outline_uv_m,
+                                seam.segment_b, pb, reverse, seam.stitch_spacing_m, uv, panel_of, border,
+                                self.cloth.spacing_m)
+
+        pairs, flipped = place(seam.reverse), place(not seam.reverse)
+        rest_m = seam.stitch_length_m or self.cloth.spacing_m
+        start_m = np.linalg.norm(rest[pairs[:, 1]] - rest[pairs[:, 0]], axis=1)
+        flipped_m = np.linalg.norm(rest[flipped[:, 1]] - rest[flipped[:, 0]], axis=1)
+        limit_m = rest_m * (1.0 + seam.break_strain)
+        reverse_fits = bool(len(flipped)) and bool(flipped_m.max() <= limit_m)
+        where = self._entry("seams", index)
+        error = seam_start_error(where, seam, start_m, rest_m)
+        if error:
+            raise ModelBuilderError([error])
+        line = seam_start_warning(where, seam, start_m, rest_m, limit_m, reverse_fits)
+        if line:
+            self.warnings.append(line)
+        return _Stitches(pairs, np.full(len(pairs), rest_m), np.full(len(pairs), seam.stiffness_n_per_m),
+                         seam.break_strain, reverse_fits)
 
     # --- finalize -------------------------------------------------------------------------------------
 
-    def _grid(self):
-        """The panels laid on one grid, block-diagonally (panel p's grid in rows and columns of its own, so no
-        spring joins two panels): (crossing grid (ny, nx) -> crossing or -1, each panel's grid offset (I, J),
-        and per crossing: its panel, its place in the plane (C, 2) [m], rest position (C, 3), weft on top).
-        Crossings are numbered row by row, so each panel's are consecutive (for one rectangle, c = j * nx + i)."""
-        nx = sum(p.shape.warp_yarns for p in self._panels)
-        ny = sum(p.shape.weft_yarns for p in self._panels)
-        grid = np.full((ny, nx), -1, np.int64)
-        offsets = []
-        I = J = 0
-        for p in self._panels:
-            h, w = p.shape.present.shape
-            grid[J:J + h, I:I + w][p.shape.present] = len(offsets)  # the panel's index, for now
-            offsets.append((I, J))
-            I, J = I + w, J + h
-        panel = grid[grid >= 0].astype(np.int32)
-        grid[grid >= 0] = np.arange(panel.size)
-        uv = np.concatenate([p.shape.uv_m[p.shape.present] for p in self._panels])
-        rest = np.concatenate([_panel_rest(p.spec, p.shape.uv_m[p.shape.present]) for p in self._panels])
-        top = []
-        for p in self._panels:
-            jj, ii = np.nonzero(p.shape.present)
-            table = np.asarray(p.spec.weave_table, dtype=bool)
-            top.append(table[jj % table.shape[0], ii % table.shape[1]])
-        return grid, offsets, panel, uv, rest, np.concatenate(top)
-
-    @staticmethod
-    def _springs(k: dict[str, np.ndarray], grid: np.ndarray, rest: np.ndarray):
-        """Springs between crossings of `grid` (ny, nx; -1 where the panel has no crossing): a spring is
-        built where all the crossings it joins or spans are there (a bend over its middle crossing, a
-        shear spring over its whole cell), and where its kind's stiffness at its first crossing
-        (`k[name][c]`, [cloth.springs] of the crossing's panel) is above 0."""
-        ny, nx = grid.shape
-        parts: list[tuple[int, np.ndarray, np.ndarray, float]] = []
-        count = 0
-        weft_struct = np.full((ny, max(nx - 1, 0)), -1, np.int32)
-        warp_struct = np.full((nx, max(ny - 1, 0)), -1, np.int32)
-
-        def add(kind, a, b, ks, *also):
-            """Springs a-b of grid places (arrays of crossings, -1 for none) where a, b and `also` exist and
-            the stiffness ks (per crossing) at a is above 0; returns their slots, -1 where not built, in
-            the shape of a."""
-            nonlocal count
-            ok = (a >= 0) & (b >= 0)
-            for x in also:
-                ok &= x >= 0
-            ok &= ks[np.maximum(a, 0)] > 0
-            slots = np.full(a.shape, -1, np.int32)
-            a, b = np.asarray(a[ok], np.int32).ravel(), np.asarray(b[ok], np.int32).ravel()
-            parts.append((kind, a, b, ks[a]))
-            count += a.size
-            slots[ok] = np.arange(count - a.size, count, dtype=np.int32)
-            return slots
-
-        g = grid
-        weft_struct[:, :] = add(STRUCT_WEFT, g[:, :-1], g[:, 1:], k["structural_n_per_m"])
-        warp_struct[:, :] = add(STRUCT_WARP, g[:-1, :].T, g[1:, :].T, k["structural_n_per_m"])
-        if (k["bend_n_per_m"] > 0).any():
-            add(BEND_WEFT, g[:, :-2], g[:, 2:], k["bend_n_per_m"], g[:, 1:-1])
-            add(BEND_WARP, g[:-2, :].T, g[2:, :].T, k["bend_n_per_m"], g[1:-1, :].T)
-        shear_twin_pairs = None
-        if (k["shear_n_per_m"] > 0).any():
-            cell = (g[:-1, :-1], g[:-1, 1:], g[1:, :-1], g[1:, 1:])  # (i, j), (i+1, j), (i, j+1), (i+1, j+1)
-            s1 = add(SHEAR, cell[0], cell[3], k["shear_n_per_m"], cell[1], cell[2])
-            s2 = add(SHEAR, cell[1], cell[2], k["shear_n_per_m"], cell[0], cell[3])
-            s1, s2 = s1[s1 >= 0], s2[s2 >= 0]
-            shear = np.concatenate([s1, s2])
-            twins = add(SHEAR_TWIN, np.concatenate([parts[-2][1], parts[-1][1]]),
-                        np.concatenate([parts[-2][2], parts[-1][2]]), 0.5 * k["shear_n_per_m"])
-            shear_twin_pairs = (shear, twins)
-        kind = np.concatenate([np.full(p[1].size, p[0], np.int8) for p in parts]) if parts else np.zeros(0, np.int8)
-        a = np.concatenate([p[1] for p in parts]) if parts else np.zeros(0, np.int32)
-        b = np.concatenate([p[2] for p in parts]) if parts else np.zeros(0, np.int32)
-        stiff = np.concatenate([np.asarray(p[3], float) for p in parts]) if parts else np.zeros(0)
-        twin = np.full(count, -1, np.int32)
-        if shear_twin_pairs is not None:
-            twin[shear_twin_pairs[0]] = shear_twin_pairs[1]
-            twin[shear_twin_pairs[1]] = shear_twin_pairs[0]
-        rest_len = np.linalg.norm(rest[b] - rest[a], axis=1)
-        return kind, a, b, stiff, rest_len, twin, weft_struct, warp_struct
-
-    def _break_strains(self, count: int, spring_uv_m: np.ndarray, spring_panel: np.ndarray) -> tuple:
-        """Per-spring break strain ~ Normal(mean, spread), clipped above the transition strain. The mean is
-        break_strain, or the tear map's value under the spring's middle (`spring_uv_m`, in the cloth's
-        plane); a weak line then scales the draw (docs/panels.md "Tear control"). Returns (break strains, the
-        last weak line that weakened each spring or -1; empty without weak lines).
-
-        The floor does not depend on yarn_level, so a base-model-only run of a scene (yarn_level =
-        false, for comparison) tears a cloth with exactly the same break strains."""
-        t = self.tearing
-        rng = np.random.default_rng(self.seed)
-        mean: float | np.ndarray = t.break_strain
-        for k, p in enumerate(self._panels):
-            if p.tear_map is not None:
-                lo, hi = p.spec.tear_map_strain
-                on = spring_panel == k
-                mean = np.full(count, t.break_strain) if np.isscalar(mean) else mean
-                mean[on] = lo + (hi - lo) * sample_map(p.tear_map, p.shape.extent_uv_m, spring_uv_m[on])
-        draw = mean + t.break_strain_spread * rng.standard_normal(count)
-        weak_line = np.full(count if self.weak_lines else 0, -1, np.int32)
-        for index, line in enumerate(self.weak_lines):
-            on = spring_panel == self._panel_index("finalize", line.panel)
-            near = on & (distance_to_polyline(spring_uv_m, np.asarray(line.points_m, float)) <= 0.5 * line.width_m)
-            draw[near] *= line.factor
-            weak_line[near] = index
-        floor = t.transition_strain * 1.01 if t.transition_strain < t.break_strain else 1e-3
-        self._rng = rng  # the seams' stitches draw theirs next, from the same stream
-        return np.maximum(draw, floor), weak_line
-
-    def _scissor_times(self, kind: np.ndarray, a: np.ndarray, b: np.ndarray, uv: np.ndarray,
-                       crossing_panel: np.ndarray) -> np.ndarray:
-        """When scissors ([[cuts]] path_m) cut each structural spring [s]; inf for never, shape (S,)."""
-        out = np.full(kind.shape[0], np.inf)
-        for cut in self.cuts:
-            if not cut.path_m:
-                continue
-            on = crossing_panel[a] == self._panel_index("finalize", cut.panel)
-            structural = np.flatnonzero(((kind == STRUCT_WEFT) | (kind == STRUCT_WARP)) & on)
-            f = crossing_fraction_along(uv[a[structural]], uv[b[structural]], np.asarray(cut.path_m, float))
-            hit = ~np.isnan(f)
-            times = cut.start_s + f[hit] * (cut.end_s - cut.start_s)
-            out[structural[hit]] = np.minimum(out[structural[hit]], times)
-        return out
-
-    def _stitches(self, uv: np.ndarray, crossing_panel: np.ndarray, border: np.ndarray, rest: np.ndarray):
-        """The seams' stitches (docs/panels.md "Seams"), each seam's placed by fraytool.sim.seam_layout.stitch_pairs.
-        Returns (a, b, rest length [m], stiffness [N/m], break strain, seam index, whether each seam sewn the
-        other way round would start within its break strain), the break strains drawn after the cloth's
-        from the same seeded stream."""
-        out_a, out_b, out_rest, out_k, out_break, out_seam, reverse_fits = [], [], [], [], [], [], []
-        for index, seam in enumerate(self.seams):
-            pa, pb = self._panel_index("finalize", seam.panel_a), self._panel_index("finalize", seam.panel_b)
-            pair = stitch_pairs(self._panels[pa].shape.outline_uv_m, seam.segment_a, pa,
-                                self._panels[pb].shape.outline_uv_m, seam.segment_b, pb, seam.reverse,
-                                seam.stitch_spacing_m, uv, crossing_panel, border, self.cloth.spacing_m)
-            out_a.append(pair[:, 0])
-            out_b.append(pair[:, 1])
-            length = seam.stitch_length_m or self.cloth.spacing_m
-            out_rest.append(np.full(len(pair), length))
-            out_k.append(np.full(len(pair), seam.stiffness_n_per_m))
-            draw = seam.break_strain + self.tearing.break_strain_spread * self._rng.standard_normal(len(pair))
-            out_break.append(np.maximum(draw, 1e-3))
-            out_seam.append(np.full(len(pair), index, np.int32))
-            # the facts of the start warning (fraytool.sim.seam_layout), at hand here: the other way round
-            flipped = stitch_pairs(self._panels[pa].shape.outline_uv_m, seam.segment_a, pa,
-                                   self._panels[pb].shape.outline_uv_m, seam.segment_b, pb, not seam.reverse,
-                                   seam.stitch_spacing_m, uv, crossing_panel, border, self.cloth.spacing_m)
-            flipped_m = np.linalg.norm(rest[flipped[:, 1]] - rest[flipped[:, 0]], axis=1)
-            reverse_fits.append(bool(len(flipped)) and bool(flipped_m.max() <= length * (1.0 + out_break[-1].min())))
-        cat = np.concatenate
-        return (cat(out_a).astype(np.int32), cat(out_b).astype(np.int32), cat(out_rest), cat(out_k), cat(out_break),
-                cat(out_seam), np.asarray(reverse_fits, bool))
-
     def finalize(self) -> Model:
-        """Turn everything added into the immutable Model (typed arrays); the builder can go on."""
+        """Turn everything added into the immutable Model (typed arrays); the builder can go on. Draws the
+        break strains, concatenates what each add_* made, and validates the whole."""
+        self._validate()
+        panels = [p.layout for p in self._panels]
+        num = numbering(panels)
+        crossings = crossing_fields(panels, num)
+        springs = spring_fields(panels, num, crossings["crossing_rest_position_m"])
+        cw, cv = structural_slots(crossings["weft_structural_spring"], crossings["warp_structural_spring"],
+                                  springs["spring_crossing_a"], springs["spring_crossing_b"], num.crossing_start[-1])
+        break_strain, weak_line, stitch_break = self._draw_break_strains(panels, num)
+        springs.update(spring_precut=spread(panels, num, [p.precut for p in self._panels], False, bool),
+                       spring_cut_time_s=spread(panels, num, [p.cut_time_s for p in self._panels], np.inf, float),
+                       spring_break_strain=break_strain, spring_weak_line=weak_line,
+                       spring_seam=np.zeros(0, np.int32))
+        springs = with_stitches(springs, self._stitches, stitch_break)
+        kind, a, b = springs["spring_kind"], springs["spring_crossing_a"], springs["spring_crossing_b"]
+        hemmed = crossings["crossing_hemmed"]  # a hem folds the border over: two layers of yarn hold it
+        springs["spring_break_strain"][is_structural(kind) & hemmed[a] & hemmed[b]] *= 2.0
+        held = [np.concatenate([h.crossings for h in self._held]).astype(np.int32) if self._held
+                else np.zeros(0, np.int32)]
+        _, first = np.unique(held[0], return_index=True)
+        first = np.sort(first)  # a crossing held twice keeps its first holder
+        c = self.cloth
+        return Model(
+            **crossings, **springs, **body_fields(self._bodies), **self._solver_fields(crossings, springs),
+            spacing_m=c.spacing_m, thickness_m=c.thickness_m, gravity_m_s2=np.asarray(self.gravity_m_s2, float),
+            crossing_weft_springs=cw, crossing_warp_springs=cv, panel_names=tuple(self.panel_names),
+            attachment_particle=held[0][first],
+            attachment_body=np.concatenate([np.full(h.crossings.size, h.body, np.int32) for h in self._held]
+                                           + [np.zeros(0, np.int32)])[first],
+            attachment_offset_m=np.concatenate([h.offset_m for h in self._held] + [np.zeros((0, 3))])[first],
+            attachment_entry_crossings=np.array([h.crossings.size for h in self._held], np.int64),
+            seam_reverse_fits=np.array([s.reverse_fits for s in self._stitches], bool),
+            seed=self.seed, build_warnings=tuple(self.warnings + self._scale_warnings(crossings)),
+        )
+
+    def _validate(self) -> None:
+        """What only the whole can show: a cloth at all, scissors without tearing, a coarse model of panels."""
         c = self.cloth
         if c is None:
             self._raise("finalize", [(None, None, "no cloth: call add_cloth first")])
@@ -727,262 +703,77 @@ class ModelBuilder:
         if self.multires.factor > 1 and (c.outline_m or c.mask or len(self._panels) > 1):
             self._raise("finalize", [(None, None, "a shaped panel (outline_m or mask) or several panels are "
                                                   "simulated at yarn resolution: set_multires(factor=1)")])
-        grid, offsets, crossing_panel, uv, rest, top = self._grid()
-        ny, nx = grid.shape
-        n = rest.shape[0]
-        crossing_j, crossing_i = (x.astype(np.int32) for x in np.nonzero(grid >= 0))
-        per_panel = lambda value: np.array([value(p.spec) for p in self._panels], float)[crossing_panel]
-        stiffness = {k: per_panel(lambda c, k=k: getattr(c.springs, k))
-                     for k in ("structural_n_per_m", "bend_n_per_m", "shear_n_per_m")}
-        kind, a, b, stiff, rest_len, twin, weft_struct, warp_struct = self._springs(stiffness, grid, rest)
 
-        cw = np.full((n, 2), -1, np.int32)
-        cv = np.full((n, 2), -1, np.int32)
-        s = weft_struct[weft_struct >= 0]
-        cw[a[s], 1] = s
-        cw[b[s], 0] = s
-        s = warp_struct[warp_struct >= 0]
-        cv[a[s], 1] = s
-        cv[b[s], 0] = s
-        # the panel's border: a crossing missing one of its four yarn neighbours
-        border = border_crossings(cw, cv)
-        hemmed = border & np.array([p.spec.edge == "hemmed" for p in self._panels])[crossing_panel]
+    def _draw_break_strains(self, panels, num) -> tuple:
+        """The random break limits (docs/method.md §3.4), drawn here because they depend on set_tearing, which
+        may come after the panels: one seeded stream, the cloth's springs in the Model's order, then the
+        stitches seam by seam. A spring's mean is break_strain, or its panel's tear map under its middle; a weak
+        line then scales the draw (docs/panels.md "Tear control"). Returns (the cloth's break strains, the last
+        weak line that weakened each spring or -1, empty without weak lines; each seam's stitches').
 
-        bodies = self.bodies
-        names = tuple(bd.name for bd in bodies)
-        turning = [_orientation_keys(bd) for bd in bodies]
-        rot = np.array([euler_rotation(bd.rotation_deg) if not len(keys) else quat_to_matrix(keys[0, 1:])
-                        for bd, keys in zip(bodies, turning)]).reshape(-1, 3, 3)
-        normals = np.array([_unit(bd.normal) for bd in bodies]).reshape(-1, 3)
-        body_pos0 = np.array([bd.position_m for bd in bodies], float).reshape(-1, 3)
-        for k, bd in enumerate(bodies):
-            if bd.motion == "kinematic" and bd.path:
-                body_pos0[k] = bd.path[0][1:]
-
-        mesh_arrays = _mesh_arrays(bodies, self._mesh_assets)
-        mesh_radius = dict(zip(mesh_arrays["mesh_body"].tolist(), _mesh_radii(mesh_arrays)))
-
-        att_p, att_b, att_off, att_selected = [], [], [], []
-        for att in self.attachments:
-            body = names.index(att.body)
-            k = self._panel_index("finalize", att.panel)
-            (I, J), (h, w) = offsets[k], self._panels[k].shape.present.shape
-            local = grid[J:J + h, I:I + w]
-            sel = local[local >= 0][select_crossings(att, w, h, rest[local[local >= 0]], local)]
-            att_p.extend(sel.tolist())
-            att_selected.append(len(sel))
-            att_b.extend([body] * len(sel))
-            att_off.extend((rot[body].T @ (rest[sel] - body_pos0[body]).T).T.tolist())
-        # A crossing held twice keeps its first holder.
-        att_p_arr = np.asarray(att_p, np.int32)
-        _, first = np.unique(att_p_arr, return_index=True)
-        first = np.sort(first)
-
-        precut = np.zeros(len(kind), dtype=bool)
-        for cut in self.cuts:
-            if not cut.path_m:
-                k = self._panel_index("finalize", cut.panel)
-                (I, J) = offsets[k]
-                precut |= springs_across(cut.start, cut.end, a, b, crossing_i - I, crossing_j - J) & \
-                    (crossing_panel[a] == k)
-        precut &= kind != SHEAR_TWIN  # a twin is born with its shear spring; a cut one has none
-
+        The floor does not depend on yarn_level, so a base-model-only run of a scene (yarn_level =
+        false, for comparison) tears a cloth with exactly the same break strains."""
         t = self.tearing
-        strain = self.strain
-        break_strain, spring_weak_line = self._break_strains(len(kind), 0.5 * (uv[a] + uv[b]), crossing_panel[a])
-        cut_time = self._scissor_times(kind, a, b, uv, crossing_panel)
-        spring_seam = np.zeros(0, np.int32)
-        seam_reverse_fits = np.zeros(0, bool)
-        if self.seams:  # the stitches come after every spring of the cloth
-            st_a, st_b, st_rest, st_k, st_break, st_seam, seam_reverse_fits = self._stitches(uv, crossing_panel,
-                                                                                              border, rest)
-            spring_seam = np.concatenate([np.full(len(kind), -1, np.int32), st_seam])
-            if spring_weak_line.size:
-                spring_weak_line = np.concatenate([spring_weak_line, np.full(st_a.size, -1, np.int32)])
-            kind = np.concatenate([kind, np.full(st_a.size, STITCH, np.int8)])
-            a, b = np.concatenate([a, st_a]), np.concatenate([b, st_b])
-            rest_len = np.concatenate([rest_len, st_rest])
-            stiff = np.concatenate([stiff, st_k])
-            twin = np.concatenate([twin, np.full(st_a.size, -1, np.int32)])
-            precut = np.concatenate([precut, np.zeros(st_a.size, bool)])
-            break_strain = np.concatenate([break_strain, st_break])
-            cut_time = np.concatenate([cut_time, np.full(st_a.size, np.inf)])
-        if c.edge == "hemmed":  # a hem folds the border over: two layers of yarn hold it
-            along_hem = ((kind == STRUCT_WEFT) | (kind == STRUCT_WARP)) & hemmed[a] & hemmed[b]
-            break_strain[along_hem] *= 2.0
+        rng = np.random.default_rng(self.seed)
+        mean: float | np.ndarray = t.break_strain
+        if any(p.spring_mean_break_strain is not None for p in panels):
+            mean = spread(panels, num, [p.spring_mean_break_strain if p.spring_mean_break_strain is not None
+                                        else t.break_strain for p in panels], t.break_strain, float)
+        draw = mean + t.break_strain_spread * rng.standard_normal(num.spring_count)
+        weak_line = np.full(num.spring_count if self._weak else 0, -1, np.int32)
+        for index, (k, near) in enumerate(self._weak):
+            springs = num.spring_index[k][near]
+            draw[springs] *= self.weak_lines[index].factor
+            weak_line[springs] = index
+        floor = t.transition_strain * 1.01 if t.transition_strain < t.break_strain else 1e-3
+        stitches = [np.maximum(s.break_strain + t.break_strain_spread * rng.standard_normal(len(s.pairs)), 1e-3)
+                    for s in self._stitches]
+        return np.maximum(draw, floor), weak_line, stitches
+
+    def _solver_fields(self, crossings: dict, springs: dict) -> dict[str, Any]:
+        """The Model's solver settings, from set_* and the cloth (strain limiting, tearing, self-collision,
+        the coarse model's refinement)."""
+        c, t, strain, mr = self.cloth, self.tearing, self.strain, self.multires
+        kind = springs["spring_kind"]
+        structural = is_structural(kind)
         # the lowest strain at which a spring could split its crossings or be cut: coarse cells refine
         # at refine_fraction of it (docs/multires.md "When a cell refines")
-        structural = (kind == STRUCT_WEFT) | (kind == STRUCT_WARP)
-        tear_from = (t.transition_strain if t.yarn_level else float(break_strain[structural].min())) \
+        tear_from = (t.transition_strain if t.yarn_level else float(springs["spring_break_strain"][structural].min())) \
             if t.enabled and structural.any() else math.inf
-        mr = self.multires
-        return Model(
-            warp_yarns=nx,
-            weft_yarns=ny,
-            crossing_count=n,
-            spacing_m=c.spacing_m,
-            thickness_m=c.thickness_m,
-            gravity_m_s2=np.asarray(self.gravity_m_s2, float),
-            crossing_mass_kg=per_panel(lambda c: c.mass_per_crossing_kg),
-            crossing_rest_position_m=rest,
-            crossing_weft_on_top=top,
-            crossing_weft_springs=cw,
-            crossing_warp_springs=cv,
-            crossing_grid_i=crossing_i,
-            crossing_grid_j=crossing_j,
-            crossing_hemmed=hemmed,
-            crossing_plane_uv_m=uv,
-            crossing_panel=crossing_panel,
-            panel_names=tuple(self.panel_names),
-            spring_kind=kind,
-            spring_crossing_a=a,
-            spring_crossing_b=b,
-            spring_rest_length_m=rest_len,
-            spring_base_stiffness_n_per_m=stiff,
-            spring_break_strain=break_strain,
-            spring_twin=twin,
-            spring_precut=precut,
-            spring_cut_time_s=cut_time,
-            weft_structural_spring=weft_struct,
-            warp_structural_spring=warp_struct,
-            attachment_particle=att_p_arr[first],
-            attachment_body=np.asarray(att_b, np.int32)[first],
-            attachment_offset_m=np.asarray(att_off, float).reshape(-1, 3)[first],
-            body_names=names,
-            body_shape=np.array([SHAPE_NAMES.index(bd.shape) for bd in bodies], np.int8),
-            body_motion=np.array([MOTION_NAMES.index(bd.motion) for bd in bodies], np.int8),
-            body_params=np.array([_body_params(bd, normals[k], mesh_radius.get(k, 0.0), mesh_arrays, k)
-                                  for k, bd in enumerate(bodies)], float).reshape(-1, 3),
-            body_rotation=rot,
-            body_mass_kg=np.array([bd.mass_kg for bd in bodies], float),
-            body_gravity=np.array([bd.gravity for bd in bodies], bool),
-            body_friction=np.array([bd.friction for bd in bodies], float),
-            body_collide=np.array([bd.collide for bd in bodies], bool),
-            body_start_s=np.array([bd.start_s for bd in bodies], float),
-            body_initial_position_m=body_pos0,
-            body_initial_velocity_m_s=np.array([bd.velocity_m_s for bd in bodies], float).reshape(-1, 3),
-            body_path=tuple(np.asarray(bd.path, float).reshape(-1, 4) for bd in bodies),
-            body_orientation_path=tuple(turning),
-            body_interpolation=tuple(bd.interpolation for bd in bodies),
-            **mesh_arrays,
-            strain_limit=strain.limit,
-            strain_max_iterations=strain.max_iterations,
-            strain_tolerance=strain.tolerance,
+        nx, ny, n = crossings["warp_yarns"], crossings["weft_yarns"], crossings["crossing_count"]
+        band = mr.band_cells
+        if mr.factor > 1 and n == nx * ny:
+            band = max(band, split_walk_band(crossings["crossing_weft_on_top"].reshape(ny, nx), mr.factor))
+        return dict(
+            strain_limit=strain.limit, strain_max_iterations=strain.max_iterations, strain_tolerance=strain.tolerance,
             strain_stiffness_n_per_m=strain.stiffness_n_per_m,
             strain_damping_n_s_per_m=2.0 * strain.damping_ratio * math.sqrt(strain.stiffness_n_per_m
                                                                             * c.mass_per_crossing_kg),
             damping=c.springs.damping,
-            tearing=t.enabled,
-            yarn_level=t.enabled and t.yarn_level,
-            transition_strain=t.transition_strain,
-            propagation_inclusive=t.propagation == "inclusive",
-            ineffective_length=t.ineffective_length,
+            tearing=t.enabled, yarn_level=t.enabled and t.yarn_level, transition_strain=t.transition_strain,
+            propagation_inclusive=t.propagation == "inclusive", ineffective_length=t.ineffective_length,
             disconnect_distance_m=t.disconnect_factor * c.thickness_m,
-            self_collision=self.self_collision.enabled,
-            self_collision_iterations=self.self_collision.iterations,
+            self_collision=self.self_collision.enabled, self_collision_iterations=self.self_collision.iterations,
             self_collision_friction=self.self_collision.friction,
-            seed=self.seed,
-            coarse_factor=mr.factor,
-            refine_strain=mr.refine_fraction * tear_from,
-            refine_band_cells=max(mr.band_cells, split_walk_band(top.reshape(ny, nx), mr.factor)) if mr.factor > 1 and n == nx * ny else mr.band_cells,
+            coarse_factor=mr.factor, refine_strain=mr.refine_fraction * tear_from, refine_band_cells=band,
             refine_near_bodies=mr.refine_near_bodies,
-            spring_seam=spring_seam,
-            spring_weak_line=spring_weak_line,
-            attachment_entry_crossings=np.asarray(att_selected, np.int64),
-            seam_reverse_fits=seam_reverse_fits,
         )
 
+    def _scale_warnings(self, crossings: dict) -> list[str]:
+        """A mesh far larger than the cloth (fraytool.sim.units): known only once both are added."""
+        from fraytool.sim.units import mesh_scale_warning
 
-def _panel_rest(c: ClothSpec, uv: np.ndarray) -> np.ndarray:
-    """World rest positions [m] of a panel's crossings from their places in its plane (u, v) [m]: along the
-    plane's axes from origin_m, wrapped around a cylinder of wrap_radius_m (its axis along the second
-    axis, the panel bending towards first axis x second axis), then turned by rotation_deg about origin_m."""
-    a0, a1 = _PLANE_AXES[c.plane]
-    rest = np.zeros((uv.shape[0], 3))
-    if c.wrap_radius_m == 0.0 and not any(c.rotation_deg):
-        rest[:, a0] = uv[:, 0]
-        rest[:, a1] = uv[:, 1]
-        return rest + np.asarray(c.origin_m)
-    e0, e1 = np.eye(3)[a0], np.eye(3)[a1]
-    if c.wrap_radius_m > 0.0:
-        r, theta = c.wrap_radius_m, uv[:, 0] / c.wrap_radius_m
-        local = (r * np.sin(theta))[:, None] * e0 + uv[:, 1:2] * e1 \
-            + (r * (1.0 - np.cos(theta)))[:, None] * np.cross(e0, e1)
-    else:
-        local = uv[:, 0:1] * e0 + uv[:, 1:2] * e1
-    return np.asarray(c.origin_m) + local @ euler_rotation(c.rotation_deg).T
-
-
-def _orientation_keys(body: BodySpec) -> np.ndarray:
-    """A body's orientation keys (t, w, x, y, z), unit and sign-consistent (fraytool.sim.paths), shape (K, 5);
-    (0, 5) for a body that does not turn."""
-    if body.path_rotation_deg:
-        return orientation_keys(body.path_rotation_deg, euler_deg=True)
-    if body.path_quaternion:
-        return orientation_keys(body.path_quaternion, euler_deg=False)
-    return np.zeros((0, 5))
-
-
-def _body_params(body: BodySpec, unit_normal: np.ndarray, mesh_radius_m: float, mesh_arrays: dict,
-                 k: int) -> tuple:
-    """A body's parameter vector by its kind (fraytool.sim.kernels.bodies)."""
-    if body.shape == "sphere":
-        return (body.radius_m, 0.0, 0.0)
-    if body.shape == "box":
-        return tuple(body.half_extents_m)
-    if body.shape == "mesh":
-        m = int(np.flatnonzero(mesh_arrays["mesh_body"] == k)[0])
-        return (mesh_radius_m, float(mesh_arrays["mesh_closed"][m]), float(m))
-    return tuple(unit_normal)  # a plane
-
-
-def _mesh_arrays(bodies: Sequence[BodySpec], assets: dict) -> dict[str, np.ndarray]:
-    """The Model's mesh arrays (fraytool.meshes) from the mesh bodies' assets, scaled, key times from
-    the body's start_s + sequence_start_s."""
-    from fraytool.meshes import empty_fields
-
-    out = empty_fields()
-    meshes = [(k, bd, assets[bd.name]) for k, bd in enumerate(bodies) if bd.shape == "mesh"]
-    if not meshes:
+        rest = crossings["crossing_rest_position_m"]
+        cloth_m = float(np.ptp(rest, axis=0).max()) if len(rest) else 0.0
+        out = []
+        for k, body in enumerate(self._bodies):
+            if body.mesh is not None:
+                extent_m = float(np.ptp(body.mesh.key_vertices[0] * np.asarray(body.spec.scale, float), axis=0).max())
+                line = mesh_scale_warning(f"{self._entry('bodies', k)} file = {body.spec.file!r}", body.spec.scale,
+                                          extent_m, cloth_m)
+                if line:
+                    out.append(line)
         return out
-    v_off = t_off = k_off = e_off = 0
-    starts = {"mesh_vertex_start": [0], "mesh_triangle_start": [0], "mesh_key_start": [0], "mesh_edge_start": [0]}
-    tris, times, keys, edges = [], [], [], []
-    for k, bd, a in meshes:
-        scale = np.asarray(bd.scale, float)
-        tris.append(a.triangles + v_off)
-        edges.append(a.sharp_edges + v_off)
-        times.append(a.key_time_s + (bd.start_s + bd.sequence_start_s))
-        keys.append((a.key_vertices * scale).reshape(-1, 3))
-        v_off += a.key_vertices.shape[1]
-        t_off += a.triangles.shape[0]
-        k_off += a.key_vertices.shape[0]
-        e_off += a.sharp_edges.shape[0]
-        for name, value in (("mesh_vertex_start", v_off), ("mesh_triangle_start", t_off),
-                            ("mesh_key_start", k_off), ("mesh_edge_start", e_off)):
-            starts[name].append(value)
-    out.update({name: np.asarray(v, np.int64) for name, v in starts.items()})
-    out["mesh_body"] = np.array([k for k, _, _ in meshes], np.int32)
-    out["mesh_closed"] = np.array([a.closed for _, _, a in meshes], bool)
-    out["mesh_triangles"] = np.concatenate(tris).astype(np.int32)
-    out["mesh_sharp_edges"] = np.concatenate(edges).astype(np.int32).reshape(-1, 2)
-    out["mesh_key_time_s"] = np.concatenate(times).astype(float)
-    out["mesh_key_vertex_m"] = np.ascontiguousarray(np.concatenate(keys), dtype=float)
-    return out
-
-
-def _mesh_radii(mesh_arrays: dict) -> list[float]:
-    """Each mesh's bounding radius about its body's centre over all its keys [m]."""
-    from fraytool.meshes import MeshTable
-
-    table = MeshTable(mesh_arrays)
-    radii = []
-    for m in range(table.count):
-        r = 0.0
-        for k in range(table.key_count(m)):
-            r = max(r, float(np.linalg.norm(table.key_vertices(m, k), axis=1).max()))
-        radii.append(r)
-    return radii
 
 
 def longest_float(weft_on_top: np.ndarray) -> int:
@@ -1029,6 +820,7 @@ def scene_builder(spec: SceneSpec) -> ModelBuilder:
     call finalize()."""
     c = spec.cloth
     builder = ModelBuilder(seed=spec.scene.seed, gravity_m_s2=spec.gravity_m_s2)
+    builder.source, builder.scene_file = spec.source, spec.source_file
     for k, panel in enumerate(spec.all_panels):
         args = _panel_arguments(panel, spec.source_file)
         if k == 0:
@@ -1047,10 +839,9 @@ def scene_builder(spec: SceneSpec) -> ModelBuilder:
         add = getattr(builder, _SHAPE_METHOD[body.shape])
         takes = _parameters(add)
         given = {k: v for k, v in dataclasses.asdict(body).items() if k in takes}
-        if body.shape == "mesh":
-            from fraytool.scene.mesh_files import frame_time_default, resolve
+        if body.shape == "mesh":  # its file is found relative to the scene file (builder.scene_file)
+            from fraytool.scene.mesh_files import frame_time_default
 
-            given["file"] = str(resolve(body.file, spec.source_file))  # relative to the scene file
             given["frame_time_s"] = body.frame_time_s or frame_time_default(spec)
         add(**given)
     for att in spec.attachments:

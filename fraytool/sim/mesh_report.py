@@ -109,15 +109,9 @@ def _v(v) -> str:
     return ", ".join(f"{x:.4g}" for x in v)
 
 
-def open_mesh_warnings(spec, model, records: Optional[list[dict]] = None) -> list[str]:
-    """One line per open mesh body: what an open mesh costs, so a file cut short or a mesh with holes does not
-    pass silently."""
-    out = []
-    for r in records if records is not None else describe_mesh_bodies(spec, model):
-        if r["closed"]:
-            continue
-        out.append(f"{spec.source}: [bodies.{r['body']}] file = {r['file']!r}: the mesh is {_open_words(r)}, of "
-                   f"{r['triangles']} triangles: its contact is two-sided, with no push-out of cloth "
-                   "that gets inside, and its borders are sharp edges the yarns catch on; a closed body with "
-                   "holes, or a file cut short, reads like this (docs/meshes.md)")
-    return out
+def open_mesh_warning(where: str, border_edges: int, triangles: int) -> str:
+    """The line for an open mesh body (ModelBuilder.add_mesh records it): what an open mesh costs, so a file cut
+    short or a mesh with holes does not pass silently. `where` names the body and its file."""
+    return (f"{where}: the mesh is {_open_words({'border_edges': border_edges})}, of {triangles} triangles: its "
+            "contact is two-sided, with no push-out of cloth that gets inside, and its borders are sharp edges the "
+            "yarns catch on; a closed body with holes, or a file cut short, reads like this (docs/meshes.md)")

@@ -192,13 +192,17 @@ class Model:
     int32; empty where the scene has no seam (the per-seam figures, fraytool.sim.tear_control_figures)."""
     attachment_entry_crossings: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     """Crossings each [[attachments]] entry selected when it was added (before a crossing held twice keeps its
-    first holder), shape (entries,), int64; an entry of 0 holds nothing (fraytool.sim.attachment_warnings)."""
+    first holder), shape (entries,), int64; an entry of 0 holds nothing (and the builder warned of it)."""
     seam_reverse_fits: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
     """Per [[seams]] entry: sewn the other way round (reverse flipped), every stitch would start within its
-    break strain, shape (seams,), bool (the start warning's hint, fraytool.sim.seam_layout)."""
+    the seam's break strain, shape (seams,), bool (the start warning's hint, fraytool.sim.seam_layout)."""
     spring_weak_line: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int32))
     """The last [[weak_lines]] entry that weakened each spring, -1 for none, shape (spring_count,), int32;
     empty where the scene has no weak line."""
+    build_warnings: tuple[str, ...] = ()
+    """What the builder noticed when each entry was added that no range check can (ModelBuilder.warnings): an
+    attachment that holds nothing, a seam whose stitches start torn, an open or oversized mesh. Not part of
+    digest(): words about the Model, not the Model."""
 
     @property
     def particle_count(self) -> int:
@@ -301,6 +305,8 @@ class Model:
                 out[f.name] = v
             elif isinstance(v, (int, float, bool)):
                 out[f.name] = np.asarray(v)
+            elif f.name == "build_warnings":  # words, saved as they are
+                out[f.name] = np.asarray(v, dtype=str).reshape(len(v))
             elif isinstance(v, tuple) and all(isinstance(x, np.ndarray) for x in v):  # one array per body
                 out[f"{f.name}.count"] = np.asarray(len(v))
                 out.update({f"{f.name}.{k}": x for k, x in enumerate(v)})
@@ -315,7 +321,7 @@ class Model:
 
         h = hashlib.sha256()
         for name, v in sorted(self.arrays().items()):
-            if name in _DIGEST_SKIPS_EMPTY and v.size == 0:
+            if name in _DIGEST_SKIPS_EMPTY and v.size == 0 or name == "build_warnings":
                 continue  # Models without seams or weak lines keep the digest they had before these fields
             v = np.ascontiguousarray(v)
             h.update(f"{name}:{v.dtype.str}:{v.shape}".encode())

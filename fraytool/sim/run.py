@@ -37,10 +37,8 @@ def default_out_dir(spec: SceneSpec) -> Path:
 
 def check_step(spec: SceneSpec, model: Model, stream=None) -> float:
     """Compare the step with the explicit stability bound: warn, or refuse (SceneError) when the
-    scene says [time] stability = "refuse"; warn of a mesh in the wrong unit (fraytool.sim.units) and of
-    open mesh bodies (fraytool.sim.mesh_report), of seams whose stitches start torn (fraytool.sim.seam_layout) and of
-    attachments that hold nothing
-    (fraytool.sim.attachment_warnings).
+    scene says [time] stability = "refuse"; print what the builder noticed (Model.build_warnings: a mesh
+    in the wrong unit, an open mesh, a seam whose stitches start torn, an attachment that holds nothing).
     Returns the bound [s]."""
     bound = stable_step_bound_s(model)
     if spec.time.step_s > bound:
@@ -50,17 +48,7 @@ def check_step(spec: SceneSpec, model: Model, stream=None) -> float:
         if spec.time.stability == "refuse":
             raise SceneError([msg])
         print(f"fraytool: warning: {msg}", file=stream or sys.stderr)
-    from fraytool.sim.attachment_warnings import empty_attachment_warnings
-    from fraytool.sim.seam_layout import seam_start_errors, seam_start_warnings
-
-    errors = seam_start_errors(spec, model)
-    if errors:
-        raise SceneError(errors)
-    from fraytool.sim.mesh_report import open_mesh_warnings
-    from fraytool.sim.units import mesh_scale_warnings
-
-    for line in mesh_scale_warnings(spec, model) + open_mesh_warnings(spec, model) + \
-            seam_start_warnings(spec, model) + empty_attachment_warnings(spec, model):
+    for line in model.build_warnings:
         print(f"fraytool: warning: {line}", file=stream or sys.stderr)
     return bound
 

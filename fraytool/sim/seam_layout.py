@@ -1,10 +1,9 @@
 """Where a seam's stitches go, and a warning when they start torn (docs/panels.md "Seams").
 
-`stitch_pairs` places one seam's stitches on the two panels' border crossings; the builder calls it for
-each [[seams]] entry when it finalizes (and the other way round, for the warning's hint), recording in the
-Model which stitches are whose (spring_seam) and whether reversed they would fit (seam_reverse_fits);
-`seam_start_warnings` reads those facts from the Model and measures each seam's stitches where the panels
-are placed. A stitch that starts longer than its rest length times
+`stitch_pairs` places one seam's stitches on the two panels' border crossings; the builder calls it when a
+seam is added (and the other way round, for the warning's hint), and measures the stitches where the panels
+are placed: `seam_start_error` refuses a seam whose panels lie too far apart, `seam_start_warning` names one
+whose stitches start torn. A stitch that starts longer than its rest length times
 (1 + its break strain) breaks in the first steps: the seam opens before the shot begins. No range check
 sees that (each key is valid on its own); it is what sewing the wrong segment, leaving `reverse` the
 wrong way or placing the panels apart looks like, so it is named, with the seam and the lengths.
@@ -76,65 +75,34 @@ MAX_START_STRETCH = 100.0
 to be joined by a spring (its first pull would fling the edges away: an unstable run)."""
 
 
-def seam_start_errors(spec, model) -> list[str]:
-    """One line per [[seams]] entry whose stitches start, at the panels' rest positions, longer than
-    MAX_START_STRETCH x their rest length: the panels are placed too far apart to sew (Model.spring_seam
-    says which stitches are whose)."""
-    seam_of = np.asarray(model.spring_seam)
-    if not seam_of.size:
-        return []
-    rest = np.asarray(model.crossing_rest_position_m, dtype=np.float64)
-    a, b = np.asarray(model.spring_crossing_a), np.asarray(model.spring_crossing_b)
-    out = []
-    for s, seam in enumerate(getattr(spec, "seams", ())):
-        mine = np.flatnonzero(seam_of == s)
-        if not mine.size:
-            continue
-        length_m = np.linalg.norm(rest[b[mine]] - rest[a[mine]], axis=1)
-        rest_m = np.asarray(model.spring_rest_length_m)[mine]
-        worst = int(np.argmax(length_m / rest_m))
-        if length_m[worst] > MAX_START_STRETCH * rest_m[worst]:
-            out.append(f"{spec.source}: [seams.{s}] panel {seam.panel_a!r} segment {seam.segment_a} to panel "
-                       f"{seam.panel_b!r} segment {seam.segment_b}: a stitch starts {length_m[worst]:.4g} m long, "
-                       f"{length_m[worst] / rest_m[worst]:.0f} times its {1e3 * rest_m[worst]:.3g} mm: the panels are "
-                       f"placed too far apart to sew (at most {MAX_START_STRETCH:g} times); place the edges together "
-                       "(origin_m, rotation_deg, wrap_radius_m)")
-    return out
+def seam_start_error(where: str, seam, start_m: np.ndarray, rest_m: float) -> str:
+    """The line refusing a seam (ModelBuilder.add_seam) whose stitches start, at the panels' rest positions
+    (`start_m`, one per stitch), longer than MAX_START_STRETCH x their rest length `rest_m`: the panels are
+    placed too far apart to sew. "" when they are not."""
+    if not start_m.size or start_m.max() <= MAX_START_STRETCH * rest_m:
+        return ""
+    worst = float(start_m.max())
+    return (f"{where} panel {seam.panel_a!r} segment {seam.segment_a} to panel {seam.panel_b!r} segment "
+            f"{seam.segment_b}: a stitch starts {worst:.4g} m long, {worst / rest_m:.0f} times its "
+            f"{1e3 * rest_m:.3g} mm: the panels are placed too far apart to sew (at most {MAX_START_STRETCH:g} "
+            "times); place the edges together (origin_m, rotation_deg, wrap_radius_m)")
 
 
-def seam_start_warnings(spec, model) -> list[str]:
-    """One line per [[seams]] entry some of whose stitches start, at the panels' rest positions, longer than
-    rest length x (1 + their own break strain): they break in the first steps. From the Model alone: which
-    stitches are whose (spring_seam) and whether the seam sewn the other way round would fit
-    (seam_reverse_fits), as the builder placed them."""
-    seam_of = np.asarray(getattr(model, "spring_seam", np.zeros(0)))
-    reverse_fits = np.asarray(getattr(model, "seam_reverse_fits", np.zeros(0, bool)))
-    if not spec.seams or not seam_of.size:
-        return []
-    rest = np.asarray(model.crossing_rest_position_m, dtype=np.float64)
-    a_all, b_all = np.asarray(model.spring_crossing_a), np.asarray(model.spring_crossing_b)
-    out = []
-    for s, seam in enumerate(spec.seams):
-        springs = np.flatnonzero(seam_of == s)
-        if not springs.size:
-            continue
-        length_m = np.linalg.norm(rest[b_all[springs]] - rest[a_all[springs]], axis=1)
-        rest_m = np.asarray(model.spring_rest_length_m)[springs]
-        limit_m = rest_m * (1.0 + np.asarray(model.spring_break_strain)[springs])
-        torn = length_m > limit_m
-        if not torn.any():
-            continue
-        worst = int(np.argmax(length_m / limit_m))
-        if s < reverse_fits.size and reverse_fits[s]:
-            cause = (f"with reverse = {'false' if seam.reverse else 'true'} every stitch would start within it "
-                     "(the two edges run the other way)")
-        else:
-            cause = ("the two edges lie apart where the panels are placed, or are not the edges meant: check segment_a, "
-                     "segment_b, reverse and the panels' origin_m and rotation_deg")
-        out.append(
-            f"{spec.source}: [seams.{s}] panel {seam.panel_a!r} segment {seam.segment_a} to panel {seam.panel_b!r} "
-            f"segment {seam.segment_b}{' (reverse)' if seam.reverse else ''}: {int(torn.sum())} of {springs.size} "
-            f"stitches start past their break strain (up to {1e3 * length_m[worst]:.3g} mm, rest "
-            f"{1e3 * rest_m[worst]:.3g} mm, breaking at {1e3 * limit_m[worst]:.3g} mm) and break in the first steps; "
-            f"{cause}")
-    return out
+def seam_start_warning(where: str, seam, start_m: np.ndarray, rest_m: float, limit_m: float,
+                       reverse_fits: bool) -> str:
+    """The warning for a seam (ModelBuilder.add_seam) some of whose stitches start, at the panels' rest
+    positions, longer than rest length x (1 + the seam's break strain), `limit_m`: they break in the first
+    steps. `reverse_fits`: sewn the other way round every stitch would start within it. "" when none does."""
+    torn = start_m > limit_m
+    if not torn.any():
+        return ""
+    if reverse_fits:
+        cause = (f"with reverse = {'false' if seam.reverse else 'true'} every stitch would start within it "
+                 "(the two edges run the other way)")
+    else:
+        cause = ("the two edges lie apart where the panels are placed, or are not the edges meant: check segment_a, "
+                 "segment_b, reverse and the panels' origin_m and rotation_deg")
+    return (f"{where} panel {seam.panel_a!r} segment {seam.segment_a} to panel {seam.panel_b!r} "
+            f"segment {seam.segment_b}{' (reverse)' if seam.reverse else ''}: {int(torn.sum())} of {start_m.size} "
+            f"stitches start past their break strain (up to {1e3 * float(start_m.max()):.3g} mm, rest "
+            f"{1e3 * rest_m:.3g} mm, breaking at {1e3 * limit_m:.3g} mm) and break in the first steps; {cause}")
