@@ -377,6 +377,12 @@ def _assemble(values: dict, bodies_raw: list, att_raw: list, cut_raw: list, sour
         if seam.panel_a in all_panels and seam.panel_b in all_panels and not problems.lines:
             problems.extend(f"seams.{i}", seam_problems(seam, all_panels[seam.panel_a], all_panels[seam.panel_b],
                                                         scene_file))
+        if all(isinstance(t.get(k), (int, float)) for k in ("frames", "steps_per_frame", "step_s")):
+            shot_s = t["frames"] * t["steps_per_frame"] * t["step_s"]
+            if seam.sew_s > shot_s:
+                problems.extend(f"seams.{i}", [("sew_s", seam.sew_s, f"must end within the shot ({t['frames']} "
+                                                f"frames of {t['steps_per_frame']} steps of {t['step_s']:g} s = "
+                                                f"{shot_s:.4g} s)")])
         seams.append(seam)
 
     render, camera = RenderSpec(**values["render"]), CameraSpec(**values["camera"])

@@ -305,6 +305,11 @@ class SeamSpec:
     break_strain: float = key("float", lo=0, lo_open=True, hi=10,
                               doc="mean strain at which a stitch breaks; [cloth.tearing] break_strain_spread "
                                   "draws each stitch's own from the seed")
+    sew_s: float = key("float", 0.0, lo=0, hi=1e6,
+                       doc="sew the seam over the shot's first sew_s seconds [s]: each stitch starts at the length "
+                           "the panels are placed apart and its rest length shrinks to the stitch length; while "
+                           "sewing it pulls, never pushes, and cannot break (docs/garments.md); 0: the seam is "
+                           "sewn from the start, its stitches at their break strain or less")
 
 
 @dataclass(frozen=True, kw_only=True)

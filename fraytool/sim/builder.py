@@ -208,6 +208,8 @@ class _Stitches:
     stiffness_n_per_m: np.ndarray
     break_strain: float
     reverse_fits: bool
+    sew_s: float = 0.0  # sewn over the shot's first sew_s seconds (0: sewn from the start)
+    start_length_m: Optional[np.ndarray] = None  # each stitch's length where the panels are placed
 
 
 class ModelBuilder:
@@ -609,10 +611,12 @@ class ModelBuilder:
     def add_seam(self, *, panel_a: str, segment_a: int, panel_b: str, segment_b: int, stitch_spacing_m: float,
                  stiffness_n_per_m: float, break_strain: float,
                  stitch_length_m: float = _SEAM["stitch_length_m"].default,
-                 reverse: bool = _SEAM["reverse"].default) -> None:
+                 reverse: bool = _SEAM["reverse"].default, sew_s: float = _SEAM["sew_s"].default) -> None:
         """Stitches along segment_a of panel_a's outline to segment_b of panel_b's, every stitch_spacing_m:
         threads of stiffness_n_per_m that pull (never push) and break one by one past their strain
-        (docs/panels.md "Seams"). Call after the panels."""
+        (docs/panels.md "Seams"). With sew_s > 0 the panels may lie apart: each stitch is pulled from its
+        length where they are placed to stitch_length_m over the first sew_s seconds, and cannot break
+        until then (docs/garments.md). Call after the panels."""
         seam = SeamSpec(**self._check("add_seam", _SEAM, _given(locals())))
         a = self._panels[self._panel_index("add_seam", seam.panel_a)]
         b = self._panels[self._panel_index("add_seam", seam.panel_b)]
@@ -644,14 +648,15 @@ class ModelBuilder:
         limit_m = rest_m * (1.0 + seam.break_strain)
         reverse_fits = bool(len(flipped)) and bool(flipped_m.max() <= limit_m)
         where = self._entry("seams", index)
-        error = seam_start_error(where, seam, start_m, rest_m)
-        if error:
-            raise ModelBuilderError([error])
-        line = seam_start_warning(where, seam, start_m, rest_m, limit_m, reverse_fits)
-        if line:
-            self.warnings.append(line)
+        if seam.sew_s == 0.0:  # a seam sewn over time starts at any length (docs/garments.md)
+            error = seam_start_error(where, seam, start_m, rest_m)
+            if error:
+                raise ModelBuilderError([error])
+            line = seam_start_warning(where, seam, start_m, rest_m, limit_m, reverse_fits)
+            if line:
+                self.warnings.append(line)
         return _Stitches(pairs, np.full(len(pairs), rest_m), np.full(len(pairs), seam.stiffness_n_per_m),
-                         seam.break_strain, reverse_fits)
+                         seam.break_strain, reverse_fits, seam.sew_s, np.maximum(start_m, rest_m))
 
     # --- finalize -------------------------------------------------------------------------------------
 

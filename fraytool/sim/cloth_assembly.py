@@ -125,6 +125,11 @@ def with_stitches(cloth: dict, stitches: Sequence, seam_break: Sequence[np.ndarr
                               cat([np.full(len(s.pairs), k, np.int32) for k, s in enumerate(stitches)])])
     if cloth["spring_weak_line"].size:
         out["spring_weak_line"] = cat([cloth["spring_weak_line"], np.full(count, -1, np.int32)])
+    if any(s.sew_s > 0.0 for s in stitches):  # seams sewn over time (docs/garments.md)
+        cloth_count = cloth["spring_kind"].size
+        out["spring_sew_s"] = cat([np.zeros(cloth_count), cat([np.full(len(s.pairs), s.sew_s) for s in stitches])])
+        out["spring_sew_start_length_m"] = cat([np.zeros(cloth_count),
+                                                cat([s.start_length_m for s in stitches])])
     return out
 
 

@@ -25,7 +25,24 @@ def broken_cloth_springs(spring_kind: np.ndarray, spring_broken: np.ndarray) -> 
     return int(np.count_nonzero(spring_broken & (spring_kind != STITCH)))
 
 
-_DIGEST_SKIPS_EMPTY = ("spring_seam", "spring_weak_line", "attachment_entry_crossings", "seam_reverse_fits")
+_DIGEST_SKIPS_EMPTY = ("spring_seam", "spring_weak_line", "attachment_entry_crossings", "seam_reverse_fits",
+                       "spring_sew_s", "spring_sew_start_length_m")
+
+
+def sewing_progress(time_s: np.ndarray | float, sew_s: np.ndarray) -> np.ndarray:
+    """How far each sewn stitch has been pulled in at `time_s`, 0 to 1: smoothstep of time_s / sew_s (no jerk
+    at the start or the end of sewing; docs/garments.md)."""
+    u = np.clip(np.asarray(time_s, float) / np.where(sew_s > 0.0, sew_s, 1.0), 0.0, 1.0)
+    return np.where(sew_s > 0.0, u * u * (3.0 - 2.0 * u), 1.0)
+
+
+def sewn_rest_length_m(model, time_s: float) -> np.ndarray:
+    """Every spring's rest length at `time_s` with the seams sewn over time pulled in so far: from the stitch's
+    length where the panels are placed to its rest length (Model.spring_sew_s)."""
+    p = sewing_progress(time_s, model.spring_sew_s)
+    return np.where(model.spring_sew_s > 0.0,
+                    model.spring_sew_start_length_m + p * (model.spring_rest_length_m - model.spring_sew_start_length_m),
+                    model.spring_rest_length_m)
 
 
 def _empty_mesh(name: str) -> np.ndarray:
@@ -199,6 +216,12 @@ class Model:
     spring_weak_line: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int32))
     """The last [[weak_lines]] entry that weakened each spring, -1 for none, shape (spring_count,), int32;
     empty where the scene has no weak line."""
+    spring_sew_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    """Seconds over which each stitch is sewn ([[seams]] sew_s), 0 for the cloth's springs and stitches sewn from
+    the start, shape (spring_count,); empty where no seam is sewn over time (docs/garments.md)."""
+    spring_sew_start_length_m: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    """Each sewn stitch's length where the panels are placed [m] (its rest length at time 0, shrinking to
+    spring_rest_length_m by its sew_s), shape (spring_count,); empty as spring_sew_s."""
     build_warnings: tuple[str, ...] = ()
     """What the builder noticed when each entry was added that no range check can (ModelBuilder.warnings): an
     attachment that holds nothing, a seam whose stitches start torn, an open or oversized mesh. Not part of
@@ -280,7 +303,8 @@ class Model:
             spring_alive=alive,
             spring_broken=np.zeros(self.spring_count, dtype=bool),
             spring_stiffness_n_per_m=np.where(alive, self.spring_base_stiffness_n_per_m, 0.0),
-            spring_rest_length_m=self.spring_rest_length_m.copy(),
+            spring_rest_length_m=sewn_rest_length_m(self, 0.0) if self.spring_sew_s.size else
+            self.spring_rest_length_m.copy(),
             body_position_m=self.body_initial_position_m.copy(),
             body_velocity_m_s=np.zeros((self.body_count, 3)),
             body_rotation=self.body_rotation.copy(),

@@ -65,6 +65,10 @@ def build_stages(model: Model, speed_limit_m_s: float, ctx: StepContext) -> Step
         stages: list = [multires.MultiresForces(model)]
     else:
         stages = [core.SpringForces(model)]
+    if model.spring_sew_s.size:
+        from fraytool.sim.stages.seams import Sewing  # only scenes with a seam sewn over time
+
+        stages.insert(0, Sewing(model))
     stages.append(core.VelocityUpdate(model))
     if model.damping > 0.0:
         stages.append(core.Damping(model))

@@ -30,6 +30,9 @@ START_POSITIONS = "start_positions"
 """StepContext.prev_position_m, the positions at the start of the step."""
 BODIES = "bodies"
 """State.body_position_m / body_velocity_m_s / body_rotation / body_angular_velocity_rad_s."""
+REST_LENGTHS = "rest_lengths"
+"""State.spring_rest_length_m (a seam sewn over time shortens its stitches'; a split rescales the springs at
+its crossing)."""
 TOPOLOGY = "topology"
 """Which springs, couples and cells exist: spring_alive, couple_connected, crossing_yarn_level,
 coarse_cell_refined, masses (a writer bumps State.topology_epoch)."""
