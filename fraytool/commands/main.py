@@ -135,6 +135,13 @@ def build_parser() -> argparse.ArgumentParser:
                    "what is available")
     _set_flag(c)
 
+    pv = sub.add_parser("preview", help="draw a scene's rest pose (panels, grain, seams, attachments, bodies) from "
+                        "its camera, the front and the side, before a run")
+    pv.add_argument("scene", help="scene file or shipped scene name")
+    pv.add_argument("-o", "--out", type=Path, metavar="OUT.png", help="the picture to write")
+    pv.add_argument("--json", action="store_true", help="print each panel's world bounds as JSON on stdout")
+    _set_flag(pv)
+
     b = sub.add_parser("bench", help="time the simulation (and rendering) per stage")
     b.add_argument("scene", help="scene file (TOML), or the name of a shipped scene (e.g. fig7_square_grab)")
     b.add_argument("--frames", type=_positive_int, default=None, help="frames to time (default 20)")
@@ -438,6 +445,12 @@ def cmd_export(args) -> int:
     return export_command(args)
 
 
+def cmd_preview(args) -> int:
+    from fraytool.commands.preview import preview_command
+
+    return preview_command(args, _load)
+
+
 def cmd_golden(args) -> int:
     from fraytool.commands.golden import golden_command
 
@@ -445,7 +458,7 @@ def cmd_golden(args) -> int:
 
 
 COMMANDS = {"golden": cmd_golden, "batch": cmd_batch, "simulate": cmd_simulate, "check": cmd_check, "bench": cmd_bench, "render": cmd_render,
-            "study": cmd_study, "export": cmd_export}
+            "study": cmd_study, "export": cmd_export, "preview": cmd_preview}
 
 
 VECTOR_FLAGS = ("--camera-position", "--camera-target")

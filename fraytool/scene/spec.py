@@ -245,6 +245,9 @@ class AttachmentSpec:
     weft_range: Optional[tuple[int, int]] = key("int2", None, doc="inclusive range of weft yarn indices j")
     region_center_m: Optional[Vec3] = key("vec3", None, lo=-WORLD_M, hi=WORLD_M, doc="with region_radius_m: centre of a ball of held masses [m]")
     region_radius_m: float = key("float", 0.0, lo=0, doc="with region_center_m: masses this close at rest are held [m]")
+    release_force_n: float = key("float", 0.0, lo=0, hi=1e9,
+                                 doc="a held mass lets go when the force on it (its springs' pull and its weight) "
+                                     "passes this [N], and is free from then on; 0: it never lets go")
 
 
 @dataclass(frozen=True, kw_only=True)

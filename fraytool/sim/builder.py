@@ -191,11 +191,15 @@ class _PanelEntry:
 @dataclasses.dataclass(frozen=True, eq=False)
 class _Held:
     """An attachment as added: the crossings it selected (Model numbering), its body, their offsets in the
-    body's frame."""
+    body's frame; on a mesh body, their places on its surface (fraytool.sim.surface_pins)."""
 
     crossings: np.ndarray
     body: int
     offset_m: np.ndarray
+    release_force_n: float = 0.0
+    triangle: Optional[np.ndarray] = None  # the mesh's own triangle numbering
+    barycentric: Optional[np.ndarray] = None
+    normal_offset_m: Optional[np.ndarray] = None
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -536,9 +540,12 @@ class ModelBuilder:
                        corner_size: int = _ATTACH["corner_size"].default,
                        warp_range: Optional[Sequence[int]] = None, weft_range: Optional[Sequence[int]] = None,
                        region_center_m: Optional[Sequence[float]] = None,
-                       region_radius_m: float = _ATTACH["region_radius_m"].default) -> None:
+                       region_radius_m: float = _ATTACH["region_radius_m"].default,
+                       release_force_n: float = _ATTACH["release_force_n"].default) -> None:
         """Cloth masses held by a body (its name or index): give exactly one selection. They follow the
-        body exactly; a crossing held twice keeps its first holder. Call after add_cloth and the body."""
+        body exactly; on a mesh body each is pinned to its place on the surface and follows the mesh's
+        animation too (fraytool.sim.surface_pins). With release_force_n > 0 a held mass lets go when its pull
+        passes that force. A crossing held twice keeps its first holder. Call after add_cloth and the body."""
         args = _given(locals())
         if self.cloth is None:
             self._raise("add_attachment", [(None, None, "call add_cloth first (selections are on its grid)")])
@@ -556,12 +563,32 @@ class ModelBuilder:
         chosen = select_crossings(att, w, h, panel.rest_m, panel.grid)
         body = [bd.name for bd in self.bodies].index(att.body)
         frame = self._bodies[body]
-        offset_m = (frame.rotation.T @ (panel.rest_m[chosen] - frame.initial_position_m).T).T
-        self._held.append(_Held(self._crossing_start(k) + chosen.astype(np.int64), body, offset_m.reshape(-1, 3)))
+        offset_m = (frame.rotation.T @ (panel.rest_m[chosen] - frame.initial_position_m).T).T.reshape(-1, 3)
+        held = _Held(self._crossing_start(k) + chosen.astype(np.int64), body, offset_m, att.release_force_n)
+        if frame.mesh is not None and chosen.size:
+            held = self._pin_to_surface(held, frame, len(self.attachments), att)
+        self._held.append(held)
         if not chosen.size:
             self.warnings.append(empty_attachment_warning(self._entry("attachments", len(self.attachments)), att,
                                                           panel))
         self.attachments.append(att)
+
+    def _pin_to_surface(self, held: _Held, frame: BodyLayout, index: int, att: AttachmentSpec) -> _Held:
+        """An attachment to a mesh body: each crossing at its place on the mesh's surface (nearest triangle at
+        rest; fraytool.sim.surface_pins); refused when the mesh is out of reach of a crossing."""
+        from fraytool.sim.surface_pins import REACH_SPACINGS, pin_to_surface
+
+        vertices = frame.mesh.key_vertices[0] * np.asarray(frame.spec.scale, float)
+        tri, bary, offset, dist = pin_to_surface(held.offset_m, vertices, frame.mesh.triangles)
+        reach_m = REACH_SPACINGS * self.cloth.spacing_m
+        if dist.max() > reach_m:
+            worst = int(np.argmax(dist))
+            raise ModelBuilderError([
+                f"{self._entry('attachments', index)} body {att.body!r}: crossing {int(held.crossings[worst])} lies "
+                f"{dist[worst]:.4g} m from the mesh's surface, beyond the reach of a surface pin ({REACH_SPACINGS:g} "
+                f"yarn spacings = {reach_m:.4g} m): {int((dist > reach_m).sum())} of {dist.size} selected crossings "
+                "have no triangle within reach; place the panel on the body or select crossings that touch it"])
+        return dataclasses.replace(held, triangle=tri, barycentric=bary, normal_offset_m=offset)
 
     @_keys_doc("cuts")
     def add_cut(self, *, panel: str = "", start: Optional[Sequence[float]] = None, end: Optional[Sequence[float]] = None,
@@ -693,8 +720,31 @@ class ModelBuilder:
                                            + [np.zeros(0, np.int32)])[first],
             attachment_offset_m=np.concatenate([h.offset_m for h in self._held] + [np.zeros((0, 3))])[first],
             attachment_entry_crossings=np.array([h.crossings.size for h in self._held], np.int64),
+            **self._surface_fields(first),
             seam_reverse_fits=np.array([s.reverse_fits for s in self._stitches], bool),
             seed=self.seed, build_warnings=tuple(self.warnings + self._scale_warnings(crossings)),
+        )
+
+    def _surface_fields(self, first: np.ndarray) -> dict[str, np.ndarray]:
+        """The attachments' surface pins and release forces (Model.attachment_triangle ...), in the order of
+        attachment_particle; none where every attachment is rigid and never lets go."""
+        if not any(h.triangle is not None or h.release_force_n > 0.0 for h in self._held):
+            return {}
+        mesh_triangle_start, m = {}, 0
+        for k, b in enumerate(self._bodies):
+            if b.mesh is not None:
+                mesh_triangle_start[k] = m
+                m += b.mesh.triangles.shape[0]
+        cat = np.concatenate
+        n = [h.crossings.size for h in self._held]
+        return dict(
+            attachment_triangle=cat([h.triangle + mesh_triangle_start[h.body] if h.triangle is not None
+                                     else np.full(c, -1, np.int64) for h, c in zip(self._held, n)])[first],
+            attachment_barycentric=cat([h.barycentric if h.triangle is not None else np.zeros((c, 3))
+                                        for h, c in zip(self._held, n)]).reshape(-1, 3)[first],
+            attachment_normal_offset_m=cat([h.normal_offset_m if h.triangle is not None else np.zeros(c)
+                                            for h, c in zip(self._held, n)])[first],
+            attachment_release_force_n=cat([np.full(c, h.release_force_n) for h, c in zip(self._held, n)])[first],
         )
 
     def _validate(self) -> None:

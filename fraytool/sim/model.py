@@ -26,7 +26,8 @@ def broken_cloth_springs(spring_kind: np.ndarray, spring_broken: np.ndarray) -> 
 
 
 _DIGEST_SKIPS_EMPTY = ("spring_seam", "spring_weak_line", "attachment_entry_crossings", "seam_reverse_fits",
-                       "spring_sew_s", "spring_sew_start_length_m")
+                       "spring_sew_s", "spring_sew_start_length_m", "attachment_triangle", "attachment_barycentric",
+                       "attachment_normal_offset_m", "attachment_release_force_n")
 
 
 def sewing_progress(time_s: np.ndarray | float, sew_s: np.ndarray) -> np.ndarray:
@@ -222,6 +223,16 @@ class Model:
     spring_sew_start_length_m: np.ndarray = field(default_factory=lambda: np.zeros(0))
     """Each sewn stitch's length where the panels are placed [m] (its rest length at time 0, shrinking to
     spring_rest_length_m by its sew_s), shape (spring_count,); empty as spring_sew_s."""
+    attachment_triangle: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    """Per held crossing (as attachment_particle): the mesh triangle (into mesh_triangles) whose surface it is
+    pinned to, -1 for one held rigidly by its body (fraytool.sim.surface_pins), shape (attachments,), int64;
+    empty where every attachment is rigid and never lets go, as the three below."""
+    attachment_barycentric: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    """Its place on that triangle, barycentric weights, shape (attachments, 3)."""
+    attachment_normal_offset_m: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    """Its distance off the triangle along the triangle's normal at rest [m], shape (attachments,)."""
+    attachment_release_force_n: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    """The force above which it lets go [N], 0 for never ([[attachments]] release_force_n), shape (attachments,)."""
     build_warnings: tuple[str, ...] = ()
     """What the builder noticed when each entry was added that no range check can (ModelBuilder.warnings): an
     attachment that holds nothing, a seam whose stitches start torn, an open or oversized mesh. Not part of

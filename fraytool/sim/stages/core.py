@@ -174,20 +174,45 @@ class PositionUpdate(_NoSummary):
 
 
 class Attachments(_NoSummary):
-    """Step 5 (first): masses held by a rigid body follow it exactly."""
+    """Step 5 (first): masses held by a rigid body follow it exactly; those held by a mesh body's surface
+    follow its animation (fraytool.sim.surface_pins); one whose force passes its release_force_n lets go."""
 
     name = "strain_limiting"
     kernel = "apply_attachments"
-    reads = frozenset({BODIES})
-    writes = frozenset({POSITIONS})
+    reads = frozenset({BODIES, FORCES})
+    writes = frozenset({POSITIONS, TOPOLOGY})
 
     def __init__(self, model: Model):
         self.model = model
+        self.surface = None
+        if (model.attachment_triangle >= 0).any():
+            from fraytool.sim.surface_pins import SurfacePins  # only scenes that pin cloth to a mesh
+
+            self.surface = SurfacePins(model)
+        self.releasing = np.flatnonzero(model.attachment_release_force_n > 0.0)
 
     def run(self, state: State, ctx: StepContext, dt_s: float) -> None:
         m = self.model
+        if self.releasing.size:
+            self._release(state, ctx)
         apply_attachments(m.attachment_particle, m.attachment_body, m.attachment_offset_m, state.body_position_m,
-                          state.body_rotation, state.particle_position_m)
+                          state.body_rotation, state.particle_inv_mass, state.particle_position_m)
+        if self.surface is not None:
+            s = self.surface
+            held = state.particle_inv_mass[s.particle] == 0.0
+            x = s.positions_m(state.time_s + dt_s, state.body_position_m, state.body_rotation)
+            state.particle_position_m[s.particle[held]] = x[held]
+
+    def _release(self, state: State, ctx: StepContext) -> None:
+        """Let go of the held masses whose pull (springs and weight) passed their release force."""
+        k = self.releasing
+        p = self.model.attachment_particle[k]
+        held = state.particle_inv_mass[p] == 0.0
+        pull = ctx.force_n[p] + state.particle_mass_kg[p, None] * self.model.gravity_m_s2
+        over = held & (np.linalg.norm(pull, axis=1) > self.model.attachment_release_force_n[k])
+        if over.any():
+            state.particle_inv_mass[p[over]] = 1.0 / state.particle_mass_kg[p[over]]
+            state.bump_topology()
 
 
 class StrainLimiting(_NoSummary):
