@@ -28,8 +28,9 @@ def test_wheel_ships_scenes_and_shaders_and_finds_them(tmp_path):
     assert {n for n in names if n.endswith(".py")} == modules
     for scene in (ROOT / "scenes").glob("*.toml"):
         assert f"fraytool/scenes/{scene.name}" in names
-    for asset in (ROOT / "scenes" / "assets").iterdir():  # the mesh files shipped scenes name
-        assert f"fraytool/scenes/assets/{asset.name}" in names
+    for asset in (ROOT / "scenes" / "assets").rglob("*"):  # the mesh files shipped scenes name
+        if asset.is_file():
+            assert f"fraytool/scenes/{asset.relative_to(ROOT / 'scenes').as_posix()}" in names
     shaders = [p.name for p in (ROOT / "shaders").iterdir() if p.suffix in (".vert", ".frag")]
     for shader in shaders:
         assert f"fraytool/shaders/{shader}" in names
