@@ -21,7 +21,7 @@ def test_the_figure_is_a_closed_animated_sequence_of_a_half_metre_figure():
     rest, raised = asset.key_vertices[0], asset.key_vertices[47]
     assert abs(rest[:, 1].min()) < 1e-3 and 0.45 < rest[:, 1].max() < 0.55  # standing on y = 0, 0.5 m tall
     # the arms rise sideways: the figure is wider with them up than down
-    assert np.ptp(raised[:, 0]) > np.ptp(rest[:, 0]) + 0.15
+    assert np.ptp(raised[:, 0]) > np.ptp(rest[:, 0]) + 0.05
     np.testing.assert_array_equal(asset.key_vertices[0], asset.key_vertices[11])  # frames 1-12 stand still
 
 

@@ -171,3 +171,24 @@ def test_a_sewing_seam_between_edges_of_unequal_length_is_refused(tmp_path):
     run = subprocess.run([sys.executable, "-m", "fraytool", "check", str(tmp_path / "s.toml")],
                          capture_output=True, text=True)
     assert run.returncode == 2 and "within 25 % of each other's length" in run.stderr, run.stderr
+
+
+def test_gravity_waits_for_gravity_start_s_then_pulls_as_free_fall():
+    """[world] gravity_start_s: a free cloth (no body, no damping) stays where it is until then, and afterwards
+    falls as symplectic Euler integrates g: after n steps, dt^2 g n (n + 1) / 2 below its rest."""
+    from helpers import small_scene_text
+
+    dt, start = 4e-4, 0.02
+    text = small_scene_text(steps_per_frame=10, frames=20).replace("[world]\n", f"[world]\ngravity_start_s = {start}\n", 1)
+    assert "gravity_start_s" in text
+    sim = Simulation(parse_scene(text, "g.toml"))
+    rest = sim.state.particle_position_m[:sim.model.crossing_count, 1].copy()
+    waiting = round(start / dt)
+    for _ in range(waiting):
+        sim.step()
+    np.testing.assert_array_equal(sim.state.particle_position_m[:sim.model.crossing_count, 1], rest)
+    n = 30
+    for _ in range(n):
+        sim.step()
+    drop = rest - sim.state.particle_position_m[:sim.model.crossing_count, 1]
+    np.testing.assert_allclose(drop, dt * dt * 9.81 * n * (n + 1) / 2, rtol=1e-9)

@@ -4,11 +4,11 @@ second: 2.5 s): python tools/make_figure.py
 
 Metres, y up, standing on y = 0, facing +z (its right hand at -x), 0.50 m tall. Six closed, outward
 parts in one OBJ, overlapping where they join: a torso (about 0.13 m wide, 0.08 m deep, y 0.20 to
-0.38; broad shoulders over a narrower chest, so the hanging arms clear it), a neck with its head (a
+0.38; broad shoulders over a narrower chest), a neck with its head (a
 sphere of 0.045 m), two arm capsules (0.018 m, 0.17 m long, their top ends buried in the shoulders)
-and two leg capsules (0.025 m, from the hips to the floor). Frames 1-12 stand at rest, arms down; over
-13-48 the arms rise sideways about their shoulders (about z, eased in and out) to 70 degrees (left)
-and 76 degrees (right) from hanging while the upper body turns 10 degrees about y and back; 49-60
+and two leg capsules (0.025 m, from the hips to the floor). Frames 1-12 stand at rest in an A-pose (arms 45
+degrees out, as garment tools dress an avatar); over 13-48 the arms rise sideways about their shoulders
+(about z, eased in and out) to 80 degrees (left) and 86 degrees (right) from hanging while the upper body turns 10 degrees about y and back; 49-60
 hold. Every part moves rigidly, so every frame has the same vertices and triangles; no face turns by
 more than 30 degrees against its neighbour (no sharp edges for the yarns to catch on)."""
 from pathlib import Path
@@ -21,8 +21,8 @@ MOVE_END = 48  # the arms reach their top at this frame and hold to FRAMES
 TORSO_Y = (0.20, 0.38)
 SHOULDER = np.array([0.072, 0.352, 0.0])  # the left arm's pivot; the right one at -x
 ARM_RADIUS, ARM_LENGTH = 0.018, 0.17
-ARM_REST_DEG = 12.0  # hanging, slightly away from the body
-ARM_UP_DEG = {"left": 70.0, "right": 76.0}  # from hanging, at frame MOVE_END
+ARM_REST_DEG = 45.0  # an A-pose at rest: panels laid round the body clear the arms
+ARM_UP_DEG = {"left": 80.0, "right": 86.0}  # from hanging, at frame MOVE_END
 TWIST_DEG = 10.0  # the upper body's turn about y, at the middle of the move
 HIP_X, LEG_RADIUS, LEG_TOP = 0.033, 0.025, 0.235  # LEG_TOP: the leg capsule's upper centre
 HEAD_CENTRE_Y, HEAD_RADIUS, NECK_RADIUS = 0.455, 0.045, 0.019

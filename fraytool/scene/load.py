@@ -397,6 +397,7 @@ def _assemble(values: dict, bodies_raw: list, att_raw: list, cut_raw: list, sour
         time=TimeSpec(**t),
         cloth=cloth,
         gravity_m_s2=values["world"]["gravity_m_s2"],
+        gravity_start_s=values["world"]["gravity_start_s"],
         bodies=tuple(bodies),
         attachments=tuple(attachments),
         cuts=tuple(cuts),
@@ -477,7 +478,7 @@ def _toml_key(key: str, several_panels: bool) -> str:
     """A SceneSpec path as the scene file writes it: gravity is [world]'s; with several [[cloth]] panels the
     first is cloth.0 and SceneSpec.panels[k] is cloth.(k + 1)."""
     head, _, rest = key.partition(".")
-    if head == "gravity_m_s2":
+    if head in ("gravity_m_s2", "gravity_start_s"):
         return "world." + key
     if head == "cloth" and several_panels:
         return "cloth.0." + rest
@@ -518,6 +519,8 @@ def _simulation_dict(spec: SceneSpec) -> dict:
         for raw in d.get(table, []):
             if raw["panel"] == "":  # on the first panel, as before panels had names
                 raw.pop("panel")
+    if d["gravity_start_s"] == 0.0:
+        d.pop("gravity_start_s")  # scenes with gravity from the start keep the digest they had before
     d["time"].pop("frames")  # frame k does not depend on how many follow it
     d["time"].pop("fps")
     d["time"].pop("stability")

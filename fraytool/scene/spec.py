@@ -447,6 +447,9 @@ class SceneSpec:
     time: TimeSpec
     cloth: ClothSpec
     gravity_m_s2: Vec3 = key("vec3", (0.0, -9.81, 0.0), lo=-1e4, hi=1e4, doc="gravity [m/s^2]")
+    gravity_start_s: float = key("float", 0.0, lo=0, hi=1e6,
+                                 doc="gravity acts from this scene time on [s]: a pre-roll in which panels laid round "
+                                     "a body are sewn on ([[seams]] sew_s) before they can fall; 0: from the start")
     bodies: tuple[BodySpec, ...] = ()
     attachments: tuple[AttachmentSpec, ...] = ()
     cuts: tuple[CutSpec, ...] = ()

@@ -233,11 +233,14 @@ class ModelBuilder:
 
     @_keys_doc("scene", "world")
     def __init__(self, *, seed: int = _SCENE["seed"].default,
-                 gravity_m_s2: Sequence[float] = _WORLD["gravity_m_s2"].default):
+                 gravity_m_s2: Sequence[float] = _WORLD["gravity_m_s2"].default,
+                 gravity_start_s: float = _WORLD["gravity_start_s"].default):
         """A builder with nothing added yet. `seed` seeds every random draw (break strains)."""
-        v = self._check("ModelBuilder", {**_SCENE, **_WORLD}, dict(seed=seed, gravity_m_s2=gravity_m_s2))
+        v = self._check("ModelBuilder", {**_SCENE, **_WORLD}, dict(seed=seed, gravity_m_s2=gravity_m_s2,
+                                                                   gravity_start_s=gravity_start_s))
         self.seed: int = v["seed"]
         self.gravity_m_s2: Vec3 = v["gravity_m_s2"]
+        self.gravity_start_s: float = v["gravity_start_s"]
         self.cloth: Optional[ClothSpec] = None
         self.strain = StrainSpec()
         self.tearing = TearingSpec()
@@ -714,6 +717,7 @@ class ModelBuilder:
         return Model(
             **crossings, **springs, **body_fields(self._bodies), **self._solver_fields(crossings, springs),
             spacing_m=c.spacing_m, thickness_m=c.thickness_m, gravity_m_s2=np.asarray(self.gravity_m_s2, float),
+            gravity_start_s=self.gravity_start_s,
             crossing_weft_springs=cw, crossing_warp_springs=cv, panel_names=tuple(self.panel_names),
             attachment_particle=held[0][first],
             attachment_body=np.concatenate([np.full(h.crossings.size, h.body, np.int32) for h in self._held]
@@ -874,7 +878,7 @@ def scene_builder(spec: SceneSpec) -> ModelBuilder:
     """A ModelBuilder with a scene's tables added, not finalized: add more in code (a mesh, a body), then
     call finalize()."""
     c = spec.cloth
-    builder = ModelBuilder(seed=spec.scene.seed, gravity_m_s2=spec.gravity_m_s2)
+    builder = ModelBuilder(seed=spec.scene.seed, gravity_m_s2=spec.gravity_m_s2, gravity_start_s=spec.gravity_start_s)
     builder.source, builder.scene_file = spec.source, spec.source_file
     for k, panel in enumerate(spec.all_panels):
         args = _panel_arguments(panel, spec.source_file)

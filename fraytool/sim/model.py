@@ -233,6 +233,8 @@ class Model:
     """Its distance off the triangle along the triangle's normal at rest [m], shape (attachments,)."""
     attachment_release_force_n: np.ndarray = field(default_factory=lambda: np.zeros(0))
     """The force above which it lets go [N], 0 for never ([[attachments]] release_force_n), shape (attachments,)."""
+    gravity_start_s: float = 0.0
+    """Gravity acts from this time on [s] ([world] gravity_start_s; Model.gravity_at_m_s2)."""
     build_warnings: tuple[str, ...] = ()
     """What the builder noticed when each entry was added that no range check can (ModelBuilder.warnings): an
     attachment that holds nothing, a seam whose stitches start torn, an open or oversized mesh. Not part of
@@ -326,6 +328,10 @@ class Model:
             multires.set_masses(self, layout, refined, state)  # lumped into the nodes, slaved 0
         return state
 
+    def gravity_at_m_s2(self, time_s: float) -> np.ndarray:
+        """Gravity over the step that starts at `time_s`: zero before gravity_start_s."""
+        return self.gravity_m_s2 if time_s >= self.gravity_start_s else np.zeros(3)
+
     def arrays(self) -> dict[str, np.ndarray]:
         """All array fields, for saving (topology.npz); the bodies' parameters also as the per-shape arrays
         frame folders have always held (body_radius_m, body_half_extents_m, body_normal)."""
@@ -356,7 +362,8 @@ class Model:
 
         h = hashlib.sha256()
         for name, v in sorted(self.arrays().items()):
-            if name in _DIGEST_SKIPS_EMPTY and v.size == 0 or name == "build_warnings":
+            if name in _DIGEST_SKIPS_EMPTY and v.size == 0 or name == "build_warnings" \
+                    or name == "gravity_start_s" and float(v) == 0.0:
                 continue  # Models without seams or weak lines keep the digest they had before these fields
             v = np.ascontiguousarray(v)
             h.update(f"{name}:{v.dtype.str}:{v.shape}".encode())

@@ -65,7 +65,7 @@ def advance_bodies(model: Model, state: State, time_new_s: float, dt_s: float) -
             if time_new_s - dt_s <= model.body_start_s[k]:
                 state.body_velocity_m_s[k] = model.body_initial_velocity_m_s[k]
             if model.body_gravity[k]:
-                state.body_velocity_m_s[k] += dt_s * model.gravity_m_s2
+                state.body_velocity_m_s[k] += dt_s * model.gravity_at_m_s2(time_new_s - dt_s)
             state.body_position_m[k] += dt_s * state.body_velocity_m_s[k]
 
 

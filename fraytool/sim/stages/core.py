@@ -107,11 +107,11 @@ class VelocityUpdate(_NoSummary):
     writes = frozenset({VELOCITIES})
 
     def __init__(self, model: Model):
-        self.gravity_m_s2 = model.gravity_m_s2
+        self.model = model
 
     def run(self, state: State, ctx: StepContext, dt_s: float) -> None:
         integrate_velocities(*ctx.lists.free(state), state.particle_velocity_m_s, ctx.force_n,
-                             state.particle_inv_mass, self.gravity_m_s2, dt_s)
+                             state.particle_inv_mass, self.model.gravity_at_m_s2(state.time_s), dt_s)
 
 
 class Damping(_NoSummary):
@@ -208,7 +208,7 @@ class Attachments(_NoSummary):
         k = self.releasing
         p = self.model.attachment_particle[k]
         held = state.particle_inv_mass[p] == 0.0
-        pull = ctx.force_n[p] + state.particle_mass_kg[p, None] * self.model.gravity_m_s2
+        pull = ctx.force_n[p] + state.particle_mass_kg[p, None] * self.model.gravity_at_m_s2(state.time_s)
         over = held & (np.linalg.norm(pull, axis=1) > self.model.attachment_release_force_n[k])
         if over.any():
             state.particle_inv_mass[p[over]] = 1.0 / state.particle_mass_kg[p[over]]
