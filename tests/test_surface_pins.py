@@ -75,3 +75,32 @@ def test_a_surface_pin_with_no_triangle_within_reach_is_refused():
                     structural_n_per_m=20.0, origin_m=(-0.01, 0.1, -0.01))
         b.add_mesh("tri", vertices_m=np.stack([A0, C0, B0]), triangles=np.array([[0, 1, 2]]))
         b.add_attachment("tri", region_center_m=(0.0, 0.1, 0.0), region_radius_m=0.001)
+
+
+def test_a_hook_catches_its_crossings_at_catch_s_and_holds_them_where_they_were_then():
+    """Before catch_s the selected crossing falls with the cloth (it is free); from then on it keeps the offset
+    it had from the moving body at that moment, to 1e-12 m, while the body moves on."""
+    b = ModelBuilder(seed=1, gravity_m_s2=(0.0, -9.81, 0.0))
+    b.add_cloth(warp_yarns=3, weft_yarns=3, spacing_m=0.01, thickness_m=0.001, mass_per_crossing_kg=1e-5,
+                structural_n_per_m=20.0, origin_m=(-0.01, 0.0, -0.01))
+    b.add_box("hook", half_extents_m=(0.001, 0.001, 0.01), motion="kinematic", collide=False,
+              path=[[0.0, 0.0, 0.01, 0.0], [0.1, 0.05, 0.01, 0.0]])
+    b.add_attachment("hook", region_center_m=(0.0, 0.0, 0.0), region_radius_m=0.001, catch_s=0.01)
+    model = b.finalize()
+    sim = Simulation(small_scene(), model=model)
+    p = int(model.attachment_particle[0])
+    rest = sim.state.particle_position_m[p].copy()
+    caught_at = None
+    for _ in range(60):
+        before = sim.state.time_s
+        sim.step()
+        x, c = sim.state.particle_position_m[p], sim.state.body_position_m[0]
+        if before < 0.01 - 1e-12 and sim.state.time_s <= 0.01:
+            assert sim.state.particle_inv_mass[p] > 0.0
+        if sim.state.particle_inv_mass[p] == 0.0:
+            if caught_at is None:
+                caught_at = (sim.state.time_s, x - c)
+            np.testing.assert_allclose(x - c, caught_at[1], atol=1e-12)
+    assert caught_at is not None and abs(caught_at[0] - 0.0104) < 1e-9  # the step whose start passed 0.01 s
+    assert caught_at[1][1] < -0.01 - 1e-4  # it had fallen below the hook's height minus its rest gap when caught
+    assert rest[1] == 0.0

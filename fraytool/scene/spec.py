@@ -248,6 +248,10 @@ class AttachmentSpec:
     release_force_n: float = key("float", 0.0, lo=0, hi=1e9,
                                  doc="a held mass lets go when the force on it (its springs' pull and its weight) "
                                      "passes this [N], and is free from then on; 0: it never lets go")
+    catch_s: float = key("float", 0.0, lo=0, hi=1e6,
+                         doc="the body catches the selected masses at this scene time [s], holding each where it "
+                             "is then relative to the body (a hook that snags the cloth); free before; 0: held from "
+                             "the start")
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -197,6 +197,7 @@ class _Held:
     body: int
     offset_m: np.ndarray
     release_force_n: float = 0.0
+    catch_s: float = 0.0
     triangle: Optional[np.ndarray] = None  # the mesh's own triangle numbering
     barycentric: Optional[np.ndarray] = None
     normal_offset_m: Optional[np.ndarray] = None
@@ -544,11 +545,14 @@ class ModelBuilder:
                        warp_range: Optional[Sequence[int]] = None, weft_range: Optional[Sequence[int]] = None,
                        region_center_m: Optional[Sequence[float]] = None,
                        region_radius_m: float = _ATTACH["region_radius_m"].default,
-                       release_force_n: float = _ATTACH["release_force_n"].default) -> None:
+                       release_force_n: float = _ATTACH["release_force_n"].default,
+                       catch_s: float = _ATTACH["catch_s"].default) -> None:
         """Cloth masses held by a body (its name or index): give exactly one selection. They follow the
         body exactly; on a mesh body each is pinned to its place on the surface and follows the mesh's
         animation too (fraytool.sim.surface_pins). With release_force_n > 0 a held mass lets go when its pull
-        passes that force. A crossing held twice keeps its first holder. Call after add_cloth and the body."""
+        passes that force. With catch_s > 0 the masses are free until then and held from then on where they
+        are relative to the body. A crossing held twice keeps its first holder. Call after add_cloth and the
+        body."""
         args = _given(locals())
         if self.cloth is None:
             self._raise("add_attachment", [(None, None, "call add_cloth first (selections are on its grid)")])
@@ -567,7 +571,8 @@ class ModelBuilder:
         body = [bd.name for bd in self.bodies].index(att.body)
         frame = self._bodies[body]
         offset_m = (frame.rotation.T @ (panel.rest_m[chosen] - frame.initial_position_m).T).T.reshape(-1, 3)
-        held = _Held(self._crossing_start(k) + chosen.astype(np.int64), body, offset_m, att.release_force_n)
+        held = _Held(self._crossing_start(k) + chosen.astype(np.int64), body, offset_m, att.release_force_n,
+                     att.catch_s)
         if frame.mesh is not None and chosen.size:
             held = self._pin_to_surface(held, frame, len(self.attachments), att)
         self._held.append(held)
@@ -732,7 +737,7 @@ class ModelBuilder:
     def _surface_fields(self, first: np.ndarray) -> dict[str, np.ndarray]:
         """The attachments' surface pins and release forces (Model.attachment_triangle ...), in the order of
         attachment_particle; none where every attachment is rigid and never lets go."""
-        if not any(h.triangle is not None or h.release_force_n > 0.0 for h in self._held):
+        if not any(h.triangle is not None or h.release_force_n > 0.0 or h.catch_s > 0.0 for h in self._held):
             return {}
         mesh_triangle_start, m = {}, 0
         for k, b in enumerate(self._bodies):
@@ -749,6 +754,7 @@ class ModelBuilder:
             attachment_normal_offset_m=cat([h.normal_offset_m if h.triangle is not None else np.zeros(c)
                                             for h, c in zip(self._held, n)])[first],
             attachment_release_force_n=cat([np.full(c, h.release_force_n) for h, c in zip(self._held, n)])[first],
+            attachment_catch_s=cat([np.full(c, h.catch_s) for h, c in zip(self._held, n)])[first],
         )
 
     def _validate(self) -> None:

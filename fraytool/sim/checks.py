@@ -13,11 +13,15 @@ from fraytool.sim.simulation import Simulation
 def _attachment_error(sim: Simulation) -> float:
     """Largest distance [m] between a held particle and where its body says it must be."""
     m, s = sim.model, sim.state
-    if m.attachment_count == 0:
+    # the rigidly held ones still held (a surface pin follows its mesh; one let go or not yet caught is free)
+    rigid = (m.attachment_triangle < 0) if m.attachment_triangle.size else np.ones(m.attachment_count, bool)
+    held = rigid & (s.particle_inv_mass[m.attachment_particle] == 0.0)
+    if not held.any():
         return 0.0
-    target = s.body_position_m[m.attachment_body] + np.einsum("kij,kj->ki", s.body_rotation[m.attachment_body],
-                                                               m.attachment_offset_m)
-    return float(np.abs(s.particle_position_m[m.attachment_particle] - target).max())
+    offset = s.attachment_offset_m if s.attachment_offset_m.size else m.attachment_offset_m
+    target = s.body_position_m[m.attachment_body[held]] + np.einsum(
+        "kij,kj->ki", s.body_rotation[m.attachment_body[held]], offset[held])
+    return float(np.abs(s.particle_position_m[m.attachment_particle[held]] - target).max())
 
 
 def run_scene_checks(spec: SceneSpec, frames: int | None = None) -> dict:

@@ -27,7 +27,7 @@ def broken_cloth_springs(spring_kind: np.ndarray, spring_broken: np.ndarray) -> 
 
 _DIGEST_SKIPS_EMPTY = ("spring_seam", "spring_weak_line", "attachment_entry_crossings", "seam_reverse_fits",
                        "spring_sew_s", "spring_sew_start_length_m", "attachment_triangle", "attachment_barycentric",
-                       "attachment_normal_offset_m", "attachment_release_force_n")
+                       "attachment_normal_offset_m", "attachment_release_force_n", "attachment_catch_s")
 
 
 def sewing_progress(time_s: np.ndarray | float, sew_s: np.ndarray) -> np.ndarray:
@@ -235,6 +235,9 @@ class Model:
     """The force above which it lets go [N], 0 for never ([[attachments]] release_force_n), shape (attachments,)."""
     gravity_start_s: float = 0.0
     """Gravity acts from this time on [s] ([world] gravity_start_s; Model.gravity_at_m_s2)."""
+    attachment_catch_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    """When its body catches it [s] ([[attachments]] catch_s; free before, held from then on where it is then:
+    State.attachment_offset_m), 0 for held from the start, shape (attachments,); empty as attachment_triangle."""
     build_warnings: tuple[str, ...] = ()
     """What the builder noticed when each entry was added that no range check can (ModelBuilder.warnings): an
     attachment that holds nothing, a seam whose stitches start torn, an open or oversized mesh. Not part of
@@ -293,6 +296,9 @@ class Model:
         inv_mass = np.zeros(2 * n)
         inv_mass[:n] = 1.0 / self.crossing_mass_kg
         inv_mass[self.attachment_particle] = 0.0
+        if self.attachment_catch_s.size:  # caught later: free until then (fraytool.sim.stages.core.Attachments)
+            later = self.attachment_particle[self.attachment_catch_s > 0.0]
+            inv_mass[later] = 1.0 / mass[later]
         refined = np.zeros(0, bool)
         if self.coarse_factor > 1:
             from fraytool.sim import multires
@@ -323,6 +329,7 @@ class Model:
             body_rotation=self.body_rotation.copy(),
             body_angular_velocity_rad_s=np.zeros((self.body_count, 3)),
             coarse_cell_refined=refined,
+            attachment_offset_m=self.attachment_offset_m.copy() if self.attachment_catch_s.size else np.zeros((0, 3)),
         )
         if self.coarse_factor > 1:
             multires.set_masses(self, layout, refined, state)  # lumped into the nodes, slaved 0

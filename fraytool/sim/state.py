@@ -71,6 +71,9 @@ class State:
     coarse_cell_refined: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
     """Multi-resolution model ([cloth.multires] factor > 1): the coarse cells refined to yarn resolution
     so far, shape (cell_count,), bool (fraytool.sim.multires); empty at yarn resolution everywhere."""
+    attachment_offset_m: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    """Held masses' offsets in their body's frame [m] as caught (Model.attachment_catch_s), shape (attachments, 3);
+    empty where every attachment holds from the start (the Model's offsets hold)."""
     topology_epoch: int = field(default_factory=new_topology_epoch)
     """The topology's change counter (module docstring): not saved, a loaded state gets a new one."""
 
@@ -96,8 +99,8 @@ class State:
         for f in fields(State):
             if f.name == "topology_epoch":
                 continue  # not saved: a new one
-            if f.name == "coarse_cell_refined" and f.name not in data:
-                continue  # a checkpoint from before the multi-resolution model: the default (empty)
+            if f.name in ("coarse_cell_refined", "attachment_offset_m") and f.name not in data:
+                continue  # a checkpoint from before the feature: the default (empty)
             if f.name == "body_rotation" and f.name not in data:
                 if rest_rotation is None:
                     raise KeyError("body_rotation (a checkpoint from before turning bodies needs rest_rotation)")

@@ -190,18 +190,34 @@ class Attachments(_NoSummary):
 
             self.surface = SurfacePins(model)
         self.releasing = np.flatnonzero(model.attachment_release_force_n > 0.0)
+        self.catching = np.flatnonzero(model.attachment_catch_s > 0.0)
 
     def run(self, state: State, ctx: StepContext, dt_s: float) -> None:
         m = self.model
+        if self.catching.size:
+            self._catch(state, dt_s)
         if self.releasing.size:
             self._release(state, ctx)
-        apply_attachments(m.attachment_particle, m.attachment_body, m.attachment_offset_m, state.body_position_m,
+        offset = state.attachment_offset_m if state.attachment_offset_m.size else m.attachment_offset_m
+        apply_attachments(m.attachment_particle, m.attachment_body, offset, state.body_position_m,
                           state.body_rotation, state.particle_inv_mass, state.particle_position_m)
         if self.surface is not None:
             s = self.surface
             held = state.particle_inv_mass[s.particle] == 0.0
             x = s.positions_m(state.time_s + dt_s, state.body_position_m, state.body_rotation)
             state.particle_position_m[s.particle[held]] = x[held]
+
+    def _catch(self, state: State, dt_s: float) -> None:
+        """Hold the masses whose catch time falls in this step where they are relative to their body."""
+        k = self.catching
+        now = k[(self.model.attachment_catch_s[k] >= state.time_s) & (self.model.attachment_catch_s[k] < state.time_s + dt_s)]
+        if not now.size:
+            return
+        p, b = self.model.attachment_particle[now], self.model.attachment_body[now]
+        rel = state.particle_position_m[p] - state.body_position_m[b]
+        state.attachment_offset_m[now] = np.einsum("kji,kj->ki", state.body_rotation[b], rel)  # R^T (x - c)
+        state.particle_inv_mass[p] = 0.0
+        state.bump_topology()
 
     def _release(self, state: State, ctx: StepContext) -> None:
         """Let go of the held masses whose pull (springs and weight) passed their release force."""
