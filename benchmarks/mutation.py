@@ -45,6 +45,7 @@ class Mutation:
 M = Mutation
 MESH_TESTS = ("tests/test_mesh_magnitudes.py", "tests/test_mesh_check.py", "tests/test_mesh_bodies.py")
 SEAM_TESTS = ("tests/test_seams.py",)
+GARMENT_TESTS = ("tests/test_sewing.py", "tests/test_surface_pins.py")
 PANEL_TESTS = ("tests/test_panels.py", "tests/test_tear_control.py", "tests/test_seams.py", "tests/test_plane.py",
                "tests/test_cuts.py")
 GOLDEN_TESTS = ("tests/test_verdicts_and_outputs.py", "tests/test_scene_keys.py", "tests/test_golden.py")
@@ -247,6 +248,25 @@ MUTATIONS = [
     M("panels", "yz panels' weft along z", "fraytool/sim/panel_layout.py",
       '"yz": (1, 2)}', '"yz": (2, 1)}', PANEL_TESTS),
     # -- golden, outputs, farm
+    # -- garments: sewing, surface pins, release, catch, gravity's start
+    M("garments", "sewing pulls linearly, with a jolt", "fraytool/sim/model.py",
+      "return np.where(sew_s > 0.0, u * u * (3.0 - 2.0 * u), 1.0)", "return np.where(sew_s > 0.0, u, 1.0)",
+      GARMENT_TESTS),
+    M("garments", "a stitch being sewn can break", "fraytool/sim/stages/seams.py",
+      "alive = state.spring_alive[s] & (self.sewn_by_s <= state.time_s + dt_s)", "alive = state.spring_alive[s]",
+      GARMENT_TESTS),
+    M("garments", "a surface pin loses its normal offset", "fraytool/sim/surface_pins.py",
+      "+ self.offset_m[mine, None] * _unit_normals(corners))", "+ 0.0 * _unit_normals(corners))", GARMENT_TESTS),
+    M("garments", "a release ignores the held mass's weight", "fraytool/sim/stages/core.py",
+      "pull = ctx.force_n[p] + state.particle_mass_kg[p, None] * self.model.gravity_at_m_s2(state.time_s)",
+      "pull = ctx.force_n[p]", GARMENT_TESTS),
+    M("garments", "a hook catches a step late", "fraytool/sim/stages/core.py",
+      "now = k[(self.model.attachment_catch_s[k] >= state.time_s) & (self.model.attachment_catch_s[k] < state.time_s + dt_s)]",
+      "now = k[(self.model.attachment_catch_s[k] >= state.time_s - dt_s) & (self.model.attachment_catch_s[k] < state.time_s)]",
+      GARMENT_TESTS),
+    M("garments", "gravity from the start", "fraytool/sim/model.py",
+      "return self.gravity_m_s2 if time_s >= self.gravity_start_s else np.zeros(3)", "return self.gravity_m_s2",
+      GARMENT_TESTS),
     M("golden", "a warning then a failure is a warning", "fraytool/golden/compare.py",
       "if status == FAIL or self.status == PASS:", "if self.status == PASS:", GOLDEN_TESTS),
     M("golden", "image failpercent doubled", "fraytool/golden/compare.py",

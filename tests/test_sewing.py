@@ -192,3 +192,38 @@ def test_gravity_waits_for_gravity_start_s_then_pulls_as_free_fall():
         sim.step()
     drop = rest - sim.state.particle_position_m[:sim.model.crossing_count, 1]
     np.testing.assert_allclose(drop, dt * dt * 9.81 * n * (n + 1) / 2, rtol=1e-9)
+
+
+def test_a_stitch_being_sewn_holds_past_its_break_strain_and_breaks_once_sewn():
+    """Two strips held apart at their outer edges: the seam between them cannot close, so as sewing shortens its
+    stitches' rest length they stretch far past their break strain (0.2). None breaks while sewing (0.02 s);
+    once sewn they are ordinary stitches and break."""
+    from fraytool.sim.builder import ModelBuilder
+    from helpers import small_scene
+
+    b = ModelBuilder(seed=1, gravity_m_s2=(0.0, 0.0, 0.0))
+    strip = dict(spacing_m=0.004, thickness_m=0.0006, mass_per_crossing_kg=5e-6, structural_n_per_m=40.0,
+                 warp_yarns=3, weft_yarns=6)
+    b.add_cloth(name="a", **strip)
+    b.add_panel("b", **strip, origin_m=(0.05, 0.0, 0.0))
+    b.add_sphere("left", radius_m=0.001, collide=False)
+    b.add_sphere("right", radius_m=0.001, position_m=(0.06, 0.0, 0.0), collide=False)
+    b.add_attachment("left", panel="a", edge="left")
+    b.add_attachment("right", panel="b", edge="right")
+    b.add_seam(panel_a="a", segment_a=1, panel_b="b", segment_b=3, reverse=True, stitch_spacing_m=0.004,
+               stitch_length_m=0.004, stiffness_n_per_m=20.0, break_strain=0.2, sew_s=0.02)
+    model = b.finalize()
+    stitches = np.flatnonzero(model.spring_kind == STITCH)
+    sim = Simulation(small_scene(step_s=4e-4), model=model)
+    stretched = 0.0
+    while sim.state.time_s < 0.02 - 4e-4 - 1e-9:  # every step that ends before sewing does
+        sim.step()
+        x = sim.state.particle_position_m
+        length = np.linalg.norm(x[sim.state.spring_particle_b[stitches]] - x[sim.state.spring_particle_a[stitches]],
+                                axis=1)
+        stretched = max(stretched, float((length / sim.state.spring_rest_length_m[stitches]).max()))
+        assert not sim.state.spring_broken[stitches].any(), sim.state.time_s
+    assert stretched > 2.0  # far past 1.2
+    for _ in range(10):
+        sim.step()
+    assert sim.state.spring_broken[stitches].any()

@@ -104,3 +104,20 @@ def test_a_hook_catches_its_crossings_at_catch_s_and_holds_them_where_they_were_
     assert caught_at is not None and abs(caught_at[0] - 0.0104) < 1e-9  # the step whose start passed 0.01 s
     assert caught_at[1][1] < -0.01 - 1e-4  # it had fallen below the hook's height minus its rest gap when caught
     assert rest[1] == 0.0
+
+
+def test_a_held_mass_lets_go_under_its_own_weight_alone():
+    """A 2 x 2 cloth held whole by a still body: its springs are at rest (no pull), so what the pin bears is the
+    weight, 1e-5 kg x 9.81 = 98 uN each: released at 50 uN, held at 150 uN."""
+    for force, let_go in ((5e-5, True), (1.5e-4, False)):
+        b = ModelBuilder(seed=1, gravity_m_s2=(0.0, -9.81, 0.0))
+        b.add_cloth(warp_yarns=2, weft_yarns=2, spacing_m=0.01, thickness_m=0.001, mass_per_crossing_kg=1e-5,
+                    structural_n_per_m=20.0)
+        b.add_sphere("rest", radius_m=0.001, collide=False)
+        b.add_attachment("rest", region_center_m=(0.005, 0.0, 0.005), region_radius_m=0.02, release_force_n=force)
+        model = b.finalize()
+        assert model.attachment_count == 4
+        sim = Simulation(small_scene(), model=model)
+        sim.step()
+        sim.step()
+        assert ((sim.state.particle_inv_mass[model.attachment_particle] > 0.0).all()) == let_go
