@@ -445,5 +445,22 @@ def test_job_file_and_command_line_supersample(tmp_path, scene):
     (cli,) = load_job(job, render=RenderOptions(supersample=1)).shots[:1]
     assert cli.render.supersample == 1
     job.write_text(f'[render]\nsupersample = 5\n[[shots]]\nscene = "{scene}"\n')
-    with pytest.raises(InputError, match=r"\[render\] supersample = 5: an integer from 1 to 4"):
+    with pytest.raises(InputError, match=r"\[render\] supersample = 5: expected an integer from 1 to 4"):
         load_job(job)
+
+
+@pytest.mark.parametrize("line, needle", [
+    ("resolution = [64, 47]", "[render] resolution = [64, 47]: the MP4 (H.264, yuv420p) needs an even width and height"),
+    ("resolution = [1, 48]", "[render] resolution = [1, 48]: expected WIDTHxHEIGHT with whole numbers from 2 to 8192"),
+    ("samples = 99", "[render] samples = 99: expected 0 to 64"),
+    ("samples = 2.5", "[render] samples = 2.5: a whole number"),
+])
+def test_a_job_files_render_values_are_checked_by_the_render_commands_own_checks(tmp_path, line, needle):
+    """The job file's [render] ranges are `fraytool render`'s (fraytool.render.options, checked_key): the same
+    rule, worded with the file and the key; an odd size is refused up front, as `fraytool render` refuses it for
+    an MP4."""
+    job = tmp_path / "job.toml"
+    job.write_text(f'[render]\n{line}\n[[shots]]\nscene = "drape"\n')
+    with pytest.raises(InputError) as caught:
+        load_job(job)
+    assert needle in str(caught.value) and str(job) in str(caught.value), str(caught.value)

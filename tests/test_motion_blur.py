@@ -274,8 +274,8 @@ def test_the_farm_renders_the_same_blurred_frames_as_render(ball, tmp_path):
     job.write_text(f'[render]\nmotion_blur = 0.25\nmotion_samples = 6\n[[shots]]\nscene = "{scene}"\n')
     (loaded,) = load_job(job).shots
     assert (loaded.render.motion_blur, loaded.render.motion_samples) == (0.25, 6)
-    for bad, needle in (("motion_blur = 2", "motion_blur = 2: a number from 0 to 1"),
-                        ("motion_samples = 1", "motion_samples = 1: an integer from 2 to 64")):
+    for bad, needle in (("motion_blur = 2", "motion_blur = 2: expected a number from 0 to 1"),
+                        ("motion_samples = 1", "motion_samples = 1: expected a whole number from 2 to 64")):
         job.write_text(f'[render]\n{bad}\n[[shots]]\nscene = "{scene}"\n')
         with pytest.raises(InputError, match=needle):
             load_job(job)

@@ -183,14 +183,26 @@ def _render_options(table: dict, where: str, base: RenderOptions) -> RenderOptio
     unknown = set(table) - _RENDER_KEYS
     if unknown:
         raise InputError(f"{where}: unknown key {sorted(unknown)[0]!r}; allowed keys: {', '.join(sorted(_RENDER_KEYS))}")
+    from fraytool.render.motion_blur import parse_samples, parse_shutter
+    from fraytool.render.options import check_samples, check_supersample, checked_key, parse_resolution
+
+    def integer(key: str, value):
+        if value is not None and (isinstance(value, bool) or not isinstance(value, int)):
+            raise InputError(f"{where} {key} = {value!r}: a whole number")
+        return value
+
+    codec = table.get("codec", base.codec)
+    if codec not in ("h264", "prores", None):
+        raise InputError(f'{where} codec = {codec!r}: "h264" or "prores"')
     res = table.get("resolution", base.resolution)
-    if res is not None:
-        if not (isinstance(res, (list, tuple)) and len(res) == 2 and all(isinstance(v, int) and 2 <= v <= 8192 for v in res)):
-            raise InputError(f"{where} resolution = {res!r}: an array of 2 integers from 2 to 8192")
-        res = (int(res[0]), int(res[1]))
+    if res is not None:  # the ranges are `fraytool render`'s own (fraytool.render.options), checked by its checks
+        if not (isinstance(res, (list, tuple)) and len(res) == 2 and all(isinstance(v, int) and not isinstance(v, bool)
+                                                                          for v in res)):
+            raise InputError(f"{where} resolution = {res!r}: an array of 2 whole numbers [width, height]")
+        res = checked_key(where, "resolution", lambda r: parse_resolution(f"{r[0]}x{r[1]}", need_even=codec != "prores",
+                                                                          no_mp4_hint=False), list(res))
     samples = table.get("samples", base.samples)
-    if samples is not None and not (isinstance(samples, int) and not isinstance(samples, bool) and 0 <= samples <= 64):
-        raise InputError(f"{where} samples = {samples!r}: an integer from 0 to 64")
+    samples = checked_key(where, "samples", check_samples, integer("samples", samples))
     wire = table.get("wireframe", base.wireframe)
     if wire not in ("off", "only", "beside", None):
         raise InputError(f'{where} wireframe = {wire!r}: one of "off", "only", "beside"')
@@ -206,22 +218,17 @@ def _render_options(table: dict, where: str, base: RenderOptions) -> RenderOptio
     depth = table.get("depth", base.depth)
     if depth is not None and (isinstance(depth, bool) or depth not in (8, 16)):
         raise InputError(f"{where} depth = {depth!r}: 8 or 16 (bits per PNG channel)")
-    codec = table.get("codec", base.codec)
-    if codec not in ("h264", "prores", None):
-        raise InputError(f'{where} codec = {codec!r}: "h264" or "prores"')
     blur = table.get("motion_blur", base.motion_blur)
-    if blur is not None and (isinstance(blur, bool) or not isinstance(blur, (int, float)) or not 0 <= blur <= 1):
-        raise InputError(f"{where} motion_blur = {blur!r}: a number from 0 to 1 (the shutter, a fraction of a "
-                         "frame; 0: off)")
+    if blur is not None:
+        if isinstance(blur, bool) or not isinstance(blur, (int, float)):
+            raise InputError(f"{where} motion_blur = {blur!r}: a number")
+        blur = checked_key(where, "motion_blur", parse_shutter, blur)
     blur_samples = table.get("motion_samples", base.motion_samples)
-    if blur_samples is not None and (isinstance(blur_samples, bool) or not isinstance(blur_samples, int)
-                                     or not 2 <= blur_samples <= 64):
-        raise InputError(f"{where} motion_samples = {blur_samples!r}: an integer from 2 to 64")
+    if blur_samples is not None:
+        blur_samples = checked_key(where, "motion_samples", parse_samples, integer("motion_samples", blur_samples))
     supersample = table.get("supersample", base.supersample)
-    if supersample is not None and (isinstance(supersample, bool) or not isinstance(supersample, int)
-                                    or not 1 <= supersample <= 4):
-        raise InputError(f"{where} supersample = {supersample!r}: an integer from 1 to 4 (drawn pixels per output "
-                         "pixel along each axis)")
+    if supersample is not None:
+        supersample = checked_key(where, "supersample", check_supersample, integer("supersample", supersample))
     return check_render_options(RenderOptions(res, samples, wire, frames, flags["alpha"], depth, flags["exr"],
                                               codec, flags["fit"], blur, blur_samples, supersample), where)
 

@@ -131,6 +131,18 @@ def parse_vec3(flag: str, text: str) -> tuple[float, float, float]:
     return v  # type: ignore[return-value]
 
 
+def checked_key(where: str, key: str, check, value):
+    """`check(value)`, a flag's check above, for the same value given as a key of a file (a batch job's
+    [render] table): one check of each range; its InputError names `where` and `key = value` instead of the
+    flag."""
+    try:
+        return check(value)
+    except InputError as exc:
+        text = str(exc)
+        why = text.split(": ", 1)[1] if ": " in text else text
+        raise InputError(f"{where} {key} = {value!r}: {why}") from None
+
+
 def check_samples(samples: Optional[int]) -> Optional[int]:
     if samples is not None and not (0 <= samples <= 64):
         raise InputError(f"--samples {samples}: expected 0 to 64 (MSAA samples; 0 or 1 turn it off; "
