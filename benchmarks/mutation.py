@@ -256,7 +256,7 @@ MUTATIONS = [
       "alive = state.spring_alive[s] & (self.sewn_by_s <= state.time_s + dt_s)", "alive = state.spring_alive[s]",
       GARMENT_TESTS),
     M("garments", "a surface pin loses its normal offset", "fraytool/sim/surface_pins.py",
-      "+ self.offset_m[mine, None] * _unit_normals(corners))", "+ 0.0 * _unit_normals(corners))", GARMENT_TESTS),
+      "+ self.offset_m[mine, None] * unit_normals(corners))", "+ 0.0 * unit_normals(corners))", GARMENT_TESTS),
     M("garments", "a release ignores the held mass's weight", "fraytool/sim/stages/core.py",
       "pull = ctx.force_n[p] + state.particle_mass_kg[p, None] * self.model.gravity_at_m_s2(state.time_s)",
       "pull = ctx.force_n[p]", GARMENT_TESTS),

@@ -13,6 +13,7 @@ import time
 
 import numpy as np
 
+from fraytool.geometry.triangles import unit_normals
 from fraytool.meshes import MeshTable
 from fraytool.kinds import STITCH
 from fraytool.scene import load_scene
@@ -39,7 +40,7 @@ def deepest_inside_m(sim: Simulation, body_name: str = "figure") -> float:
     nearest_triangles(x, v, tri, t, bary, dist)
     corners = v[tri[t]]
     closest = np.einsum("pk,pkd->pd", bary, corners)
-    normal = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    normal = unit_normals(corners)
     inside = np.einsum("pd,pd->p", x - closest, normal) < 0.0
     return float(dist[inside].max()) if inside.any() else 0.0
 

@@ -13,7 +13,7 @@ from fraytool.geometry.frames import rotate, to_body, to_world
 from fraytool.geometry.rotations import (euler_rotation, quat_from_euler_deg, quat_multiply, quat_to_matrix,
                                          quaternion_wxyz, rotation_from_y, rotation_vector, slerp)
 from fraytool.geometry.segments import segment_closest_params
-from fraytool.geometry.triangles import closest_on_triangle, triangle_normal
+from fraytool.geometry.triangles import closest_on_triangle, triangle_normal, unit_normals
 
 pytestmark = pytest.mark.fast
 
@@ -101,3 +101,12 @@ def test_the_rotation_from_y_takes_y_to_the_normal():
         np.testing.assert_allclose(R @ [0.0, 1.0, 0.0], n / np.linalg.norm(n), atol=1e-14)
         np.testing.assert_allclose(R.T @ R, np.eye(3), atol=1e-14)
         assert np.linalg.det(R) == pytest.approx(1.0, abs=1e-12)
+
+
+def test_unit_normals_are_the_kernels_normal_made_unit():
+    rng = np.random.default_rng(4)
+    corners = rng.normal(size=(50, 3, 3))
+    expected = np.array([triangle_normal(*c[0], *c[1], *c[2]) for c in corners])
+    expected /= np.linalg.norm(expected, axis=1, keepdims=True)
+    np.testing.assert_allclose(unit_normals(corners), expected, rtol=1e-12, atol=1e-15)
+    assert not unit_normals(np.zeros((1, 3, 3))).any()  # a degenerate triangle: 0, not NaN

@@ -31,20 +31,17 @@ def panel_bounds(model) -> list[dict]:
 
 
 def _camera_projector(spec):
-    """World -> pixel for the scene's perspective camera (look-at, vertical fov)."""
+    """World -> pixel for the scene's perspective camera (fraytool.render.camera.look_at, vertical fov)."""
+    from fraytool.render.camera import look_at
+
     cam = spec.camera
-    eye, target, up = (np.asarray(v, float) for v in (cam.position_m, cam.target_m, cam.up))
-    f = target - eye
-    f /= np.linalg.norm(f)
-    r = np.cross(f, up)
-    r /= np.linalg.norm(r)
-    u = np.cross(r, f)
+    view = look_at(cam.position_m, cam.target_m, cam.up)
     scale = 0.5 * VIEW_PX / math.tan(math.radians(cam.fov_deg) / 2)
 
     def project(x):
-        d = np.asarray(x, float) - eye
-        z = np.maximum(d @ f, 1e-6)
-        return np.stack([VIEW_PX / 2 + scale * (d @ r) / z, VIEW_PX / 2 - scale * (d @ u) / z], axis=-1)
+        v = np.asarray(x, float) @ view[:3, :3].T + view[:3, 3]  # the camera looks down -z
+        depth = np.maximum(-v[..., 2], 1e-6)
+        return np.stack([VIEW_PX / 2 + scale * v[..., 0] / depth, VIEW_PX / 2 - scale * v[..., 1] / depth], axis=-1)
     return project
 
 

@@ -1,8 +1,17 @@
 """Triangles for the kernels: the normal (b - a) x (c - a), not normalised, and the closest point of a
-triangle to a point with its barycentric weights. Scalars in and out; one definition for every caller."""
+triangle to a point with its barycentric weights. Scalars in and out; one definition for every caller.
+`unit_normals` is the same normal over arrays of triangles, unit length, for the NumPy callers."""
 from __future__ import annotations
 
 import numba as nb
+import numpy as np
+
+
+def unit_normals(corners: np.ndarray) -> np.ndarray:
+    """Unit normals of triangles given as corners (T, 3, 3) (a, b, c each a row): (b - a) x (c - a) / |...|;
+    a degenerate triangle's is 0."""
+    n = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
 
 
 @nb.njit(cache=True, inline="always")

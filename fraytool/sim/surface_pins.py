@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from fraytool.geometry.triangles import unit_normals
 from fraytool.meshes import MeshTable
 from fraytool.sim.kernels.surface_pins import nearest_triangles
 
@@ -35,14 +36,9 @@ def pin_to_surface(points_m: np.ndarray, vertices_m: np.ndarray, triangles: np.n
                           np.ascontiguousarray(triangles, np.int64), tri, bary, dist)
     corners = vertices_m[triangles[tri]]  # (P, 3, 3)
     on_surface = np.einsum("pk,pkd->pd", bary, corners)
-    normal = _unit_normals(corners)
+    normal = unit_normals(corners)
     offset = np.einsum("pd,pd->p", points - on_surface, normal)
     return tri, bary, offset, dist
-
-
-def _unit_normals(corners: np.ndarray) -> np.ndarray:
-    n = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
-    return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
 
 
 class SurfacePins:
@@ -68,6 +64,6 @@ class SurfacePins:
             mine = self.mesh == m
             corners = self.meshes.vertices_at(int(m), time_s)[self.corners[mine]]
             local[mine] = (np.einsum("pk,pkd->pd", self.bary[mine], corners)
-                           + self.offset_m[mine, None] * _unit_normals(corners))
+                           + self.offset_m[mine, None] * unit_normals(corners))
         rot = body_rotation[self.body]
         return body_position_m[self.body] + np.einsum("pij,pj->pi", rot, local)
