@@ -96,6 +96,13 @@ CASES = {
                                  "not true / false"]),
     "normal on a sphere": (GOOD + '\n[[bodies]]\nname = "b"\nshape = "sphere"\nradius_m = 0.01\nnormal = [1.0, 0.0, 0.0]\n',
                            ["[bodies.0] normal = [1.0, 0.0, 0.0]", "is for planes; a sphere does not use it"]),
+    "non-finite wind": (_with("gravity_m_s2 = [0.0, -9.81, 0.0]", "gravity_m_s2 = [0.0, -9.81, 0.0]\nwind_m_s = [nan, 0.0, 0.0]"),
+                        ["[world] wind_m_s = [NaN, 0.0, 0.0]", ">= -1000"]),
+    "negative drag": (_with('weave = "plain"', 'weave = "plain"\ndrag_normal = -1.0'),
+                      ["[cloth] drag_normal = -1.0", ">= 0"]),
+    "gust length zero": (_with("gravity_m_s2 = [0.0, -9.81, 0.0]",
+                               "gravity_m_s2 = [0.0, -9.81, 0.0]\ngust_strength_m_s = 1.0\ngust_length_m = 0.0"),
+                         ["[world] gust_length_m = 0.0", ">= 0.0001"]),
 }
 
 

@@ -67,16 +67,18 @@ def _with_fitted_camera(spec, store, stream: TextIO):
     from fraytool.render.fit import fitted_camera
 
     camera = fitted_camera(spec, store)
-    print(f"fraytool: fit: camera at {_fmt(camera.position_m)} looking at {_fmt(camera.target_m)}", file=stream)
+    moving = f" on frame 0, moving on {len(camera.position_keys_m)} keys" if camera.position_keys_m else ""
+    print(f"fraytool: fit: camera at {_fmt(camera.position_m)} looking at {_fmt(camera.target_m)}{moving}",
+          file=stream)
     return dataclasses.replace(spec, camera=camera)
 
 
 def _check_camera(spec) -> None:
     """InputError (exit 2) before any simulating when the USD camera cannot be made (the renderer's
     Camera: an up vector along the view direction)."""
-    from fraytool.render.camera import Camera
+    from fraytool.render.camera import check_camera
 
     try:
-        Camera(spec.camera)
+        check_camera(spec.camera)
     except InputError as exc:
         raise InputError(f"{spec.source}: [camera]: {exc}") from None

@@ -31,10 +31,11 @@ def panel_bounds(model) -> list[dict]:
 
 
 def _camera_projector(spec):
-    """World -> pixel for the scene's perspective camera (fraytool.render.camera.look_at, vertical fov)."""
-    from fraytool.render.camera import look_at
+    """World -> pixel for the scene's perspective camera (fraytool.render.camera.look_at, vertical fov); a
+    moving camera as it is at time 0 (the rest pose's time)."""
+    from fraytool.render.camera import camera_at, look_at
 
-    cam = spec.camera
+    cam = camera_at(spec.camera, 0.0)
     view = look_at(cam.position_m, cam.target_m, cam.up)
     scale = 0.5 * VIEW_PX / math.tan(math.radians(cam.fov_deg) / 2)
 

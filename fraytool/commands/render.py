@@ -193,7 +193,8 @@ def _render(scene: str, args: RenderRequest, stream: Optional[TextIO]) -> int:
 
                     job = fitted_job(job, store)
                     cam = job.spec.camera
-                    print(f"fraytool: --fit: camera at {_fmt(cam.position_m)} looking at {_fmt(cam.target_m)}",
+                    moving = f" on frame 0, moving on {len(cam.position_keys_m)} keys" if cam.position_keys_m else ""
+                    print(f"fraytool: --fit: camera at {_fmt(cam.position_m)} looking at {_fmt(cam.target_m)}{moving}",
                           file=stream)
                 result = render_job(job, ctx, store, stream=stream)
     finally:

@@ -4,7 +4,7 @@ sample per frame.
 Stage layout (the default prim is named after the scene, made a valid USD identifier):
 
     /<scene>                 Xform
-    /<scene>/Camera          Camera: the renderer's view (fraytool.export.usd_camera), static
+    /<scene>/Camera          Camera: the renderer's view (fraytool.export.usd_camera), time-sampled when it moves
     /<scene>/Yarns/Weft      BasisCurves: every weft piece of the frame
     /<scene>/Yarns/Warp      BasisCurves: every warp piece
     /<scene>/Yarns/<panel>/Weft, .../Warp   instead, with several [[cloth]] panels (a garment): one Scope per
@@ -50,7 +50,7 @@ import numpy as np
 from fraytool import __version__
 from fraytool.errors import InputError, RunError
 from fraytool.geometry.rotations import quaternion_wxyz, rotation_from_y
-from fraytool.export.usd_camera import define_camera
+from fraytool.export.usd_camera import define_camera, sample_camera
 from fraytool.export.velocities import (FrameSource, Stencil, body_velocities, mesh_vertex_velocities,
                                         yarn_point_velocities)
 from fraytool.io.frame_record import FrameRecord
@@ -337,7 +337,7 @@ def write_usd(path: Path, spec: SceneSpec, topology: Mapping[str, np.ndarray], r
         records = list(records)
         frames = FrameSource.of_records(records)
     stage, root = _new_stage(spec)
-    define_camera(stage, f"{root}/{CAMERA_NAME}", spec.camera, spec.render.resolution)
+    camera = define_camera(stage, f"{root}/{CAMERA_NAME}", spec.camera, spec.render.resolution)
     style = YarnStyle.from_spec(spec.render, topology)
     prims = _define_yarns(stage, f"{root}/Yarns", spec, topology, 2.0 * style.radius_m)
     bodies = _define_bodies(stage, root, spec, topology)
@@ -349,6 +349,7 @@ def write_usd(path: Path, spec: SceneSpec, topology: Mapping[str, np.ndarray], r
         first = t if first is None else first
         last = t
         stencil = Stencil.around(record, frames, time_codes_per_second)
+        sample_camera(camera, spec.camera, spec.render.resolution, t, float(record.time_s))
         curves = yarn_curves(topology, record, style)
         velocities = yarn_point_velocities(topology, stencil) if stencil.has_motion else None
         for (panel, kind), prim in prims.items():

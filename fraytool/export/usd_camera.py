@@ -9,8 +9,11 @@ FILM_HEIGHT_MM high and as wide as the aspect asks, and the focal length that gi
 of view: GfCamera's frustum window at unit distance is +-(aperture / 2) / focalLength, so
 tan(fov / 2) = (verticalAperture / 2) / focalLength. clippingRange is the renderer's (near, far).
 
-The camera is static: a scene's [camera] has no keyframes (a fitted camera, [camera] fit = true, is one
-camera for the whole shot too), so the values are written once, without time samples.
+A static camera (no [camera] keys; a fitted one, [camera] fit = true, is one camera for the whole shot
+too) is written once, without time samples. A moving camera (position_keys_m, target_keys_m,
+fov_keys_deg: fraytool.render.camera.camera_at) gets a time sample of its translate, orient and clipping
+range at every exported frame, and of its focal length when the fov is keyed: the pose of the frame
+record's time, as the renderer draws that frame; the default values are its pose at time 0.
 """
 from __future__ import annotations
 
@@ -20,7 +23,7 @@ from typing import Sequence
 import numpy as np
 
 from fraytool.geometry.rotations import quaternion_wxyz
-from fraytool.render.camera import Camera
+from fraytool.render.camera import Camera, is_animated
 from fraytool.scene.spec import CameraSpec
 
 FILM_HEIGHT_MM = 24.0
@@ -49,7 +52,7 @@ def define_camera(stage, path: str, spec: CameraSpec, resolution: Sequence[int])
 
     camera = Camera(spec)
     width, height = resolution
-    focal, horizontal, vertical = lens_mm(spec.fov_deg, width / height)
+    focal, horizontal, vertical = lens_mm(camera.spec.fov_deg, width / height)
     usd = UsdGeom.Camera.Define(stage, path)
     usd.CreateProjectionAttr(UsdGeom.Tokens.perspective)
     usd.CreateFocalLengthAttr(focal)
@@ -61,3 +64,22 @@ def define_camera(stage, path: str, spec: CameraSpec, resolution: Sequence[int])
     w, x, y, z = quaternion_wxyz(rotation)
     usd.AddOrientOp(UsdGeom.XformOp.PrecisionDouble).Set(Gf.Quatd(float(w), float(x), float(y), float(z)))
     return usd
+
+
+def sample_camera(usd, spec: CameraSpec, resolution: Sequence[int], time_code: float, time_s: float) -> None:
+    """A moving camera's pose at time_s as time samples at time_code of the camera `define_camera` made
+    (its lens too when the fov is keyed); nothing for a static camera (module docstring)."""
+    from pxr import Gf, UsdGeom
+
+    if not is_animated(spec):
+        return
+    camera = Camera(spec, time_s)
+    translate, orient = UsdGeom.Xformable(usd).GetOrderedXformOps()
+    eye, rotation = camera_to_world(camera)
+    translate.Set(Gf.Vec3d(*map(float, eye)), time_code)
+    w, x, y, z = quaternion_wxyz(rotation)
+    orient.Set(Gf.Quatd(float(w), float(x), float(y), float(z)), time_code)
+    usd.GetClippingRangeAttr().Set(Gf.Vec2f(camera.near, camera.far), time_code)
+    if spec.fov_keys_deg:
+        width, height = resolution
+        usd.GetFocalLengthAttr().Set(lens_mm(camera.spec.fov_deg, width / height)[0], time_code)

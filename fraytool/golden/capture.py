@@ -25,6 +25,8 @@ class FrameCapture:
     """Piece p owns points offsets[p]:offsets[p+1], shape (K + 1,), int64."""
     torn_springs: int
     """Structural springs torn by the frame (not alive, not cut before or by scissors)."""
+    time_s: float = 0.0
+    """The frame record's simulated time [s]: a moving camera's pose when the frame was drawn."""
 
 
 @dataclass
@@ -91,7 +93,8 @@ def capture(spec: SceneSpec, frames: Sequence[int], work_dir: Path, stream: Text
                                      record.spring_alive)
                 torn = int((structural & ~np.asarray(record.spring_alive, bool) & ~cut).sum())
                 out.frames.append(FrameCapture(f, np.ascontiguousarray(image[..., :3]),
-                                               pieces.points.astype(np.float32), pieces.offsets, torn))
+                                               pieces.points.astype(np.float32), pieces.offsets, torn,
+                                               float(record.time_s)))
         finally:
             renderer.release()
     finally:

@@ -139,7 +139,7 @@ def check_scene(spec: SceneSpec, golden_dir: Path, frames: Optional[Sequence[int
         new = {"image": f.image, "points": f.points_m, "offsets": f.offsets, "torn_springs": f.torn_springs}
         verdict = judge(f.frame, golden[f.frame], new, spec.golden, thickness)
         at = verdict.figures.pop("moved_most_point_m", None)
-        pixel = project_to_pixel(spec, at) if at is not None else None
+        pixel = project_to_pixel(spec, at, f.time_s) if at is not None else None
         if pixel is not None:
             verdict.figures["moved_most_pixel"] = pixel
         out.verdicts.append(verdict)
@@ -148,15 +148,15 @@ def check_scene(spec: SceneSpec, golden_dir: Path, frames: Optional[Sequence[int
     return out
 
 
-def project_to_pixel(spec: SceneSpec, point_m) -> Optional[list[int]]:
-    """The pixel (x right, y down, of the scene's resolution) where the camera sees `point_m`; None behind the
-    camera or outside the picture."""
+def project_to_pixel(spec: SceneSpec, point_m, time_s: float = 0.0) -> Optional[list[int]]:
+    """The pixel (x right, y down, of the scene's resolution) where the camera sees `point_m` at time_s (a
+    moving camera's pose then: the frame's); None behind the camera or outside the picture."""
     import numpy as np
 
     from fraytool.render.camera import Camera
 
     width, height = spec.render.resolution
-    clip = Camera(spec.camera).view_proj(width / height) @ np.append(np.asarray(point_m, float), 1.0)
+    clip = Camera(spec.camera, time_s).view_proj(width / height) @ np.append(np.asarray(point_m, float), 1.0)
     if clip[3] <= 0.0:
         return None
     x = (clip[0] / clip[3] + 1.0) * 0.5 * width

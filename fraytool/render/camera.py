@@ -2,15 +2,68 @@
 
 Matrices are NumPy float64, row-major, applied to column vectors (p_clip = P @ V @ p_world);
 upload them transposed for GLSL's column-major mat4.
+
+A moving camera (docs/rendering.md "A moving camera"): `position_keys_m`, `target_keys_m` and
+`fov_keys_deg` key the eye, the target and the field of view over time, each interpolated as a body's
+path is (fraytool.sim.paths: linear, or the Barry-Goldman Catmull-Rom through the keys) and held before
+its first key and after its last; a value without keys is the static `position_m`, `target_m`, `fov_deg`.
+`camera_at(spec, t)` is the static camera of time t; a frame is drawn, exported and projected with the
+camera of its record's time.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
 
 from fraytool.errors import InputError
 from fraytool.scene.spec import CameraSpec
+
+FOV_RANGE_DEG = (1.0, 170.0)
+"""A keyed field of view between keys is kept in this range (a Catmull-Rom may overshoot its keys)."""
+
+
+def is_animated(spec: CameraSpec) -> bool:
+    """True when the camera has keys (position, target or field of view)."""
+    return bool(spec.position_keys_m or spec.target_keys_m or spec.fov_keys_deg)
+
+
+def camera_at(spec: CameraSpec, time_s: float) -> CameraSpec:
+    """The static camera (no keys) at time_s: each keyed value on its keys (module docstring), the others
+    as they are. A camera without keys is returned as it is."""
+    if not is_animated(spec):
+        return spec
+    from fraytool.sim.paths import path_position_m  # here: a static camera does not load the simulator
+
+    kind = spec.interpolation
+    position, target, fov = spec.position_m, spec.target_m, spec.fov_deg
+    if spec.position_keys_m:
+        position = tuple(float(v) for v in path_position_m(np.asarray(spec.position_keys_m, float), kind, time_s))
+    if spec.target_keys_m:
+        target = tuple(float(v) for v in path_position_m(np.asarray(spec.target_keys_m, float), kind, time_s))
+    if spec.fov_keys_deg:
+        keys = np.asarray(spec.fov_keys_deg, float)
+        padded = np.column_stack([keys, np.zeros((len(keys), 2))])  # (t, fov, 0, 0): a path of one number
+        fov = float(np.clip(path_position_m(padded, kind, time_s)[0], *FOV_RANGE_DEG))
+    return dataclasses.replace(spec, position_m=position, target_m=target, fov_deg=fov,
+                               position_keys_m=(), target_keys_m=(), fov_keys_deg=())
+
+
+def key_times_s(spec: CameraSpec) -> list[float]:
+    """Every key time of the camera, sorted (none for a static camera)."""
+    rows = (*spec.position_keys_m, *spec.target_keys_m, *spec.fov_keys_deg)
+    return sorted({float(r[0]) for r in rows})
+
+
+def check_camera(spec: CameraSpec) -> None:
+    """InputError when the camera cannot look: its eye on its target or `up` along its view direction, at
+    time 0 and at each key's time."""
+    for t in [0.0] + key_times_s(spec):
+        try:
+            Camera(spec, t)
+        except InputError as exc:
+            raise InputError(f"{exc} (at t = {t:g} s)" if is_animated(spec) else str(exc)) from None
 
 
 def look_at(eye: np.ndarray, target: np.ndarray, up: np.ndarray) -> np.ndarray:
@@ -72,9 +125,15 @@ def window_depth_to_distance(depth: np.ndarray, near: float, far: float) -> np.n
 
 
 class Camera:
-    """A CameraSpec with its view matrix and clip planes (near/far scale with the target distance)."""
+    """A CameraSpec with its view matrix and clip planes (near/far scale with the target distance).
 
-    def __init__(self, spec: CameraSpec):
+    A keyed camera is its pose at `time_s` (`spec` is then that static pose, `keyed` the CameraSpec with
+    its keys); `at(t)` gives the camera of another time (itself when the camera has no keys)."""
+
+    def __init__(self, spec: CameraSpec, time_s: float = 0.0):
+        self.keyed = spec
+        self.time_s = float(time_s)
+        spec = camera_at(spec, time_s)
         self.spec = spec
         self.eye = np.asarray(spec.position_m, dtype=np.float64)
         self.target = np.asarray(spec.target_m, dtype=np.float64)
@@ -82,6 +141,12 @@ class Camera:
         distance = float(np.linalg.norm(self.target - self.eye))
         self.near = distance / 200.0
         self.far = distance * 200.0
+
+    def at(self, time_s: float) -> "Camera":
+        """The camera at time_s: this one when it has no keys (or is of that time), else a new one."""
+        if not is_animated(self.keyed) or float(time_s) == self.time_s:
+            return self
+        return Camera(self.keyed, time_s)
 
     def view_distance(self, window_depth: np.ndarray) -> np.ndarray:
         """Depth-buffer values -> distance along the view axis [m], +inf where nothing was drawn."""

@@ -154,7 +154,7 @@ class GeometryBuilder:
     """Builds FrameGeometry for successive frames of one run (caches the tube index buffer).
 
     With a camera and image height the detail adapts to the on-screen yarn size (fraytool.render.lod);
-    without, the style's full detail is used.
+    without, the style's full detail is used. A moving camera (keys) is taken at each record's time.
     """
 
     def __init__(self, topology: Mapping[str, np.ndarray], style: YarnStyle, camera: Optional[Camera] = None,
@@ -170,17 +170,23 @@ class GeometryBuilder:
         self._tri_key: Optional[tuple] = None
         self._tri: Optional[np.ndarray] = None
 
-    def detail(self, pieces: YarnPieces) -> Detail:
+    def camera_at(self, time_s: float) -> Optional[Camera]:
+        """The camera a frame of time_s is seen with (None: no camera)."""
+        return None if self.camera is None else self.camera.at(time_s)
+
+    def detail(self, pieces: YarnPieces, camera: Optional[Camera] = None) -> Detail:
+        """`camera`: the frame's (default: the builder's)."""
         st = self.style
-        if self.camera is None or self.image_height is None:
+        camera = self.camera if camera is None else camera
+        if camera is None or self.image_height is None:
             return Detail(st.sides, st.samples_per_segment)
-        frame = choose_detail(self.camera, self.image_height, pieces.points, st.radius_m, st.spacing_m,
+        frame = choose_detail(camera, self.image_height, pieces.points, st.radius_m, st.spacing_m,
                               st.sides, st.samples_per_segment)
-        length_px = segment_lengths_px(self.camera, self.image_height, pieces.points, pieces.offsets, st.spacing_m)
+        length_px = segment_lengths_px(camera, self.image_height, pieces.points, pieces.offsets, st.spacing_m)
         per_segment = samples_for_lengths(length_px, frame.samples_per_segment)
         tilted = None
         if st.shape == "ribbon":
-            drawn_px = projected_lengths_px(self.camera, (self.image_width, self.image_height), pieces.points,
+            drawn_px = projected_lengths_px(camera, (self.image_width, self.image_height), pieces.points,
                                             pieces.offsets)
             per_segment, tilted = ribbon_steps(length_px, drawn_px, per_segment)
         return Detail(frame.sides, frame.samples_per_segment, per_segment, tilted)
@@ -192,13 +198,16 @@ class GeometryBuilder:
             self._tri_key = key
         return self._tri
 
-    def yarn_mesh(self, pieces: YarnPieces, far: Optional[FarField] = None) -> YarnMesh:
+    def yarn_mesh(self, pieces: YarnPieces, far: Optional[FarField] = None,
+                  camera: Optional[Camera] = None) -> YarnMesh:
+        """`camera`: the frame's (default: the builder's)."""
         st = self.style
+        camera = self.camera if camera is None else camera
         point_far = _point_far_weight(pieces, far, int(np.asarray(self.topology["warp_yarns"]).item())) \
             if far is not None else None
-        detail = self.detail(pieces)
+        detail = self.detail(pieces, camera)
         if st.shape == "ribbon":
-            return self._ribbon_mesh(pieces, detail, point_far)
+            return self._ribbon_mesh(pieces, detail, point_far, camera)
         curves = catmull_rom(pieces.points, pieces.offsets, _samples(detail))
         tangents = polyline_tangents(curves.points, curves.offsets)
         alpha = fade_alpha(curves.points, curves.offsets, pieces.broken_start, pieces.broken_end,
@@ -221,7 +230,8 @@ class GeometryBuilder:
                                          np.repeat(ends.ravel(), detail.sides + 1)]).astype(np.float32)
         return YarnMesh(tube.vertices, opaque, translucent, centroid, pieces.count, detail, far=vertex_far)
 
-    def _ribbon_mesh(self, pieces: YarnPieces, detail: Detail, point_far: Optional[np.ndarray] = None) -> YarnMesh:
+    def _ribbon_mesh(self, pieces: YarnPieces, detail: Detail, point_far: Optional[np.ndarray] = None,
+                     camera: Optional[Camera] = None) -> YarnMesh:
         """View-facing strips (fraytool.render.ribbon); the eye is the camera's (its origin without one)."""
         st = self.style
         curves, tangents, steps = ribbon_curves(pieces.points, pieces.offsets, _samples(detail), st.radius_m,
@@ -229,7 +239,8 @@ class GeometryBuilder:
         alpha = fade_alpha(curves.points, curves.offsets, pieces.broken_start, pieces.broken_end,
                            st.fade_length_m)
         warp = np.repeat(pieces.color_index, np.diff(curves.offsets))  # palette index (fraytool.render.color)
-        eye = self.camera.eye if self.camera is not None else np.zeros(3)
+        camera = self.camera if camera is None else camera
+        eye = camera.eye if camera is not None else np.zeros(3)
         vertices = ribbon_vertices(curves.points, tangents, st.radius_m, alpha, warp, eye)
         shadow, shadow_tri = (shadow_casters(curves.points, tangents, curves.offsets, alpha, st.radius_m,
                                              np.asarray(st.light_direction))
@@ -254,12 +265,13 @@ class GeometryBuilder:
         mesh = None
         surface = None
         if yarns:
+            camera = self.camera_at(float(record.time_s))
             points = yarn_points(topo, record.particle_position_m, record.crossing_yarn_level)
             surface = self.far_field(record, points)
             hidden = None if surface is None else (surface.hidden_weft, surface.hidden_warp)
             pieces = yarn_pieces(topo, record.particle_position_m, record.crossing_yarn_level,
                                  record.spring_alive, hidden=hidden, with_places=surface is not None, points=points)
-            mesh = self.yarn_mesh(pieces, surface)
+            mesh = self.yarn_mesh(pieces, surface, camera)
         return FrameGeometry(
             yarns=mesh,
             lines=spring_lines(topo, record) if lines else None,
@@ -281,7 +293,7 @@ class GeometryBuilder:
             yarn_points(topo, record.particle_position_m, record.crossing_yarn_level)
         centre = 0.5 * (weft_pt + warp_pt)
         grid = grid_arrays(topo, centre, normal, record.crossing_yarn_level, record.spring_alive)
-        field = far_field(self.camera, (self.image_width, self.image_height), *grid,
+        field = far_field(self.camera_at(float(record.time_s)), (self.image_width, self.image_height), *grid,
                           near_px=st.far_field_px * 4.0 / 3.0, far_px=st.far_field_px * 2.0 / 3.0)
         if not field.quads:
             return None

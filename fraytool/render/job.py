@@ -168,13 +168,17 @@ class RenderJob:
 
 def with_overrides(spec: SceneSpec, *, resolution=None, samples=None, camera_position=None, camera_target=None,
                    fov=None, fit=False, supersample=None) -> SceneSpec:
-    """The scene with command-line overrides applied (None keeps the scene's value)."""
+    """The scene with command-line overrides applied (None keeps the scene's value). An override of a keyed
+    value (a moving camera's position, target or fov) replaces its keys: the value is then static."""
     cam = spec.camera
     cam = dataclasses.replace(
         cam,
         position_m=tuple(camera_position) if camera_position is not None else cam.position_m,
         target_m=tuple(camera_target) if camera_target is not None else cam.target_m,
         fov_deg=float(fov) if fov is not None else cam.fov_deg,
+        position_keys_m=() if camera_position is not None else cam.position_keys_m,
+        target_keys_m=() if camera_target is not None else cam.target_keys_m,
+        fov_keys_deg=() if fov is not None else cam.fov_keys_deg,
         fit=cam.fit or bool(fit),
     )
     render = spec.render
@@ -242,10 +246,10 @@ def build_job(spec: SceneSpec, args: RenderRequest, out: Path, shot_folder: bool
         frames, ranged = parse_frame_range(args.frames, spec.time.frames, shot_folder), True
     else:
         frames, ranged = FrameRange(0, spec.time.frames, 1), False
-    from fraytool.render.camera import Camera
+    from fraytool.render.camera import check_camera
 
     try:
-        Camera(spec.camera)  # position == target or up parallel to the view: fail now, not later
+        check_camera(spec.camera)  # position == target or up parallel to the view: fail now, not later
     except InputError as exc:
         where = ", ".join(f for f, v in (("--camera-position", position), ("--camera-target", target)) if v)
         raise InputError(f"{where or spec.source + ': [camera]'}: {exc}") from None

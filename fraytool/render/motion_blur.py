@@ -13,7 +13,9 @@ short way round). What is discrete comes from record f for every sub-frame: whic
 crossings are at yarn level, which particles are active. The scene's last frame has no record after it: its
 sub-frames continue the motion from the frame before (record f-1 to f, extrapolated), as the USD export's
 velocities take a one-sided difference there; a shot of one frame is not blurred. So frame f's pixels
-depend only on records f-1 .. f+1 of the shot, never on which --frames range is rendered.
+depend only on records f-1 .. f+1 of the shot, never on which --frames range is rendered. A sub-frame's time
+is interpolated as its positions are, and a moving camera ([camera] keys) draws it from its pose at that time
+(fraytool.render.camera.camera_at), so the camera's own motion blurs too.
 """
 from __future__ import annotations
 

@@ -49,7 +49,7 @@ import numpy as np
 from fraytool.meshes import MeshTable
 from fraytool.geometry.rotations import rotation_from_y
 from fraytool.render.bodies import BodySet, mesh_draw_vertices, unit_cube, unit_quad, unit_sphere
-from fraytool.render.camera import Camera, gl_matrix_bytes
+from fraytool.render.camera import Camera, gl_matrix_bytes, key_times_s
 from fraytool.render.color import (
     WIREFRAME_BASE_SRGB,
     WIREFRAME_YARN_SRGB,
@@ -207,6 +207,8 @@ class Renderer:
         self.samples = clamp_samples(ctx, samples)
         self.render_spec = render
         self.camera = Camera(camera)
+        """The camera of the frame being drawn: a moving camera's ([camera] keys) pose at the frame's time
+        (`draw` moves it), else the one camera."""
         self.wireframe = wireframe
         self.panels = [Panel(p.view, p.x * k, p.width * k) for p in panels(self.size[0], wireframe)]
         """The views side by side, in drawn pixels."""
@@ -373,7 +375,8 @@ class Renderer:
     def _scene_scale(self, topology: Mapping[str, np.ndarray]) -> float:
         rest = np.asarray(topology.get("crossing_rest_position_m", np.zeros((1, 3))))
         extent = float(np.linalg.norm(rest.max(axis=0) - rest.min(axis=0))) if len(rest) else 0.0
-        return max(extent, float(np.linalg.norm(self.camera.target - self.camera.eye)), 1e-3)
+        poses = [self.camera] + [self.camera.at(t) for t in key_times_s(self.camera.keyed)]  # a moving camera's keys
+        return max(extent, *(float(np.linalg.norm(c.target - c.eye)) for c in poses), 1e-3)
 
     def _ground(self) -> Optional[tuple[np.ndarray, float]]:
         if not self.render_spec.ground_plane:
@@ -741,9 +744,23 @@ class Renderer:
             vbo.write(mesh_draw_vertices(self._meshes.vertices_at(m, time_s), self._meshes.local_triangles(m)).tobytes())
         self._mesh_time_s = time_s
 
+    def _follow_camera(self, time_s: float) -> None:
+        """A moving camera ([camera] keys) to its pose at the frame's time, and the shaders' eye with it; a
+        static camera stays as it is (the same uniforms: the same pixels as before cameras moved)."""
+        camera = self.camera.at(time_s)
+        if camera is self.camera:
+            return
+        self.camera = camera
+        far = (self._far_prog,) if self._far_prog is not None else ()
+        for prog in (*self._yarn_progs, *far, self._body_prog, *self._ground_progs):
+            if "u_eye" in prog:
+                prog["u_eye"].value = tuple(float(v) for v in camera.eye)
+
     def draw(self, geom: FrameGeometry) -> None:
-        """Draw one frame into the multisampled framebuffer and resolve it (no read-back)."""
+        """Draw one frame into the multisampled framebuffer and resolve it (no read-back), with the camera of
+        the frame's time."""
         W, H = self.draw_size
+        self._follow_camera(geom.time_s)
         if geom.surface is not None or (geom.yarns is not None and geom.yarns.far is not None):
             self._ensure_far_field()
         self._fbo_ms.use()

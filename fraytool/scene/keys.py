@@ -31,7 +31,7 @@ REQUIRED: Any = _Required()
 class Key:
     kind: str
     """"float", "int", "bool", "str", "vec3", "color", "int2", "float2", "points2", "ints", "path", "path_deg",
-    "path_quat", "table2d"."""
+    "path_quat", "path_fov", "table2d"."""
     default: Any = REQUIRED
     """Value when the key is not given; REQUIRED if it must be; None for "not given" (optional)."""
     lo: Optional[float] = None
@@ -64,6 +64,8 @@ class Key:
                         "increasing, angles [degrees]",
             "path_quat": "an array of [t, w, x, y, z] arrays of finite numbers, times from 0 to 1e6 s and "
                          "increasing, quaternions (w, x, y, z) of norm at least 1e-6",
+            "path_fov": "an array of [t, value] arrays of finite numbers, times from 0 to 1e6 s and increasing, "
+                        "values",
             "table2d": "equal-length rows of the integers 0 and 1 (not true / false)",
         }[self.kind]
         bounds = []
@@ -188,6 +190,8 @@ class Key:
                 return False, None
             if self.kind == "path_quat" and not math.hypot(*rows[-1][1:]) >= MIN_QUATERNION_NORM:
                 return False, None
+            if self.kind == "path_fov" and not self.in_range(rows[-1][1]):
+                return False, None
         times = [r[0] for r in rows]
         if any(b <= a for a, b in zip(times, times[1:])) or any(t < 0 for t in times):
             return False, None
@@ -214,8 +218,9 @@ PATH_MAX_TIME_S = 1.0e6
 MIN_QUATERNION_NORM = 1e-6
 """Smallest norm of an orientation key (w, x, y, z) before it is normalised: a key of norm 1e-200 squares
 to 0 and would turn the body into NaN."""
-PATH_WIDTHS = {"path": 4, "path_deg": 4, "path_quat": 5}
-"""Numbers per key of each path kind: the time, then a position, Euler angles or a quaternion."""
+PATH_WIDTHS = {"path": 4, "path_deg": 4, "path_quat": 5, "path_fov": 2}
+"""Numbers per key of each path kind: the time, then a position, Euler angles, a quaternion or one number
+(a camera's field of view)."""
 
 SHOW_MAX_CHARS = 80
 """Longest value echoed in a message; longer ones are cut, with their size (a 1,000,000-item array

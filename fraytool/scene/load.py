@@ -397,7 +397,7 @@ def _assemble(values: dict, bodies_raw: list, att_raw: list, cut_raw: list, sour
         time=TimeSpec(**t),
         cloth=cloth,
         gravity_m_s2=values["world"]["gravity_m_s2"],
-        gravity_start_s=values["world"]["gravity_start_s"],
+        **{k: values["world"][k] for k in _WORLD_KEYS if k != "gravity_m_s2"},
         bodies=tuple(bodies),
         attachments=tuple(attachments),
         cuts=tuple(cuts),
@@ -478,7 +478,7 @@ def _toml_key(key: str, several_panels: bool) -> str:
     """A SceneSpec path as the scene file writes it: gravity is [world]'s; with several [[cloth]] panels the
     first is cloth.0 and SceneSpec.panels[k] is cloth.(k + 1)."""
     head, _, rest = key.partition(".")
-    if head in ("gravity_m_s2", "gravity_start_s"):
+    if head in _WORLD_KEYS:
         return "world." + key
     if head == "cloth" and several_panels:
         return "cloth.0." + rest
@@ -519,8 +519,9 @@ def _simulation_dict(spec: SceneSpec) -> dict:
         for raw in d.get(table, []):
             if raw["panel"] == "":  # on the first panel, as before panels had names
                 raw.pop("panel")
-    if d["gravity_start_s"] == 0.0:
-        d.pop("gravity_start_s")  # scenes with gravity from the start keep the digest they had before
+    for k, default in _WORLD_KEY_DEFAULTS.items():  # scenes without a pre-roll or air keep the digest they had
+        if d[k] == default:
+            d.pop(k)
     d["time"].pop("frames")  # frame k does not depend on how many follow it
     d["time"].pop("fps")
     d["time"].pop("stability")
@@ -568,8 +569,12 @@ def _is_digest(value) -> bool:
 
 _PANEL_KEY_DEFAULTS = {k: schema.TOP["cloth"][k].default for k in
                        ("outline_m", "mask", "mask_size_m", "grain_deg", "edge", "tear_map", "tear_map_strain",
-                        "rotation_deg", "wrap_radius_m")}
+                        "rotation_deg", "wrap_radius_m", "drag_normal", "drag_tangential")}
 """[cloth] keys of shaped panels, left out of the digest at their defaults."""
+_WORLD_KEYS = tuple(schema.TOP["world"])
+"""The [world] table's keys (SceneSpec's own)."""
+_WORLD_KEY_DEFAULTS = {k: schema.TOP["world"][k].default for k in _WORLD_KEYS if k != "gravity_m_s2"}
+"""[world] keys added after gravity, left out of the digest at their defaults."""
 _BODY_KEY_DEFAULTS = {k: schema.TOP["bodies"][k].default for k in
                       ("path_rotation_deg", "path_quaternion", "interpolation", "sequence_start_s")}
 """[[bodies]] keys of turning and smooth paths, left out of the digest at their defaults."""

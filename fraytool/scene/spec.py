@@ -183,6 +183,13 @@ class ClothSpec:
     edge: str = key("str", "raw", choices=("raw", "hemmed"),
                     doc="the panel's border: raw (torn or pulled, its yarns fray) or hemmed (border crossings "
                         "never split into yarns, and border yarns hold twice the break strain)")
+    drag_normal: float = key("float", 0.0, lo=0, hi=1000,
+                             doc="air drag coefficient across the cloth (a flat plate face-on: about 1.2); the "
+                                 "pressure 1/2 rho C v_n |v_n| [N/m^2] from the velocity relative to the air along "
+                                 "the local normal (docs/wind.md); loose yarn ends take it as a cylinder's; 0: none")
+    drag_tangential: float = key("float", 0.0, lo=0, hi=1000,
+                                 doc="air drag coefficient along the cloth's plane (skin friction, about 0.01-0.05): "
+                                     "1/2 rho C v_t |v_t| [N/m^2] from the velocity in the plane; 0: none")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -332,6 +339,17 @@ class CameraSpec:
                                        "view axis until they fit (fraytool render --fit)")
     fit_margin: float = key("float", 0.05, lo=0, hi=1,
                             doc="with fit: free border around the fitted bounds, as a fraction of the frame")
+    position_keys_m: tuple[tuple[float, float, float, float], ...] = key(
+        "path", (), lo=-WORLD_M, hi=WORLD_M, doc="camera animation: eye keyframes (t [s], x, y, z [m]), "
+        "interpolated by `interpolation`, held before the first and after the last; instead of position_m")
+    target_keys_m: tuple[tuple[float, float, float, float], ...] = key(
+        "path", (), lo=-WORLD_M, hi=WORLD_M, doc="camera animation: keyframes of the point looked at "
+        "(t [s], x, y, z [m]); instead of target_m")
+    fov_keys_deg: tuple[tuple[float, float], ...] = key(
+        "path_fov", (), lo=1, hi=170, doc="camera animation: keyframes of the vertical field of view "
+        "(t [s], fov [degrees]); instead of fov_deg")
+    interpolation: str = key("str", "linear", choices=INTERPOLATION_NAMES,
+                             doc="between the camera's keys: linear or catmull_rom (as [[bodies]] paths)")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -454,6 +472,18 @@ class SceneSpec:
     gravity_start_s: float = key("float", 0.0, lo=0, hi=1e6,
                                  doc="gravity acts from this scene time on [s]: a pre-roll in which panels laid round "
                                      "a body are sewn on ([[seams]] sew_s) before they can fall; 0: from the start")
+    wind_m_s: Vec3 = key("vec3", (0.0, 0.0, 0.0), lo=-1e3, hi=1e3,
+                         doc="mean wind, the air's velocity [m/s]; a panel feels it through its drag_normal and "
+                             "drag_tangential (docs/wind.md)")
+    air_density_kg_m3: float = key("float", 1.2, lo=0, hi=1e4, doc="density of the air rho [kg/m^3] in the drag law")
+    gust_strength_m_s: float = key("float", 0.0, lo=0, hi=1e3,
+                                   doc="gusts: root mean square of each component of a seeded, smooth turbulent "
+                                       "velocity added to wind_m_s [m/s]; 0: steady wind")
+    gust_length_m: float = key("float", 0.5, lo=1e-4, hi=1e4,
+                               doc="gusts: length scale L [m]; two points r apart correlate as exp(-r^2 / 2 L^2)")
+    gust_time_s: float = key("float", 0.5, lo=1e-4, hi=1e4,
+                             doc="gusts: time scale [s] of the field's change as the wind carries it along; one "
+                                 "point, in still mean air, correlates as exp(-tau^2 / 2 T^2)")
     bodies: tuple[BodySpec, ...] = ()
     attachments: tuple[AttachmentSpec, ...] = ()
     cuts: tuple[CutSpec, ...] = ()

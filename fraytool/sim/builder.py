@@ -235,13 +235,23 @@ class ModelBuilder:
     @_keys_doc("scene", "world")
     def __init__(self, *, seed: int = _SCENE["seed"].default,
                  gravity_m_s2: Sequence[float] = _WORLD["gravity_m_s2"].default,
-                 gravity_start_s: float = _WORLD["gravity_start_s"].default):
-        """A builder with nothing added yet. `seed` seeds every random draw (break strains)."""
-        v = self._check("ModelBuilder", {**_SCENE, **_WORLD}, dict(seed=seed, gravity_m_s2=gravity_m_s2,
-                                                                   gravity_start_s=gravity_start_s))
+                 gravity_start_s: float = _WORLD["gravity_start_s"].default,
+                 wind_m_s: Sequence[float] = _WORLD["wind_m_s"].default,
+                 air_density_kg_m3: float = _WORLD["air_density_kg_m3"].default,
+                 gust_strength_m_s: float = _WORLD["gust_strength_m_s"].default,
+                 gust_length_m: float = _WORLD["gust_length_m"].default,
+                 gust_time_s: float = _WORLD["gust_time_s"].default):
+        """A builder with nothing added yet. `seed` seeds every random draw (break strains, gusts)."""
+        v = self._check("ModelBuilder", {**_SCENE, **_WORLD}, dict(
+            seed=seed, gravity_m_s2=gravity_m_s2, gravity_start_s=gravity_start_s, wind_m_s=wind_m_s,
+            air_density_kg_m3=air_density_kg_m3, gust_strength_m_s=gust_strength_m_s, gust_length_m=gust_length_m,
+            gust_time_s=gust_time_s))
         self.seed: int = v["seed"]
         self.gravity_m_s2: Vec3 = v["gravity_m_s2"]
         self.gravity_start_s: float = v["gravity_start_s"]
+        self.air = {k: v[k] for k in ("wind_m_s", "air_density_kg_m3", "gust_strength_m_s", "gust_length_m",
+                                      "gust_time_s")}
+        """The [world] air keys (docs/wind.md), as given."""
         self.cloth: Optional[ClothSpec] = None
         self.strain = StrainSpec()
         self.tearing = TearingSpec()
@@ -722,7 +732,7 @@ class ModelBuilder:
         return Model(
             **crossings, **springs, **body_fields(self._bodies), **self._solver_fields(crossings, springs),
             spacing_m=c.spacing_m, thickness_m=c.thickness_m, gravity_m_s2=np.asarray(self.gravity_m_s2, float),
-            gravity_start_s=self.gravity_start_s,
+            gravity_start_s=self.gravity_start_s, **self._air_fields(),
             crossing_weft_springs=cw, crossing_warp_springs=cv, panel_names=tuple(self.panel_names),
             attachment_particle=held[0][first],
             attachment_body=np.concatenate([np.full(h.crossings.size, h.body, np.int32) for h in self._held]
@@ -731,8 +741,27 @@ class ModelBuilder:
             attachment_entry_crossings=np.array([h.crossings.size for h in self._held], np.int64),
             **self._surface_fields(first),
             seam_reverse_fits=np.array([s.reverse_fits for s in self._stitches], bool),
-            seed=self.seed, build_warnings=tuple(self.warnings + self._scale_warnings(crossings)),
+            seed=self.seed, build_warnings=tuple(self.warnings + self._scale_warnings(crossings) + self._air_warnings()),
         )
+
+    def _air_fields(self) -> dict:
+        """The air's Model fields (docs/wind.md): empty drag arrays where no panel has drag, so a scene without
+        wind or drag builds no air stage and keeps its digest."""
+        drag = np.array([[p.layout.spec.drag_normal, p.layout.spec.drag_tangential] for p in self._panels], float)
+        if not drag.any():
+            drag = np.zeros((0, 2))
+        return dict(panel_drag_normal=drag[:, 0].copy(), panel_drag_tangential=drag[:, 1].copy(),
+                    wind_m_s=np.asarray(self.air["wind_m_s"], float), air_density_kg_m3=self.air["air_density_kg_m3"],
+                    gust_strength_m_s=self.air["gust_strength_m_s"], gust_length_m=self.air["gust_length_m"],
+                    gust_time_s=self.air["gust_time_s"])
+
+    def _air_warnings(self) -> list[str]:
+        """Wind that moves nothing: no panel has drag."""
+        windy = any(self.air["wind_m_s"]) or self.air["gust_strength_m_s"] > 0.0
+        if windy and not any(p.layout.spec.drag_normal or p.layout.spec.drag_tangential for p in self._panels):
+            return [f"{self.source}: [world] wind_m_s or gust_strength_m_s is set but no [cloth] panel has drag_normal "
+                    "or drag_tangential above 0: the wind moves nothing"]
+        return []
 
     def _surface_fields(self, first: np.ndarray) -> dict[str, np.ndarray]:
         """The attachments' surface pins and release forces (Model.attachment_triangle ...), in the order of
@@ -768,6 +797,10 @@ class ModelBuilder:
         if self.multires.factor > 1 and (c.outline_m or c.mask or len(self._panels) > 1):
             self._raise("finalize", [(None, None, "a shaped panel (outline_m or mask) or several panels are "
                                                   "simulated at yarn resolution: set_multires(factor=1)")])
+        if self.multires.factor > 1 and any(p.layout.spec.drag_normal or p.layout.spec.drag_tangential
+                                            for p in self._panels):
+            self._raise("finalize", [(None, None, "air drag (drag_normal, drag_tangential) acts at yarn resolution: "
+                                                  "set_multires(factor=1)")])
 
     def _draw_break_strains(self, panels, num) -> tuple:
         """The random break limits (docs/method.md §3.4), drawn here because they depend on set_tearing, which
@@ -884,7 +917,7 @@ def scene_builder(spec: SceneSpec) -> ModelBuilder:
     """A ModelBuilder with a scene's tables added, not finalized: add more in code (a mesh, a body), then
     call finalize()."""
     c = spec.cloth
-    builder = ModelBuilder(seed=spec.scene.seed, gravity_m_s2=spec.gravity_m_s2, gravity_start_s=spec.gravity_start_s)
+    builder = ModelBuilder(seed=spec.scene.seed, **{k: getattr(spec, k) for k in _WORLD})
     builder.source, builder.scene_file = spec.source, spec.source_file
     for k, panel in enumerate(spec.all_panels):
         args = _panel_arguments(panel, spec.source_file)

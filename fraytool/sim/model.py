@@ -27,7 +27,11 @@ def broken_cloth_springs(spring_kind: np.ndarray, spring_broken: np.ndarray) -> 
 
 _DIGEST_SKIPS_EMPTY = ("spring_seam", "spring_weak_line", "attachment_entry_crossings", "seam_reverse_fits",
                        "spring_sew_s", "spring_sew_start_length_m", "attachment_triangle", "attachment_barycentric",
-                       "attachment_normal_offset_m", "attachment_release_force_n", "attachment_catch_s")
+                       "attachment_normal_offset_m", "attachment_release_force_n", "attachment_catch_s",
+                       "panel_drag_normal", "panel_drag_tangential")
+_DIGEST_SKIPS_DEFAULT = {"gravity_start_s": 0.0, "wind_m_s": np.zeros(3), "air_density_kg_m3": 1.2,
+                         "gust_strength_m_s": 0.0, "gust_length_m": 0.5, "gust_time_s": 0.5}
+"""Fields left out of the digest at these values: Models from before the fields keep their digest."""
 
 
 def sewing_progress(time_s: np.ndarray | float, sew_s: np.ndarray) -> np.ndarray:
@@ -238,6 +242,21 @@ class Model:
     attachment_catch_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
     """When its body catches it [s] ([[attachments]] catch_s; free before, held from then on where it is then:
     State.attachment_offset_m), 0 for held from the start, shape (attachments,); empty as attachment_triangle."""
+    panel_drag_normal: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    """Air drag coefficient across each panel ([cloth] drag_normal; docs/wind.md), shape (panels,); empty where no
+    panel has drag (no air stage), as panel_drag_tangential."""
+    panel_drag_tangential: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    """Air drag coefficient along each panel's plane ([cloth] drag_tangential), shape (panels,)."""
+    wind_m_s: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    """Mean wind [m/s] ([world] wind_m_s), shape (3,)."""
+    air_density_kg_m3: float = 1.2
+    """Density of the air [kg/m^3] ([world] air_density_kg_m3)."""
+    gust_strength_m_s: float = 0.0
+    """RMS of each component of the gusts [m/s] ([world] gust_strength_m_s; fraytool.sim.air); 0: steady."""
+    gust_length_m: float = 0.5
+    """Length scale of the gusts [m]."""
+    gust_time_s: float = 0.5
+    """Time scale of the gusts [s]."""
     build_warnings: tuple[str, ...] = ()
     """What the builder noticed when each entry was added that no range check can (ModelBuilder.warnings): an
     attachment that holds nothing, a seam whose stitches start torn, an open or oversized mesh. Not part of
@@ -370,7 +389,7 @@ class Model:
         h = hashlib.sha256()
         for name, v in sorted(self.arrays().items()):
             if name in _DIGEST_SKIPS_EMPTY and v.size == 0 or name == "build_warnings" \
-                    or name == "gravity_start_s" and float(v) == 0.0:
+                    or name in _DIGEST_SKIPS_DEFAULT and np.array_equal(v, _DIGEST_SKIPS_DEFAULT[name]):
                 continue  # Models without seams or weak lines keep the digest they had before these fields
             v = np.ascontiguousarray(v)
             h.update(f"{name}:{v.dtype.str}:{v.shape}".encode())

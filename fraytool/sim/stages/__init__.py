@@ -65,6 +65,10 @@ def build_stages(model: Model, speed_limit_m_s: float, ctx: StepContext) -> Step
         stages: list = [multires.MultiresForces(model)]
     else:
         stages = [core.SpringForces(model)]
+    if model.panel_drag_normal.size:
+        from fraytool.sim.stages.air import AirDrag  # only scenes with air drag
+
+        stages.append(AirDrag(model))
     if model.spring_sew_s.size:
         from fraytool.sim.stages.seams import Sewing  # only scenes with a seam sewn over time
 
