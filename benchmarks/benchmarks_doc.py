@@ -33,6 +33,8 @@ ROWS = [
     ("mannequin_snag (a 3750-triangle mesh body)", ["scenes/mannequin_snag.toml"], 96, 4),
     ("shirt_snag (4 sewn panels on a 2,352-triangle moving figure)", ["scenes/shirt_snag.toml"], 72, 4),
     ("shirt_snag, render 1280x720", ["scenes/shirt_snag.toml", "--render"], 12, 2),
+    ("flag_tear (gusting wind, air drag, an orbiting camera)", ["scenes/flag_tear.toml"], 144, 4),
+    ("flag_tear, render 1280x720", ["scenes/flag_tear.toml", "--render"], 12, 2),
     ("tablecloth_tear (first frames)", ["scenes/tablecloth_tear.toml"], 12, 2),
     ("tablecloth_tear (whole shot)", ["scenes/tablecloth_tear.toml"], 108, 2),
     ("drape 256 x 256, 1 thread", ["scenes/drape.toml", "--set", "cloth.warp_yarns=256", "--set",

@@ -25,14 +25,15 @@ def main(scene: str, out_dir: str, frame: int) -> None:
     store = FrameStore(Path(out_dir))
     topology = store.load_topology()
     radius = YarnStyle.from_spec(spec.render, topology).radius_m
-    cam = Camera(spec.camera)
+    record = store.load_frame(frame)
+    cam = Camera(spec.camera, record.time_s)  # a moving camera at the frame's time
     W, H = spec.render.resolution
-    p = np.asarray(store.load_frame(frame).particle_position_m, dtype=np.float64)
+    p = np.asarray(record.particle_position_m, dtype=np.float64)
     clip = np.c_[p, np.ones(len(p))] @ cam.view_proj(W / H).T
     ndc = clip[:, :2] / clip[:, 3:4]
     inside = (np.abs(ndc) <= 1).all(axis=1) & (clip[:, 3] > 0)
     depth = -cam.view_depth(p[inside])
-    width = 2 * radius * H / (2 * depth * math.tan(math.radians(spec.camera.fov_deg) / 2))
+    width = 2 * radius * H / (2 * depth * math.tan(math.radians(cam.spec.fov_deg) / 2))
     print(f"{spec.name} frame {frame}: yarn width px median {np.median(width):.1f}, "
           f"10th percentile {np.percentile(width, 10):.1f}, min {width.min():.1f}; "
           f"{100 * inside.mean():.0f} % of particles in frame")
