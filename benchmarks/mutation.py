@@ -46,6 +46,8 @@ M = Mutation
 MESH_TESTS = ("tests/test_mesh_magnitudes.py", "tests/test_mesh_check.py", "tests/test_mesh_bodies.py")
 SEAM_TESTS = ("tests/test_seams.py",)
 GARMENT_TESTS = ("tests/test_sewing.py", "tests/test_surface_pins.py")
+AIR_TESTS = ("tests/test_wind.py",)
+CAMERA_TESTS = ("tests/test_camera_keys.py", "tests/test_framing.py::test_framing_counts_what_leaves_the_picture_and_what_is_behind_the_eye")
 PANEL_TESTS = ("tests/test_panels.py", "tests/test_tear_control.py", "tests/test_seams.py", "tests/test_plane.py",
                "tests/test_cuts.py")
 GOLDEN_TESTS = ("tests/test_verdicts_and_outputs.py", "tests/test_scene_keys.py", "tests/test_golden.py")
@@ -267,6 +269,19 @@ MUTATIONS = [
     M("garments", "gravity from the start", "fraytool/sim/model.py",
       "return self.gravity_m_s2 if time_s >= self.gravity_start_s else np.zeros(3)", "return self.gravity_m_s2",
       GARMENT_TESTS),
+    # -- air: drag, wind, gusts; the moving camera
+    M("air", "drag pressure doubled", "fraytool/sim/air.py",
+      "0.5 * float(model.air_density_kg_m3)", "1.0 * float(model.air_density_kg_m3)", AIR_TESTS),
+    M("air", "no tangential drag on a loose yarn", "fraytool/sim/kernels/air.py",
+      "f0, f1, f2 = _quadratic_drag(r0, r1, r2, t0 / tl, t1 / tl, t2 / tl, half_rho * ct * area,",
+      "f0, f1, f2 = _quadratic_drag(r0, r1, r2, t0 / tl, t1 / tl, t2 / tl, 0.0 * ct * area,", AIR_TESTS),
+    M("air", "gusts 10 % longer than asked", "fraytool/sim/air.py",
+      "wave = rng.normal(0.0, 1.0 / length_m, (modes, 3))", "wave = rng.normal(0.0, 0.9 / length_m, (modes, 3))",
+      AIR_TESTS),
+    M("air", "the gusts stand still in the mean wind", "fraytool/sim/kernels/air.py",
+      "x0 = point_m[n, 0] - wind_m_s[0] * time_s", "x0 = point_m[n, 0]", AIR_TESTS),
+    M("camera", "the camera ignores its keys", "fraytool/render/camera.py",
+      "spec = camera_at(spec, time_s)", "spec = spec", CAMERA_TESTS),
     M("golden", "a warning then a failure is a warning", "fraytool/golden/compare.py",
       "if status == FAIL or self.status == PASS:", "if self.status == PASS:", GOLDEN_TESTS),
     M("golden", "image failpercent doubled", "fraytool/golden/compare.py",
