@@ -68,6 +68,30 @@ def test_a_tearing_run_is_bit_identical_on_one_and_two_threads(tmp_path, stiffne
                 assert a[key].tobytes() == b[key].tobytes(), (path.name, key)
 
 
+def test_mesh_contact_is_bit_identical_on_one_and_two_threads(tmp_path):
+    """mannequin_snag's cloth against its mesh (masses and yarn segments, both in parallel: the segments'
+    first sweep tested beforehand, fraytool.sim.kernels.mesh_contact.segments_touching) as it catches and
+    tears: the same bytes on one thread and on two."""
+    def run(threads: int) -> Path:
+        out = tmp_path / str(threads)
+        env = dict(os.environ, NUMBA_NUM_THREADS=str(threads), PYTHONPATH=str(ROOT))
+        r = subprocess.run([sys.executable, "-m", "fraytool", "simulate", "mannequin_snag", "-o", str(out),
+                            "--frames", "40", "--progress", "none"], capture_output=True, text=True, env=env,
+                           cwd=ROOT, timeout=600)
+        assert r.returncode == 0, r.stderr
+        return out / "frames"
+
+    one, two = run(1), run(2)
+    frames = sorted(one.glob("*.npz"))
+    assert len(frames) > 30
+    with np.load(one / "frame_000039.npz") as last, np.load(one / "frame_000000.npz") as first:
+        assert not np.array_equal(last["particle_position_m"], first["particle_position_m"])
+    for path in frames:
+        with np.load(path) as a, np.load(two / path.name) as b:
+            for key in a.files:
+                assert a[key].tobytes() == b[key].tobytes(), (path.name, key)
+
+
 def test_threads_flag_is_checked(tmp_path, capsys):
     scene = tmp_path / "strip.toml"
     scene.write_text(pulled_strip_text("strip"))

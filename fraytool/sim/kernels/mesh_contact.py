@@ -34,7 +34,8 @@ the edge; without one, a segment within `margin` is pushed off. The move goes to
 their inverse masses and the closest point's parameter (a PBD distance constraint with one side
 kinematic), in EDGE_ROUNDS rounds as the closest points slide. Against a closed mesh, a segment whose
 middle cuts a corner (both ends outside) has its deepest point moved out (`_segment_through`). On one
-thread (segments share masses), in up to SWEEPS sweeps over the segments while one moved.
+thread (segments share masses), in up to SWEEPS sweeps over the segments while one moved; the first sweep's
+tests, which find nothing for most segments, run in parallel beforehand (`segments_touching`).
 """
 from __future__ import annotations
 
@@ -524,10 +525,84 @@ def _segment_through(m, meshes_in, seg_end_inout, inverse_masses, margin_m, stac
     return 1
 
 
+@nb.njit(cache=True, inline="always")
+def _segment_in_body(segments, s, rot, rot0, c0, c1, prev_position_m, particle_position_m, start_out, end_out):
+    """Segment s's ends at the step's start and end in the body frame (module docstring) into start_out and
+    end_out, (2, 3) each."""
+    for end_ in range(2):
+        p = segments[s, end_]
+        end_out[end_, 0], end_out[end_, 1], end_out[end_, 2] = to_body(
+            rot, c1, particle_position_m[p, 0], particle_position_m[p, 1], particle_position_m[p, 2])
+        start_out[end_, 0], start_out[end_, 1], start_out[end_, 2] = to_body(
+            rot0, c0, prev_position_m[p, 0], prev_position_m[p, 1], prev_position_m[p, 2])
+
+
+@nb.njit(cache=True, inline="always")
+def _segment_near(box, root, start, end, pad):
+    """Whether the segment's swept box, grown by pad, overlaps the mesh's root box."""
+    return _overlaps(box, root, min(start[0, 0], start[1, 0], end[0, 0], end[1, 0]) - pad,
+                     min(start[0, 1], start[1, 1], end[0, 1], end[1, 1]) - pad,
+                     min(start[0, 2], start[1, 2], end[0, 2], end[1, 2]) - pad,
+                     max(start[0, 0], start[1, 0], end[0, 0], end[1, 0]) + pad,
+                     max(start[0, 1], start[1, 1], end[0, 1], end[1, 1]) + pad,
+                     max(start[0, 2], start[1, 2], end[0, 2], end[1, 2]) + pad)
+
+
+@nb.njit(cache=True, inline="always")
+def _segment_hits(m, meshes_in, sharp, closed, start, end_inout, inverse_masses, margin_m, stack_out):
+    """One pass of a segment against mesh m: its sharp edges, then (closed mesh) a corner it cuts."""
+    hits = _segment_pass(m, meshes_in, start, end_inout, inverse_masses, margin_m, stack_out) if sharp else 0
+    if closed:
+        hits += _segment_through(m, meshes_in, end_inout, inverse_masses, margin_m, stack_out)
+    return hits
+
+
+@nb.njit(cache=True, inline="always")
+def _mesh_frame(m, meshes_in, bodies_in, dt_s):
+    """Mesh m's body frame over the step: (rotation at the end, at the start, centre at the start, at the end),
+    and whether it has sharp edges."""
+    k = meshes_in.body[m]
+    rot = bodies_in.rotation[k]
+    rot0 = start_rotation(rot, bodies_in.angular_velocity_rad_s[k], dt_s)
+    c1 = bodies_in.position_m[k].copy()
+    c0 = c1 - dt_s * bodies_in.velocity_m_s[k]
+    sharp = meshes_in.edge_range[meshes_in.edge_node_start[m], 1] > meshes_in.edge_range[meshes_in.edge_node_start[m], 0]
+    return rot, rot0, c0, c1, sharp
+
+
+@nb.njit(cache=True, fastmath=False, parallel=True)
+def segments_touching(segments, unit_bounds, meshes_in, bodies_in, margin_m, dt_s, particle_inv_mass,
+                      prev_position_m, particle_position_m, touching_out):
+    """touching_out[m, s]: whether segment s's first pass against colliding mesh m would move it, from the
+    positions as they are (nothing is written but the flags). Parallel over the units of `segments`: the costly
+    part of collide_mesh_segments' first sweep, which then runs only the flagged segments and those at a mass
+    moved before them in the sweep; a segment neither flagged nor moved would have met nothing, so the result
+    is the serial sweep's, bit for bit, on any number of threads."""
+    for u in nb.prange(unit_bounds.shape[0] - 1):
+        stack = np.empty(STACK, np.int64)
+        start = np.empty((2, 3))
+        end = np.empty((2, 3))
+        pad = margin_m * (1.0 + 1e-9)
+        for m in range(meshes_in.body.shape[0]):
+            if not bodies_in.collide[meshes_in.body[m]]:
+                continue
+            rot, rot0, c0, c1, sharp = _mesh_frame(m, meshes_in, bodies_in, dt_s)
+            for s in range(unit_bounds[u], unit_bounds[u + 1]):
+                touching_out[m, s] = False
+                inverse_masses = (particle_inv_mass[segments[s, 0]], particle_inv_mass[segments[s, 1]])
+                if inverse_masses[0] == 0.0 and inverse_masses[1] == 0.0:
+                    continue
+                _segment_in_body(segments, s, rot, rot0, c0, c1, prev_position_m, particle_position_m, start, end)
+                if not _segment_near(meshes_in.tri_box, meshes_in.tri_node_start[m], start, end, pad):
+                    continue
+                touching_out[m, s] = _segment_hits(m, meshes_in, sharp, meshes_in.closed[m], start, end,
+                                                   inverse_masses, margin_m, stack) > 0
+
+
 @nb.njit(cache=True, fastmath=False)
 def collide_mesh_segments(
-    # yarn segments: (S, 2) particle slots
-    segments,
+    # yarn segments: (S, 2) particle slots, and which would move in a first pass (segments_touching)
+    segments, touching,
     # model and state: the meshes (MeshesIn) and the bodies (BodiesIn)
     meshes_in, bodies_in, margin_m, dt_s,
     # state in
@@ -536,7 +611,8 @@ def collide_mesh_segments(
     particle_position_m_inout,
 ):
     """Yarn segments against the meshes' sharp edges, and through closed meshes (module docstring), up to
-    PASSES passes per segment (a corner where edges meet); returns the number of contacts."""
+    PASSES passes per segment (a corner where edges meet); returns the number of contacts. The first sweep
+    visits the segments `touching` flags and those at a mass an earlier segment of the sweep moved."""
     contacts = 0
     stack = np.empty(STACK, np.int64)
     start = np.empty((2, 3))
@@ -548,42 +624,26 @@ def collide_mesh_segments(
     for sweep in range(SWEEPS):
         swept = 0
         for m in range(meshes_in.body.shape[0]):
-            k = meshes_in.body[m]
-            if not bodies_in.collide[k]:
+            if not bodies_in.collide[meshes_in.body[m]]:
                 continue
-            root = meshes_in.tri_node_start[m]  # the triangles' box holds the edges
-            sharp = meshes_in.edge_range[meshes_in.edge_node_start[m], 1] > meshes_in.edge_range[meshes_in.edge_node_start[m], 0]
+            rot, rot0, c0, c1, sharp = _mesh_frame(m, meshes_in, bodies_in, dt_s)
             closed = meshes_in.closed[m]
-            rot = bodies_in.rotation[k]
-            rot0 = start_rotation(rot, bodies_in.angular_velocity_rad_s[k], dt_s)
-            c1 = bodies_in.position_m[k].copy()
-            c0 = c1 - dt_s * bodies_in.velocity_m_s[k]
-            box = meshes_in.tri_box
             for s in range(segments.shape[0]):
-                if sweep > 0 and not (moved_before[segments[s, 0]] or moved_before[segments[s, 1]]):
+                a, b = segments[s, 0], segments[s, 1]
+                if sweep > 0 and not (moved_before[a] or moved_before[b]):
                     continue
-                inverse_masses = (particle_inv_mass[segments[s, 0]], particle_inv_mass[segments[s, 1]])
+                if sweep == 0 and not (touching[m, s] or moved_now[a] or moved_now[b]):
+                    continue  # nothing to meet (segments_touching), and nothing moved it since
+                inverse_masses = (particle_inv_mass[a], particle_inv_mass[b])
                 if inverse_masses[0] == 0.0 and inverse_masses[1] == 0.0:
                     continue
-                for end_ in range(2):
-                    p = segments[s, end_]
-                    end[end_, 0], end[end_, 1], end[end_, 2] = to_body(
-                        rot, c1, particle_position_m_inout[p, 0], particle_position_m_inout[p, 1],
-                        particle_position_m_inout[p, 2])
-                    start[end_, 0], start[end_, 1], start[end_, 2] = to_body(
-                        rot0, c0, prev_position_m[p, 0], prev_position_m[p, 1], prev_position_m[p, 2])
-                if not _overlaps(box, root, min(start[0, 0], start[1, 0], end[0, 0], end[1, 0]) - pad,
-                                 min(start[0, 1], start[1, 1], end[0, 1], end[1, 1]) - pad,
-                                 min(start[0, 2], start[1, 2], end[0, 2], end[1, 2]) - pad,
-                                 max(start[0, 0], start[1, 0], end[0, 0], end[1, 0]) + pad,
-                                 max(start[0, 1], start[1, 1], end[0, 1], end[1, 1]) + pad,
-                                 max(start[0, 2], start[1, 2], end[0, 2], end[1, 2]) + pad):
+                _segment_in_body(segments, s, rot, rot0, c0, c1, prev_position_m, particle_position_m_inout,
+                                 start, end)
+                if not _segment_near(meshes_in.tri_box, meshes_in.tri_node_start[m], start, end, pad):
                     continue
                 moved = 0
                 for _ in range(PASSES):
-                    hits = _segment_pass(m, meshes_in, start, end, inverse_masses, margin_m, stack) if sharp else 0
-                    if closed:
-                        hits += _segment_through(m, meshes_in, end, inverse_masses, margin_m, stack)
+                    hits = _segment_hits(m, meshes_in, sharp, closed, start, end, inverse_masses, margin_m, stack)
                     moved += hits
                     if hits == 0:
                         break

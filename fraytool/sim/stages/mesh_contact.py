@@ -6,7 +6,8 @@ import numpy as np
 
 from fraytool.kinds import STRUCT_WARP, STRUCT_WEFT
 from fraytool.sim.kernels.bodies import bodies_in
-from fraytool.sim.kernels.mesh_contact import collide_mesh_segments, collide_meshes
+from fraytool.sim.kernels.mesh_contact import collide_mesh_segments, collide_meshes, segments_touching
+from fraytool.sim.kernels.work_split import even_units
 from fraytool.sim.mesh_geometry import MeshGeometry
 from fraytool.sim.model import Model
 from fraytool.sim.stages.base import BODIES, POSITIONS, START_POSITIONS, TOPOLOGY, StepContext
@@ -19,7 +20,7 @@ class MeshContact:
     or by this one when the scene has no other body)."""
 
     name = "collisions"
-    kernel = "collide_meshes, collide_mesh_segments"
+    kernel = "collide_meshes, segments_touching, collide_mesh_segments"
     segments_too = True
     reads = frozenset({POSITIONS, START_POSITIONS, BODIES, TOPOLOGY})
     writes = frozenset({POSITIONS})
@@ -30,6 +31,8 @@ class MeshContact:
         self.after_analytic = after_analytic
         self._segments_key = None
         self._segments = np.zeros((0, 2), np.int64)
+        self._segment_units = even_units(0)
+        self._touching = np.zeros((0, 0), np.bool_)
         self._structural = (model.spring_kind == STRUCT_WEFT) | (model.spring_kind == STRUCT_WARP)
 
     def segments(self, state: State) -> np.ndarray:
@@ -40,6 +43,8 @@ class MeshContact:
             self._segments = np.ascontiguousarray(np.stack([state.spring_particle_a[s], state.spring_particle_b[s]],
                                                            axis=1).astype(np.int64))
             self._segments_key = key
+            self._segment_units = even_units(self._segments.shape[0])
+            self._touching = np.zeros((self.geometry.table.body.shape[0], self._segments.shape[0]), np.bool_)
         return self._segments
 
     def run(self, state: State, ctx: StepContext, dt_s: float) -> None:
@@ -50,7 +55,10 @@ class MeshContact:
         hits = collide_meshes(*ctx.lists.free(state), meshes, bodies, margin, dt_s, state.particle_inv_mass,
                               ctx.prev_position_m, state.particle_position_m)
         if self.segments_too:
-            hits += collide_mesh_segments(self.segments(state), meshes, bodies, margin, dt_s,
+            segments = self.segments(state)
+            segments_touching(segments, self._segment_units, meshes, bodies, margin, dt_s, state.particle_inv_mass,
+                              ctx.prev_position_m, state.particle_position_m, self._touching)
+            hits += collide_mesh_segments(segments, self._touching, meshes, bodies, margin, dt_s,
                                           state.particle_inv_mass, ctx.prev_position_m, state.particle_position_m)
         if self.after_analytic:
             ctx.counters.rigid_contacts_last += hits
