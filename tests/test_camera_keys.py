@@ -322,3 +322,28 @@ def test_golden_report_projects_with_the_camera_of_the_frame():
     expected = Camera(spec.camera, 1.0).view_proj(W / H) @ np.array([*off, 1.0])
     assert x1 == int((expected[0] / expected[3] + 1.0) * 0.5 * W)
     assert math.isfinite(x0)
+
+
+def test_a_moving_cameras_ground_checker_stays_put_on_the_ground():
+    """The ground's squares are world-fixed under a moving camera (one cell size over the shot, the centre on a
+    two-cell lattice); a still camera keeps its own centre and cell as before."""
+    from fraytool.render.camera import Camera
+    from fraytool.render.renderer import ground_checker
+
+    spec = CameraSpec(position_keys_m=((0.0, 0.0, 0.4, 0.5), (1.0, 0.37, 0.9, 1.3)),
+                      target_keys_m=((0.0, 0.0, 0.0, 0.0), (1.0, 0.23, 0.0, -0.11)), interpolation="catmull_rom")
+    up = np.array([0.0, 1.0, 0.0])
+    cam0, cam1 = Camera(spec, 0.0), Camera(spec, 1.0)
+    shot = max(np.linalg.norm(c.target - c.eye) for c in (cam0, cam1))
+    (c0, cell0), (c1, cell1) = (ground_checker(c, up, -0.05, shot) for c in (cam0, cam1))
+    assert cell0 == cell1
+    points = np.random.default_rng(1).uniform(-1, 1, (200, 3)) * [1, 0, 1] + [0, -0.05, 0]
+
+    def parity(centre, cell):
+        d = points - centre
+        return (np.floor(d[:, 0] / cell) + np.floor(d[:, 2] / cell)) % 2
+
+    assert np.array_equal(parity(c0, cell0), parity(c1, cell1))
+    (s0, k0), (s1, k1) = (ground_checker(c, up, -0.05) for c in (cam0, cam1))  # as a still camera would
+    assert k0 != k1 or not np.array_equal(parity(s0, k0), parity(s1, k1))  # (which is why the moving one snaps)
+    assert np.allclose(s0, [0.0, -0.05, 0.0])

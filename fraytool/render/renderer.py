@@ -38,6 +38,7 @@ share the output size, left W//2 columns shaded, right W - W//2 wireframe).
 """
 from __future__ import annotations
 
+import math
 import time
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -49,7 +50,7 @@ import numpy as np
 from fraytool.meshes import MeshTable
 from fraytool.geometry.rotations import rotation_from_y
 from fraytool.render.bodies import BodySet, mesh_draw_vertices, unit_cube, unit_quad, unit_sphere
-from fraytool.render.camera import Camera, gl_matrix_bytes, key_times_s
+from fraytool.render.camera import Camera, gl_matrix_bytes, is_animated, key_times_s
 from fraytool.render.color import (
     WIREFRAME_BASE_SRGB,
     WIREFRAME_YARN_SRGB,
@@ -207,6 +208,8 @@ class Renderer:
         self.samples = clamp_samples(ctx, samples)
         self.render_spec = render
         self.camera = Camera(camera)
+        self._ground_distance: Optional[float] = None
+        """A moving camera's ground checker size comes from this (_ground_distance_m), made when first needed."""
         """The camera of the frame being drawn: a moving camera's ([camera] keys) pose at the frame's time
         (`draw` moves it), else the one camera."""
         self.wireframe = wireframe
@@ -527,6 +530,14 @@ class Renderer:
             self._body_prog["u_normal_matrix"].write(gl_matrix_bytes(d.normal_matrix))
             self._body_vaos[d.mesh][0].render(moderngl.TRIANGLES)
 
+    def _ground_distance_m(self) -> float:
+        """A moving camera's largest eye-to-target distance over its key poses (and time 0): one checker cell
+        for the whole shot."""
+        if self._ground_distance is None:
+            poses = [self.camera.at(0.0)] + [self.camera.at(t) for t in key_times_s(self.camera.keyed)]
+            self._ground_distance = max(float(np.linalg.norm(c.target - c.eye)) for c in poses)
+        return self._ground_distance
+
     def _draw_ground(self, view_proj: bytes) -> None:
         """The ground plane, out to where it has faded into the background (beyond, the clear colour
         is the same picture). With shadows it is drawn in two parts: the footprint of the key
@@ -541,15 +552,16 @@ class Renderer:
         if ground is None:
             return
         up, height = ground
-        centre = self.camera.target - (self.camera.target @ up - height) * up
         Rg = rotation_from_y(up)
         dist = float(np.linalg.norm(self.camera.target - self.camera.eye))
         fade_radius_m = 4.0 * dist
+        moving = is_animated(self.camera.keyed)
+        centre, cell = ground_checker(self.camera, up, height, self._ground_distance_m() if moving else None)
         uniforms = {"u_view_proj": view_proj,
                     "u_color": tuple(srgb_to_linear(self.render_spec.body_color) * 0.8),
                     "u_background": self._background, "u_alpha_out": 1.0 if self.alpha else 0.0,
                     "u_centre": tuple(centre), "u_axis_u": tuple(Rg[:, 0]), "u_axis_v": tuple(Rg[:, 2]),
-                    "u_cell": _nice_cell(dist / 6.0), "u_fade_radius": fade_radius_m}
+                    "u_cell": cell, "u_fade_radius": fade_radius_m}
         size = min(self.bodies.plane_half_size_m, fade_radius_m)
         plane = np.eye(4)
         plane[:3, :3] = Rg @ np.diag([size, 1.0, size])
@@ -948,6 +960,22 @@ def clamp_samples(ctx: moderngl.Context, samples: int) -> int:
     if s <= 1:
         return 0
     return min(s, int(ctx.max_samples))
+
+
+def ground_checker(camera: Camera, up: np.ndarray, height: float,
+                   shot_distance_m: Optional[float] = None) -> tuple[np.ndarray, float]:
+    """(centre, cell size [m]) of the ground's checker: the target dropped onto the plane, and a round cell about
+    a sixth of the eye's distance. A moving camera passes `shot_distance_m` (its largest distance over the shot):
+    one cell size for the whole shot, and the centre snapped to a multiple of two cells along the plane's axes, so
+    that the squares stay put on the ground as the camera moves (the checker is there to read motion and scale)."""
+    centre = camera.target - (camera.target @ up - height) * up
+    if shot_distance_m is None:
+        return centre, _nice_cell(float(np.linalg.norm(camera.target - camera.eye)) / 6.0)
+    cell = _nice_cell(shot_distance_m / 6.0)
+    rg = rotation_from_y(up)
+    for axis in (rg[:, 0], rg[:, 2]):
+        centre = centre - axis * math.remainder(float(centre @ axis), 2.0 * cell)
+    return centre, cell
 
 
 def _nice_cell(x: float) -> float:

@@ -9,9 +9,10 @@ spacing / 2 per live yarn segment at it, across which the flow presses with drag
 rubs with drag_tangential.
 
 Every crossing writes only its own masses' forces, so the kernels run in parallel over crossings with the same
-sums, bit for bit, on any number of threads. A step's drag never more than stops a mass relative to the air
-(the impulse is capped at m |v_rel|): explicit drag on a light mass in a strong wind cannot overshoot and
-oscillate, whatever the step.
+sums, bit for bit, on any number of threads. A step's drag never more than stops a mass relative to the air:
+the impulse of each part of the drag (along the normal and in the plane; along and across a yarn) is capped
+at m |v| of that part, so explicit drag on a light mass in a strong wind cannot overshoot and oscillate,
+whatever the step.
 """
 from __future__ import annotations
 
@@ -21,13 +22,12 @@ import numba as nb
 
 
 @nb.njit(cache=True, fastmath=False, parallel=True)
-def crossing_centres(crossing_count, particle_position_m, particle_velocity_m_s, particle_mass_kg, particle_active,
-                     centre_m_out, velocity_m_s_out):
-    """Mass-weighted position and velocity of each crossing's active masses (base mass, or weft and warp mass of
-    a couple); a crossing with none keeps its last values."""
+def crossing_centres(crossing_count, particle_position_m, particle_mass_kg, particle_active, centre_m_out):
+    """Mass-weighted position of each crossing's active masses (base mass, or weft and warp mass of a couple); a
+    crossing with none keeps its last value."""
     for c in nb.prange(crossing_count):
         m = 0.0
-        x0 = x1 = x2 = v0 = v1 = v2 = 0.0
+        x0 = x1 = x2 = 0.0
         for half in range(2):
             p = c + half * crossing_count
             if not particle_active[p]:
@@ -37,12 +37,8 @@ def crossing_centres(crossing_count, particle_position_m, particle_velocity_m_s,
             x0 += w * particle_position_m[p, 0]
             x1 += w * particle_position_m[p, 1]
             x2 += w * particle_position_m[p, 2]
-            v0 += w * particle_velocity_m_s[p, 0]
-            v1 += w * particle_velocity_m_s[p, 1]
-            v2 += w * particle_velocity_m_s[p, 2]
         if m > 0.0:
             centre_m_out[c, 0], centre_m_out[c, 1], centre_m_out[c, 2] = x0 / m, x1 / m, x2 / m
-            velocity_m_s_out[c, 0], velocity_m_s_out[c, 1], velocity_m_s_out[c, 2] = v0 / m, v1 / m, v2 / m
 
 
 @nb.njit(cache=True, fastmath=False, parallel=True)
@@ -93,27 +89,27 @@ def _yarn_direction(c, p, crossing_count, springs_at, spring_alive, spring_parti
 
 
 @nb.njit(cache=True, fastmath=False, inline="always")
-def _add_capped(p, f0, f1, f2, share, r0, r1, r2, dt_s, particle_mass_kg, particle_force_n_inout):
-    """Add share x (f0, f1, f2) to mass p, capped so that one step's impulse never exceeds what stops the mass
-    relative to the air (m |v_rel|, v_rel = (r0, r1, r2))."""
-    f = math.sqrt(f0 * f0 + f1 * f1 + f2 * f2) * share
-    if f == 0.0:
+def _add_drag_part(p, k, v0, v1, v2, share, dt_s, particle_mass_kg, particle_force_n_inout):
+    """Add share x -(k |v| v) [N] to mass p for one part v of its velocity relative to the air (along the normal,
+    in the plane, along or across a yarn), the step's impulse capped at m |v|: it can stop that part of the
+    motion relative to the air, never reverse it."""
+    speed = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+    if speed == 0.0 or k == 0.0:
         return
-    cap = particle_mass_kg[p] * math.sqrt(r0 * r0 + r1 * r1 + r2 * r2) / dt_s
-    scale = share * min(1.0, cap / f)
-    particle_force_n_inout[p, 0] += scale * f0
-    particle_force_n_inout[p, 1] += scale * f1
-    particle_force_n_inout[p, 2] += scale * f2
+    c = min(share * k * speed, particle_mass_kg[p] / dt_s)
+    particle_force_n_inout[p, 0] -= c * v0
+    particle_force_n_inout[p, 1] -= c * v1
+    particle_force_n_inout[p, 2] -= c * v2
 
 
 @nb.njit(cache=True, fastmath=False, inline="always")
-def _quadratic_drag(r0, r1, r2, n0, n1, n2, k_normal, k_tangential):
-    """-(k_n |v_n| v_n + k_t |v_t| v_t) for relative velocity r split along the unit vector n and across it."""
+def _add_drag(p, r0, r1, r2, n0, n1, n2, k_along, k_across, dt_s, particle_mass_kg, particle_force_n_inout):
+    """The drag on mass p of relative velocity r split along the unit vector n (coefficient k_along, its share of
+    the patch's included) and across it (k_across), each part capped on its own (_add_drag_part)."""
     vn = r0 * n0 + r1 * n1 + r2 * n2
-    t0, t1, t2 = r0 - vn * n0, r1 - vn * n1, r2 - vn * n2
-    vt = math.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
-    fn = -k_normal * abs(vn) * vn
-    return fn * n0 - k_tangential * vt * t0, fn * n1 - k_tangential * vt * t1, fn * n2 - k_tangential * vt * t2
+    _add_drag_part(p, k_along, vn * n0, vn * n1, vn * n2, 1.0, dt_s, particle_mass_kg, particle_force_n_inout)
+    _add_drag_part(p, k_across, r0 - vn * n0, r1 - vn * n1, r2 - vn * n2, 1.0, dt_s, particle_mass_kg,
+                   particle_force_n_inout)
 
 
 @nb.njit(cache=True, fastmath=False, parallel=True)
@@ -151,10 +147,9 @@ def accumulate_air_drag(air_in, particle_position_m, particle_velocity_m_s, part
                 r0 = particle_velocity_m_s[p, 0] - air_velocity_m_s[c, 0]
                 r1 = particle_velocity_m_s[p, 1] - air_velocity_m_s[c, 1]
                 r2 = particle_velocity_m_s[p, 2] - air_velocity_m_s[c, 2]
-                f0, f1, f2 = _quadratic_drag(r0, r1, r2, x0 / xl, x1 / xl, x2 / xl, half_rho * cn * sheet_area,
-                                             half_rho * ct * sheet_area)
-                _add_capped(p, f0, f1, f2, particle_mass_kg[p] / mass, r0, r1, r2, dt_s, particle_mass_kg,
-                            particle_force_n_inout)
+                share = particle_mass_kg[p] / mass
+                _add_drag(p, r0, r1, r2, x0 / xl, x1 / xl, x2 / xl, share * half_rho * cn * sheet_area,
+                          share * half_rho * ct * sheet_area, dt_s, particle_mass_kg, particle_force_n_inout)
             continue
         for half in range(2):  # loose yarn: each mass a length of cylinder along its own yarn
             p = c + half * n_cross
@@ -170,9 +165,9 @@ def accumulate_air_drag(air_in, particle_position_m, particle_velocity_m_s, part
             r1 = particle_velocity_m_s[p, 1] - air_velocity_m_s[c, 1]
             r2 = particle_velocity_m_s[p, 2] - air_velocity_m_s[c, 2]
             tl = math.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
-            if tl > 1e-30:  # across the yarn: cn; along it: ct
-                f0, f1, f2 = _quadratic_drag(r0, r1, r2, t0 / tl, t1 / tl, t2 / tl, half_rho * ct * area,
-                                             half_rho * cn * area)
+            if tl > 1e-30:  # along the yarn: ct; across it: cn
+                _add_drag(p, r0, r1, r2, t0 / tl, t1 / tl, t2 / tl, half_rho * ct * area, half_rho * cn * area,
+                          dt_s, particle_mass_kg, particle_force_n_inout)
             else:  # a lone mass: pressed from every side alike
-                f0, f1, f2 = _quadratic_drag(r0, r1, r2, 1.0, 0.0, 0.0, half_rho * cn * area, half_rho * cn * area)
-            _add_capped(p, f0, f1, f2, 1.0, r0, r1, r2, dt_s, particle_mass_kg, particle_force_n_inout)
+                _add_drag_part(p, half_rho * cn * area, r0, r1, r2, 1.0, dt_s, particle_mass_kg,
+                               particle_force_n_inout)

@@ -29,12 +29,11 @@ class AirDrag:
         self.wind_m_s = np.asarray(model.wind_m_s, float)
         n = model.crossing_count
         self.centre_m = model.crossing_rest_position_m.copy()
-        self.velocity_m_s = np.zeros((n, 3))
         self.air_m_s = np.zeros((n, 3))
 
     def run(self, state: State, ctx: StepContext, dt_s: float) -> None:
-        crossing_centres(self.model.crossing_count, state.particle_position_m, state.particle_velocity_m_s,
-                         state.particle_mass_kg, state.particle_active, self.centre_m, self.velocity_m_s)
+        crossing_centres(self.model.crossing_count, state.particle_position_m, state.particle_mass_kg,
+                         state.particle_active, self.centre_m)
         g = self.gusts
         air_velocity(self.centre_m, float(state.time_s), self.wind_m_s, g.wave_per_m, g.omega_rad_s, g.phase_rad,
                      g.amplitude_m_s, self.air_m_s)
