@@ -10,7 +10,7 @@ from __future__ import annotations
 import sys
 from typing import Optional, TextIO
 
-from fraytool.commands.render import _fmt, ensure_frames
+from fraytool.commands.render import ensure_frames, fitted_line
 from fraytool.commands.target import load_target
 from fraytool.errors import InputError
 from fraytool.io.lock import OutputLock
@@ -67,9 +67,7 @@ def _with_fitted_camera(spec, store, stream: TextIO):
     from fraytool.render.fit import fitted_camera
 
     camera = fitted_camera(spec, store)
-    moving = f" on frame 0, moving on {len(camera.position_keys_m)} keys" if camera.position_keys_m else ""
-    print(f"fraytool: fit: camera at {_fmt(camera.position_m)} looking at {_fmt(camera.target_m)}{moving}",
-          file=stream)
+    print(f"fraytool: fit: {fitted_line(camera)}", file=stream)
     return dataclasses.replace(spec, camera=camera)
 
 

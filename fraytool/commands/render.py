@@ -116,6 +116,12 @@ def _reading(store: FrameStore, out_dir: Path, digest: str, needed: int, stream:
         yield
 
 
+def fitted_line(cam) -> str:
+    """Where a fitted camera is, for the --fit message: its pose at frame 0, and its keys if it moves."""
+    moving = f" on frame 0, moving on {len(cam.position_keys_m)} keys" if cam.position_keys_m else ""
+    return f"camera at {_fmt(cam.position_m)} looking at {_fmt(cam.target_m)}{moving}"
+
+
 def _fmt(v) -> str:
     return "(" + ", ".join(f"{x:.4f}" for x in v) + ")"
 
@@ -193,9 +199,7 @@ def _render(scene: str, args: RenderRequest, stream: Optional[TextIO]) -> int:
 
                     job = fitted_job(job, store)
                     cam = job.spec.camera
-                    moving = f" on frame 0, moving on {len(cam.position_keys_m)} keys" if cam.position_keys_m else ""
-                    print(f"fraytool: --fit: camera at {_fmt(cam.position_m)} looking at {_fmt(cam.target_m)}{moving}",
-                          file=stream)
+                    print(f"fraytool: --fit: {fitted_line(job.spec.camera)}", file=stream)
                 result = render_job(job, ctx, store, stream=stream)
     finally:
         ctx.release()

@@ -64,11 +64,8 @@ def fit_camera(camera: CameraSpec, points: np.ndarray, aspect: float, margin: fl
     centre_local = 0.5 * (lo + hi)
     target = centre_local @ basis
     rel = local - centre_local
-    ty = math.tan(math.radians(camera.fov_deg) / 2.0) * (1.0 - margin)
-    tx = ty * aspect
-    need = np.maximum(np.abs(rel[:, 0]) / tx, np.abs(rel[:, 1]) / ty) - rel[:, 2]
-    need = np.maximum(need, -rel[:, 2] / 0.99)   # every point beyond the near plane (distance / 200)
-    distance = max(float(need.max()), 1e-3 * max(float(np.linalg.norm(hi - lo)), 1e-3))
+    distance = max(_distance_needed(rel, camera.fov_deg, aspect, margin),
+                   1e-3 * max(float(np.linalg.norm(hi - lo)), 1e-3))
     eye = target - distance * f
     return dataclasses.replace(camera, position_m=tuple(float(x) for x in eye),
                                target_m=tuple(float(x) for x in target), fit=False)
