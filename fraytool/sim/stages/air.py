@@ -17,7 +17,7 @@ class AirDrag:
     """Step 1 (after the springs): each crossing's drag from the mean wind and the gusts at its centre, added to
     ctx.force_n (fraytool.sim.kernels.air)."""
 
-    name = "forces"
+    name = "air"
     kernel = "accumulate_air_drag"
     reads = frozenset({POSITIONS, VELOCITIES, TOPOLOGY, FORCES})
     writes = frozenset({FORCES})

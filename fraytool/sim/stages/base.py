@@ -15,7 +15,7 @@ from fraytool.sim.kernels.work_split import ParticleLists
 from fraytool.sim.model import Model
 from fraytool.sim.state import State
 
-STAGE_NAMES = ("forces", "integration", "damping", "contact_before_limit", "strain_limiting", "yarn_contact",
+STAGE_NAMES = ("forces", "air", "integration", "damping", "contact_before_limit", "strain_limiting", "yarn_contact",
                "collisions", "self_collision", "refinement", "tearing", "seams")
 """Timing buckets, in step order (the velocity updates all count as "integration")."""
 
