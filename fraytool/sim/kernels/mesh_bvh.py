@@ -24,7 +24,8 @@ Bvh = namedtuple("Bvh", [
     "node_start",   # (M+1,) int64: mesh m's nodes are [node_start[m], node_start[m+1]), its root the first
     "child",        # (N, 2) int64: children (global node indices), -1 in a leaf
     "prim_range",   # (N, 2) int64: the node's primitives are order[lo:hi]
-    "box",          # (N, 6) float64: lo x, y, z, hi x, y, z (body frame) [m]
+    "box",          # (N + P, 6) float64: lo x, y, z, hi x, y, z (body frame) [m]: the N nodes', then each
+                    # primitive's own (row N + p), so that a leaf's primitives can be tested one by one
     "order",        # (P,) int64: primitive indices in tree order
 ])
 Bvh.__doc__ = "Flat BVH arrays of every mesh's tree (module docstring)."
@@ -101,7 +102,8 @@ def build(centroids_per_mesh: list[np.ndarray], prim_offsets: list[int]) -> Bvh:
         starts.append(node_off)
     child = np.concatenate(children) if children else np.zeros((0, 2), np.int64)
     return Bvh(np.asarray(starts, np.int64), child, np.concatenate(ranges) if ranges else np.zeros((0, 2), np.int64),
-               np.zeros((child.shape[0], 6)), np.concatenate(orders) if orders else np.zeros(0, np.int64))
+               np.zeros((child.shape[0] + sum(o.shape[0] for o in orders), 6)),
+               np.concatenate(orders) if orders else np.zeros(0, np.int64))
 
 
 @nb.njit(cache=True)
@@ -142,10 +144,10 @@ def primitive_boxes(prims, vertices_a, vertices_b, box_out):
 
 
 def refit_mesh(bvh: Bvh, m: int, prims: np.ndarray, prim_start: np.ndarray, vertices_a: np.ndarray,
-               vertices_b: np.ndarray, scratch_box: np.ndarray) -> None:
-    """Refit mesh m's tree to its primitives (rows prim_start[m]:prim_start[m+1] of `prims`, vertex indices
-    into the concatenated vertex sets) between two vertex sets (the same for a static mesh);
-    `scratch_box` (P, 6) holds the primitive boxes of every mesh."""
+               vertices_b: np.ndarray) -> None:
+    """Refit mesh m's tree, its primitives' boxes first (rows prim_start[m]:prim_start[m+1] of `prims`,
+    vertex indices into the concatenated vertex sets), between two vertex sets (the same for a static mesh)."""
     lo, hi = int(prim_start[m]), int(prim_start[m + 1])
-    primitive_boxes(prims[lo:hi], vertices_a, vertices_b, scratch_box[lo:hi])
-    refit(bvh.node_start[m], bvh.node_start[m + 1], bvh.child, bvh.prim_range, bvh.order, scratch_box, bvh.box)
+    prim_box = bvh.box[bvh.child.shape[0]:]
+    primitive_boxes(prims[lo:hi], vertices_a, vertices_b, prim_box[lo:hi])
+    refit(bvh.node_start[m], bvh.node_start[m + 1], bvh.child, bvh.prim_range, bvh.order, prim_box, bvh.box)

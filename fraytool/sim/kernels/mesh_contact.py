@@ -49,6 +49,7 @@ from fraytool.collision.ccd import edge_edge_ccd_kernel
 from fraytool.geometry.frames import rotate, to_body, to_world
 from fraytool.geometry.segments import segment_closest_params
 from fraytool.geometry.triangles import closest_on_triangle, triangle_normal
+from fraytool.sim.kernels.mesh_clearance import SKIP_FACTOR, clearance_left, renew, segment_skip_m
 from fraytool.sim.kernels.rigid_contact import coulomb_friction
 
 PASSES = 3
@@ -73,16 +74,25 @@ MeshesIn = namedtuple("MeshesIn", [
     "edges",           # (E, 2) int32: sharp edges, global vertex indices
     "vertex_start_m",  # (V, 3) body frame at the step's start
     "vertex_end_m",    # (V, 3) body frame at the step's end
-    "tri_node_start", "tri_child", "tri_range", "tri_box", "tri_order",        # triangle trees
+    "tri_node_start", "tri_child", "tri_range", "tri_box", "tri_order",        # triangle trees (see below)
     "edge_node_start", "edge_child", "edge_range", "edge_box", "edge_order",   # sharp-edge trees
 ])
-MeshesIn.__doc__ = "Mesh bodies' geometry and trees for the contact kernels (fraytool.sim.kernels.mesh_bvh)."
+MeshesIn.__doc__ = """Mesh bodies' geometry and trees for the contact kernels (fraytool.sim.kernels.mesh_bvh). The box
+arrays hold the N nodes' boxes, then each primitive's own (row N + j: `prim_overlaps`)."""
 
 
 @nb.njit(cache=True, inline="always")
 def _overlaps(box, node, lo0, lo1, lo2, hi0, hi1, hi2):
     return not (box[node, 0] > hi0 or box[node, 3] < lo0 or box[node, 1] > hi1 or box[node, 4] < lo1
                 or box[node, 2] > hi2 or box[node, 5] < lo2)
+
+
+@nb.njit(cache=True, inline="always")
+def prim_overlaps(box, child, j, lo0, lo1, lo2, hi0, hi1, hi2):
+    """Whether primitive j's own box (row N + j of a tree's `box`, N its node count: child.shape[0]) meets
+    the query box: a leaf's primitives are tested only then (a primitive outside the query box is farther
+    than its pad from everything the query asks about)."""
+    return _overlaps(box, child.shape[0] + j, lo0, lo1, lo2, hi0, hi1, hi2)
 
 
 @nb.njit(cache=True, inline="always")
@@ -120,7 +130,7 @@ def _vertex(vertices, i):
     return vertices[i, 0], vertices[i, 1], vertices[i, 2]
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def _resolve_point(m, meshes_in, l0, l1, margin_m, reach_m, stack_out):
     """One pass for a mass going from l0 to l1 (body frame) against mesh m, looking for the nearest
     surface within reach_m (>= margin_m) of l1. Returns a Push: whether it moved, the new point, the unit
@@ -152,6 +162,8 @@ def _resolve_point(m, meshes_in, l0, l1, margin_m, reach_m, stack_out):
             break
         for q in range(meshes_in.tri_range[node, 0], meshes_in.tri_range[node, 1]):
             j = meshes_in.tri_order[q]
+            if not prim_overlaps(meshes_in.tri_box, meshes_in.tri_child, j, lo0, lo1, lo2, hi0, hi1, hi2):
+                continue
             ia, ib, ic = tris[j, 0], tris[j, 1], tris[j, 2]
             a1x, a1y, a1z = _vertex(vb, ia)
             b1x, b1y, b1z = _vertex(vb, ib)
@@ -274,10 +286,12 @@ def start_rotation(rot, omega, dt_s):
 
 
 @nb.njit(cache=True)
-def _mesh_range(particles, lo, hi, m, frame, meshes_in, margin_m, particles_in, particle_position_m_inout, stack_out):
+def _mesh_range(particles, lo, hi, m, frame, meshes_in, margin_m, particles_in, particle_position_m_inout, clear_inout,
+                stack_out):
     """Particles particles[lo:hi] against mesh m; `frame` = (rotation (3, 3), centre at the step's end (3),
-    centre at its start (3), friction, rotation at the step's start (3, 3)). Returns the number of masses in
-    contact."""
+    centre at its start (3), friction, rotation at the step's start (3, 3)). A mass whose clearance bound
+    (`clear_inout`, fraytool.sim.kernels.mesh_clearance) is over the margin is skipped; the others' bounds are
+    renewed. Returns the number of masses in contact."""
     rot, c1, c0, friction, rot0 = frame
     particle_inv_mass, prev_position_m = particles_in
     box = meshes_in.tri_box
@@ -299,6 +313,8 @@ def _mesh_range(particles, lo, hi, m, frame, meshes_in, margin_m, particles_in, 
         if not _overlaps(box, root, min(l0[0], l1[0]) - pad, min(l0[1], l1[1]) - pad, min(l0[2], l1[2]) - pad,
                          max(l0[0], l1[0]) + pad, max(l0[1], l1[1]) + pad, max(l0[2], l1[2]) + pad):
             continue
+        if clearance_left(clear_inout, m, p, l0[0], l0[1], l0[2], l1[0], l1[1], l1[2]) > SKIP_FACTOR * margin_m:
+            continue  # it cannot come within the margin this step: the passes would find nothing
         touched = False
         nx = ny = nz = depth = deepest = 0.0
         tri = -1
@@ -318,6 +334,7 @@ def _mesh_range(particles, lo, hi, m, frame, meshes_in, margin_m, particles_in, 
             passes += 1
             touched = True
             depth += max(push.depth, 0.0)  # the push over every pass: a later pass may move it a rounding error only
+        renew(clear_inout, m, p, meshes_in, l1, touched, margin_m, stack_out)
         if not touched:
             continue
         hits += 1
@@ -359,11 +376,12 @@ def collide_meshes(
     meshes_in, bodies_in, margin_m, dt_s,
     # state in
     particle_inv_mass, prev_position_m,
-    # state in/out
-    particle_position_m_inout,
+    # state in/out: positions, and the clearance bounds (fraytool.sim.kernels.mesh_clearance.ClearanceInOut)
+    particle_position_m_inout, clear_inout,
 ):
     """Masses against every colliding mesh body, with friction; returns the number of contacts. Each
-    mass is independent of the others (a mesh is kinematic): parallel over the units."""
+    mass is independent of the others (a mesh is kinematic; its clearance bounds are its own): parallel
+    over the units."""
     contacts = 0
     particles_in = (particle_inv_mass, prev_position_m)
     for m in range(meshes_in.body.shape[0]):
@@ -378,7 +396,7 @@ def collide_meshes(
         for u in nb.prange(unit_bounds.shape[0] - 1):
             stack = np.empty(STACK, np.int64)
             hits += _mesh_range(particles, unit_bounds[u], unit_bounds[u + 1], m, frame, meshes_in, margin_m,
-                                particles_in, particle_position_m_inout, stack)
+                                particles_in, particle_position_m_inout, clear_inout, stack)
         contacts += hits
     return contacts
 
@@ -389,7 +407,7 @@ def _closest_params(p0, p1, q0, q1):
     return segment_closest_params(p0[0], p0[1], p0[2], p1[0], p1[1], p1[2], q0[0], q0[1], q0[2], q1[0], q1[1], q1[2])
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def _segment_pass(m, meshes_in, seg_start, seg_end_inout, inverse_masses, margin_m, stack_out):
     """One pass of a yarn segment against mesh m's sharp edges, body frame: `seg_start` (2, 3) its ends at
     the step's start, `seg_end_inout` (2, 3) at its end (moved in place), `inverse_masses` (w_a, w_b).
@@ -415,6 +433,8 @@ def _segment_pass(m, meshes_in, seg_start, seg_end_inout, inverse_masses, margin
             break
         for q in range(meshes_in.edge_range[node, 0], meshes_in.edge_range[node, 1]):
             e = meshes_in.edge_order[q]
+            if not prim_overlaps(meshes_in.edge_box, meshes_in.edge_child, e, lo0, lo1, lo2, hi0, hi1, hi2):
+                continue
             e0s, e1s = va[meshes_in.edges[e, 0]], va[meshes_in.edges[e, 1]]
             e0e, e1e = vb[meshes_in.edges[e, 0]], vb[meshes_in.edges[e, 1]]
             s1, u1 = _closest_params(la1, lb1, e0e, e1e)
@@ -462,7 +482,7 @@ def _segment_pass(m, meshes_in, seg_start, seg_end_inout, inverse_masses, margin
     return contacts
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def _segment_through(m, meshes_in, seg_end_inout, inverse_masses, margin_m, stack_out):
     """A yarn segment whose two ends are outside closed mesh m but whose middle runs through it (it cuts
     a corner): the deepest point, half way between where it enters and leaves the surface, is moved out
@@ -484,6 +504,8 @@ def _segment_through(m, meshes_in, seg_end_inout, inverse_masses, margin_m, stac
             break
         for q in range(meshes_in.tri_range[node, 0], meshes_in.tri_range[node, 1]):
             j = meshes_in.tri_order[q]
+            if not prim_overlaps(meshes_in.tri_box, meshes_in.tri_child, j, lo0, lo1, lo2, hi0, hi1, hi2):
+                continue
             ax, ay, az = _vertex(vb, tris[j, 0])
             bx, by, bz = _vertex(vb, tris[j, 1])
             cx, cy, cz = _vertex(vb, tris[j, 2])
@@ -570,14 +592,33 @@ def _mesh_frame(m, meshes_in, bodies_in, dt_s):
     return rot, rot0, c0, c1, sharp
 
 
+@nb.njit(cache=True, inline="always")
+def _segment_clear(clear, m, a, b, start, end, margin_m):
+    """Whether a segment's ends' clearance bounds keep every point of it over the margin from mesh m through
+    the step (fraytool.sim.kernels.mesh_clearance: (D_a + D_b - L) / 2)."""
+    da = clearance_left(clear, m, a, start[0, 0], start[0, 1], start[0, 2], end[0, 0], end[0, 1], end[0, 2])
+    if da < 0.0:
+        return False
+    db = clearance_left(clear, m, b, start[1, 0], start[1, 1], start[1, 2], end[1, 0], end[1, 1], end[1, 2])
+    if db < 0.0:
+        return False
+    length = math.sqrt(max(_dist2(start[0], start[1]), _dist2(end[0], end[1])))
+    largest = 0.0
+    for end_ in range(2):
+        for c in range(3):
+            largest = max(largest, abs(start[end_, c]), abs(end[end_, c]))
+    return 0.5 * (da + db - length) > segment_skip_m(clear, m, margin_m, largest)
+
+
 @nb.njit(cache=True, fastmath=False, parallel=True)
 def segments_touching(segments, unit_bounds, meshes_in, bodies_in, margin_m, dt_s, particle_inv_mass,
-                      prev_position_m, particle_position_m, touching_out):
+                      prev_position_m, particle_position_m, clear, touching_out):
     """touching_out[m, s]: whether segment s's first pass against colliding mesh m would move it, from the
     positions as they are (nothing is written but the flags). Parallel over the units of `segments`: the costly
     part of collide_mesh_segments' first sweep, which then runs only the flagged segments and those at a mass
     moved before them in the sweep; a segment neither flagged nor moved would have met nothing, so the result
-    is the serial sweep's, bit for bit, on any number of threads."""
+    is the serial sweep's, bit for bit, on any number of threads. A segment whose ends' clearance bounds
+    (`clear`, fraytool.sim.kernels.mesh_clearance) keep all of it over the margin is not tested."""
     for u in nb.prange(unit_bounds.shape[0] - 1):
         stack = np.empty(STACK, np.int64)
         start = np.empty((2, 3))
@@ -594,6 +635,8 @@ def segments_touching(segments, unit_bounds, meshes_in, bodies_in, margin_m, dt_
                     continue
                 _segment_in_body(segments, s, rot, rot0, c0, c1, prev_position_m, particle_position_m, start, end)
                 if not _segment_near(meshes_in.tri_box, meshes_in.tri_node_start[m], start, end, pad):
+                    continue
+                if _segment_clear(clear, m, segments[s, 0], segments[s, 1], start, end, margin_m):
                     continue
                 touching_out[m, s] = _segment_hits(m, meshes_in, sharp, meshes_in.closed[m], start, end,
                                                    inverse_masses, margin_m, stack) > 0

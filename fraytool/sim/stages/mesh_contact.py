@@ -52,12 +52,13 @@ class MeshContact:
         self.geometry.at_step(state.time_s, state.time_s + dt_s)
         meshes, bodies = self.geometry.meshes_in(m), bodies_in(m, state)
         margin = 0.5 * m.thickness_m
+        clear = self.geometry.clearance
         hits = collide_meshes(*ctx.lists.free(state), meshes, bodies, margin, dt_s, state.particle_inv_mass,
-                              ctx.prev_position_m, state.particle_position_m)
+                              ctx.prev_position_m, state.particle_position_m, clear)
         if self.segments_too:
             segments = self.segments(state)
             segments_touching(segments, self._segment_units, meshes, bodies, margin, dt_s, state.particle_inv_mass,
-                              ctx.prev_position_m, state.particle_position_m, self._touching)
+                              ctx.prev_position_m, state.particle_position_m, clear, self._touching)
             hits += collide_mesh_segments(segments, self._touching, meshes, bodies, margin, dt_s,
                                           state.particle_inv_mass, ctx.prev_position_m, state.particle_position_m)
         if self.after_analytic:

@@ -1,0 +1,163 @@
+"""Clearance bounds (fraytool.sim.kernels.mesh_clearance): a mass's bound never exceeds its true distance
+from the mesh, however the mass and an animated mesh move, and skipping what the bounds clear leaves the
+contact passes' result unchanged, bit for bit."""
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+import pytest
+
+from fraytool.geometry.triangles import closest_on_triangle
+from fraytool.sim.builder import ModelBuilder
+from fraytool.sim.kernels.mesh_clearance import SKIP_FACTOR, clearance_left, nearest_distance
+from fraytool.sim.kernels.mesh_contact import STACK
+from fraytool.sim.mesh_geometry import MeshGeometry
+from fraytool.sim.solver import SolverExplicitPBD
+
+trimesh = pytest.importorskip("trimesh")
+
+THICKNESS = 0.0008
+
+
+@nb.njit(cache=True)
+def _brute_distance(x, vertices, triangles):
+    """Distance from x to the nearest triangle, every triangle tried (no tree, no bound)."""
+    best = np.inf
+    for j in range(triangles.shape[0]):
+        a, b, c = vertices[triangles[j, 0]], vertices[triangles[j, 1]], vertices[triangles[j, 2]]
+        qx, qy, qz, _, _, _ = closest_on_triangle(x[0], x[1], x[2], a[0], a[1], a[2], b[0], b[1], b[2],
+                                                  c[0], c[1], c[2])
+        best = min(best, np.sqrt((qx - x[0]) ** 2 + (qy - x[1]) ** 2 + (qz - x[2]) ** 2))
+    return best
+
+
+def _wobbling_ball(keys=3, duration=0.02):
+    """An icosphere whose vertices swell and shift between keys (an animated mesh)."""
+    m = trimesh.creation.icosphere(subdivisions=2, radius=0.03)
+    v = np.asarray(m.vertices)
+    rng = np.random.default_rng(4)
+    frames = [v * (1.0 + 0.1 * k) + 0.002 * k * rng.standard_normal(v.shape) for k in range(keys)]
+    return np.stack(frames), np.asarray(m.faces), np.linspace(0.0, duration, keys)
+
+
+def _cloth(builder, n=16, spacing=0.004, y=0.0):
+    half = 0.5 * (n - 1) * spacing
+    builder.add_cloth(warp_yarns=n, weft_yarns=n, spacing_m=spacing, thickness_m=THICKNESS,
+                      mass_per_crossing_kg=2e-5, structural_n_per_m=20.0, origin_m=(-half, y, -half))
+
+
+def test_a_bound_never_exceeds_the_true_distance_as_points_and_an_animated_mesh_move():
+    frames, faces, times = _wobbling_ball()
+    b = ModelBuilder(seed=1)
+    _cloth(b, n=8)
+    b.add_mesh("ball", vertices_m=frames, triangles=faces, key_times_s=times, motion="kinematic")
+    model = b.finalize()
+    g = MeshGeometry(model)
+    meshes = g.meshes_in(model)
+    rng = np.random.default_rng(7)
+    points = rng.uniform(-0.06, 0.06, (model.particle_count, 3))
+    clear = g.clearance  # the mesh's travel counted by g.at_step
+    stack = np.empty(STACK, np.int64)
+    steps = np.linspace(0.0, 0.02, 21)
+    g.at_step(steps[0], steps[1])
+    for p, x in enumerate(points):  # references at the first step's end
+        clear.clearance_m[0, p] = nearest_distance(0, meshes, x, clear.reach_m, stack)
+        clear.reference_m[0, p] = x
+        clear.travel_at_m[0, p] = clear.travel_start_m[0]
+    exact = np.array([_brute_distance(x, g.vertex_end_m, faces) for x in points])
+    assert np.all(clear.clearance_m[0] <= exact)
+    assert np.all(clear.clearance_m[0] >= np.minimum(exact, clear.reach_m) - 1e-12)  # no looser than need be
+    checked = 0
+    for t0, t1 in zip(steps[1:-1], steps[2:]):
+        g.at_step(t0, t1)
+        moved = points + rng.normal(0.0, 0.0005, points.shape)
+        for p in range(points.shape[0]):
+            bound = clearance_left(clear, 0, p, *points[p], *moved[p])
+            for tau in (0.0, 0.5, 1.0):  # any point of the path, against the surface at any time of the step
+                x = points[p] + tau * (moved[p] - points[p])
+                v = g.vertex_start_m + tau * (g.vertex_end_m - g.vertex_start_m)
+                assert bound <= _brute_distance(x, v, faces) + 1e-12
+                checked += bound > 0.0
+        points = moved
+    assert checked > 100  # the bounds were of use (positive), not all void
+
+
+def test_a_bound_counts_the_whole_path_not_only_its_end():
+    """A mass that went toward the surface and came back within the step: its path's start is nearer
+    than its end, and the bound holds there too (a static ball: no travel)."""
+    b = ModelBuilder(seed=1)
+    _cloth(b, n=2)
+    m = trimesh.creation.icosphere(subdivisions=3, radius=0.03)
+    b.add_mesh("ball", vertices_m=m.vertices, triangles=m.faces)
+    model = b.finalize()
+    g = MeshGeometry(model)
+    g.at_step(0.0, 1e-4)
+    meshes = g.meshes_in(model)
+    ref = np.array([0.0, 0.035, 0.0])
+    clear = g.clearance
+    clear.clearance_m[0, 0] = nearest_distance(0, meshes, ref, clear.reach_m, np.empty(STACK, np.int64))
+    clear.reference_m[0, 0] = ref
+    start = ref - (0.0, 0.003, 0.0)  # 3 mm nearer the ball
+    bound = clearance_left(clear, 0, 0, *start, *ref)
+    true_start = _brute_distance(start, np.asarray(m.vertices), np.asarray(m.faces))
+    assert 0.0 < bound <= true_start
+
+
+def _rising_model(kind: str):
+    """Cloth falling onto a plate that rises into it (an animated mesh, keys, or a rigid one on a path),
+    or onto a thin blade, edge up, rising between two yarns on a path (the yarn segments catch on its edge:
+    the masses either side pass by it)."""
+    b = ModelBuilder(seed=1)
+    _cloth(b)
+    # a pillar beside the cloth, its top over it: the mesh's box holds the cloth from the start, so its
+    # masses take bounds while still far from the plate or the blade
+    pillar = trimesh.creation.box(extents=(0.01, 0.08, 0.01))
+    pillar.apply_translation((0.045, 0.037, 0.045))
+    if kind == "blade":
+        blade = trimesh.creation.box(extents=(0.0006, 0.02, 0.08))
+        both = trimesh.util.concatenate([blade, pillar])
+        b.add_mesh("blade", vertices_m=np.asarray(both.vertices), triangles=np.asarray(both.faces),
+                   motion="kinematic", path=[(0.0, 0.0, -0.03, 0.0), (0.1, 0.0, 0.005, 0.0)])
+        return b.finalize()
+    plate = trimesh.creation.box(extents=(0.1, 0.006, 0.1))
+    both = trimesh.util.concatenate([plate, pillar])
+    v, f = np.asarray(both.vertices), np.asarray(both.faces)
+    if kind == "path":
+        b.add_mesh("plate", vertices_m=v, triangles=f, motion="kinematic",
+                   path=[(0.0, 0.0, -0.03, 0.0), (0.1, 0.0, 0.005, 0.0)], friction=0.5)
+    else:
+        keys = np.stack([v + (0.0, y, 0.0) for y in (-0.03, 0.005, 0.005)])
+        b.add_mesh("plate", vertices_m=keys, triangles=f, key_times_s=[0.0, 0.1, 0.2], motion="kinematic",
+                   friction=0.5)
+    return b.finalize()
+
+
+def _run(model, clearance: bool, steps=700, dt=2e-4):
+    state = model.state()
+    solver = SolverExplicitPBD(model)
+    g = solver.context.meshes
+    if not clearance:  # a reach of 0: every bound is 0, nothing is ever skipped
+        g.clearance = g.clearance._replace(reach_m=0.0)
+    skipped_somewhere = False
+    margin = 0.5 * model.thickness_m
+    for _ in range(steps):
+        solver.step(state, dt)
+        skipped_somewhere |= bool((g.clearance.clearance_m > 2.0 * SKIP_FACTOR * margin).any())
+    return state, skipped_somewhere
+
+
+@pytest.mark.parametrize("kind", ["keys", "path", "blade"])
+def test_skipping_cleared_masses_and_segments_changes_nothing(kind):
+    model = _rising_model(kind)
+    with_bounds, used = _run(model, clearance=True)
+    without, unused = _run(model, clearance=False)
+    assert used and not unused
+    x = with_bounds.particle_position_m[:model.crossing_count]
+    # the plate caught the cloth and lifted it, or the blade's edge holds it up (contact happened, late in
+    # the run, after bounds were taken)
+    if kind == "blade":
+        assert x[:, 1].max() > 0.012
+    else:
+        assert x[:, 1].mean() > 0.006
+    assert with_bounds.particle_position_m.tobytes() == without.particle_position_m.tobytes()
+    assert with_bounds.particle_velocity_m_s.tobytes() == without.particle_velocity_m_s.tobytes()
