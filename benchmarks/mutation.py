@@ -176,7 +176,7 @@ MUTATIONS = [
     M("mesh", "contact margin 5 % larger", "fraytool/sim/stages/mesh_contact.py",
       "margin = 0.5 * m.thickness_m", "margin = 0.525 * m.thickness_m", MESH_TESTS),
     M("mesh", "least face-on of equally near triangles", "fraytool/sim/kernels/mesh_contact.py",
-      "(tie and align > best_align)", "(tie and align < best_align)", MESH_TESTS),
+      "(tie and (align > best_align or", "(tie and (align < best_align or", MESH_TESTS),
     M("mesh", "a sequence that renumbers its triangles accepted", "fraytool/scene/mesh_files.py",
       " or not np.array_equal(tri, triangles)", "", MESH_TESTS),
     M("mesh", "sharp-edge angle 31.5 degrees", "fraytool/meshes.py",

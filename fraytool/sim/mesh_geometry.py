@@ -36,7 +36,7 @@ class MeshGeometry:
             tri_centroids.append(v[tri].mean(axis=1))
             edge_centroids.append(v[edges].mean(axis=1) if edges.size else np.zeros((0, 3)))
         self.tri_bvh = mesh_bvh.build(tri_centroids, [int(x) for x in t.triangle_start[:-1]])
-        self.edge_bvh = mesh_bvh.build(edge_centroids, [int(x) for x in t.edge_start[:-1]])
+        self.edge_bvh = mesh_bvh.build(edge_centroids, [int(x) for x in t.edge_start[:-1]], median=False)
         self._refit_keys: list = [None] * t.count
         self.animated = [t.animated(m) for m in range(t.count)]
         for m in range(t.count):

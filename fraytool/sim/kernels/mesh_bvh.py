@@ -1,12 +1,17 @@
 """Bounding-volume hierarchies over a mesh body's triangles or sharp edges (docs/meshes.md, "Broad phase").
 
-One tree per mesh, built once from the primitives' centroids in Morton order (a linear BVH: Lauterbach
-et al. 2009, "Fast BVH construction on GPUs"), split at the middle of each range down to LEAF_SIZE
-primitives. The nodes are in pre-order (a child's index is above its parent's), so a refit is one
-backward pass: leaves take their primitives' boxes, inner nodes the union of their children's. A
-static or rigidly moving mesh is refitted once (its queries are made in the body's frame); an animated
-one is refitted over each interval between two of its keys, with boxes holding the primitive at both
-keys (the linear interpolation between them stays inside), so one refit serves every step there.
+One tree per mesh, built once, top down: each range of primitives is sorted along the longest axis of
+its centroids' box and split at the middle (an object-median split), down to LEAF_SIZE primitives.
+Against the Morton order it replaced (Lauterbach et al. 2009), a point query on mannequin_snag's torso
+visits 28 nodes instead of 46. The sharp edges' trees keep the Morton order: a yarn segment is moved off
+the edges it meets one after the other, in the tree's order, so that order is part of the result (a
+thin blade's two bottom edges, tests/test_mesh_bodies.py, hold the cloth in it); the triangle passes'
+results do not depend on the tree (ties go to the lowest index). The nodes are in pre-order (a child's index is above its parent's), so a
+refit is one backward pass: leaves take their primitives' boxes, inner nodes the union of their
+children's. A static or rigidly moving mesh is refitted once (its queries are made in the body's
+frame); an animated one is refitted over each interval between two of its keys, with boxes holding the
+primitive at both keys (the linear interpolation between them stays inside), so one refit serves every
+step there.
 
 Trees of all meshes share flat arrays: `node_start[m]` is mesh m's root; a node's children are global
 node indices (-1 in a leaf); a leaf's primitives are `order[lo:hi]` (global primitive indices).
@@ -44,6 +49,43 @@ def _morton(centroids: np.ndarray) -> np.ndarray:
 
 
 @nb.njit(cache=True)
+def median_order(centroids, leaf_size):
+    """Primitive order of the object-median tree (module docstring): every range that `_build` splits
+    (at its middle) is sorted along the longest axis of its centroids' box first. A stable sort, from
+    index order: the same centroids give the same order."""
+    n = centroids.shape[0]
+    order = np.arange(n)
+    stack = np.empty((128, 2), np.int64)
+    stack[0, 0] = 0
+    stack[0, 1] = n
+    top = 1
+    while top > 0:
+        top -= 1
+        lo, hi = stack[top, 0], stack[top, 1]
+        if hi - lo <= leaf_size:
+            continue
+        axis = 0
+        widest = -1.0
+        for a in range(3):
+            c_lo, c_hi = np.inf, -np.inf
+            for q in range(lo, hi):
+                c_lo = min(c_lo, centroids[order[q], a])
+                c_hi = max(c_hi, centroids[order[q], a])
+            if c_hi - c_lo > widest:
+                widest = c_hi - c_lo
+                axis = a
+        keys = np.empty(hi - lo)
+        for q in range(lo, hi):
+            keys[q - lo] = centroids[order[q], axis]
+        order[lo:hi] = order[lo:hi][np.argsort(keys, kind="mergesort")]
+        mid = (lo + hi) // 2
+        stack[top, 0], stack[top, 1] = mid, hi
+        stack[top + 1, 0], stack[top + 1, 1] = lo, mid
+        top += 2
+    return order
+
+
+@nb.njit(cache=True)
 def _build(count, leaf_size, child_out, prim_range_out):
     """Pre-order tree over `count` sorted primitives; returns the node count."""
     stack = np.empty(128, np.int64)
@@ -78,9 +120,10 @@ def _build(count, leaf_size, child_out, prim_range_out):
     return nodes
 
 
-def build(centroids_per_mesh: list[np.ndarray], prim_offsets: list[int]) -> Bvh:
+def build(centroids_per_mesh: list[np.ndarray], prim_offsets: list[int], median: bool = True) -> Bvh:
     """Trees over each mesh's primitives (centroids in the body frame; primitive p of mesh m is global
-    index prim_offsets[m] + p). Boxes are left empty: `refit` fills them."""
+    index prim_offsets[m] + p): object-median trees, or with median=False in Morton order. Boxes are left
+    empty: `refit` fills them."""
     starts, children, ranges, orders = [0], [], [], []
     node_off = 0
     for cent, off in zip(centroids_per_mesh, prim_offsets):
@@ -97,7 +140,12 @@ def build(centroids_per_mesh: list[np.ndarray], prim_offsets: list[int]) -> Bvh:
         child[child >= 0] += node_off
         children.append(child)
         ranges.append(prange_[:count] + sum(o.shape[0] for o in orders))
-        orders.append(np.argsort(_morton(cent), kind="stable").astype(np.int64) + off if n else np.zeros(0, np.int64))
+        if n == 0:
+            orders.append(np.zeros(0, np.int64))
+        elif median:
+            orders.append(median_order(np.ascontiguousarray(cent, np.float64), LEAF_SIZE).astype(np.int64) + off)
+        else:
+            orders.append(np.argsort(_morton(cent), kind="stable").astype(np.int64) + off)
         node_off += count
         starts.append(node_off)
     child = np.concatenate(children) if children else np.zeros((0, 2), np.int64)

@@ -178,7 +178,7 @@ def _resolve_point(m, meshes_in, l0, l1, margin_m, reach_m, stack_out):
             s1 = (l1[0] - a1x) * n1x + (l1[1] - a1y) * n1y + (l1[2] - a1z) * n1z
             if (s0 > 0.0 and s1 < 0.0) or (s0 < 0.0 and s1 > 0.0 and not closed):
                 t = s0 / (s0 - s1)
-                if t < best_t:
+                if t < best_t or (t == best_t and j < cross_tri):  # (ties: the lowest index, whatever the tree)
                     px = l0[0] + t * (l1[0] - l0[0])
                     py = l0[1] + t * (l1[1] - l0[1])
                     pz = l0[2] + t * (l1[2] - l0[2])
@@ -201,7 +201,7 @@ def _resolve_point(m, meshes_in, l0, l1, margin_m, reach_m, stack_out):
             align = abs((l1[0] - qx) * n1x + (l1[1] - qy) * n1y + (l1[2] - qz) * n1z) / (n1l * math.sqrt(d2)) \
                 if d2 > 0.0 and n1l > 0.0 else 1.0
             tie = best_tri >= 0 and abs(d2 - best_d2) <= 1e-10 * best_d2
-            if (d2 < best_d2 and not tie) or (tie and align > best_align):
+            if (d2 < best_d2 and not tie) or (tie and (align > best_align or (align == best_align and j < best_tri))):
                 best_d2 = d2
                 best_align = align
                 best_tri = j
