@@ -83,7 +83,9 @@ def main() -> int:
     lines += ["", "The commands:", "", *commands, "",
               "ms per frame is the median over the frames; the stages are means. Other figures with their own "
               "scripts: `benchmarks/ccd_bench.py` (edge-edge CCD), `benchmarks/mesh_contact.py` (a 20k and a 200k "
-              "triangle mesh under fig7's cloth), `benchmarks/memory_profile.py` (memory by "
+              "triangle mesh under fig7's cloth), `benchmarks/mesh_share.py` (mesh contact's share of a frame, "
+              "one and two threads, mannequin_snag and a cloth draped over the mannequin), "
+              "`benchmarks/garment_scale.py` (shirt_snag at 1 mm yarn spacing), `benchmarks/memory_profile.py` (memory by "
               "phase), `benchmarks/batch_scaling.py` (the farm), `benchmarks/frames_identical.py` (a refactor "
               "leaves the frames bit-identical).", ""]
     args.out.write_text("\n".join(lines))
