@@ -161,3 +161,39 @@ def test_skipping_cleared_masses_and_segments_changes_nothing(kind):
         assert x[:, 1].mean() > 0.006
     assert with_bounds.particle_position_m.tobytes() == without.particle_position_m.tobytes()
     assert with_bounds.particle_velocity_m_s.tobytes() == without.particle_velocity_m_s.tobytes()
+
+
+def test_an_edge_push_does_not_hide_the_next_edge_behind_the_stale_query_box():
+    """A segment pushed off one sharp edge toward another whose own box missed the pass's query box: the
+    second edge is still tested in that pass, as when every edge of a met leaf was (the primitive boxes
+    only save work, they never change a result)."""
+    from fraytool.sim.kernels import mesh_bvh
+    from fraytool.sim.kernels.bodies import BodiesIn
+    from fraytool.sim.kernels.mesh_contact import MeshesIn, collide_mesh_segments
+
+    mm = 1e-3
+    v = np.array([[3.6, -0.2, -1.0], [3.6, -0.2, 1.0],   # under the segment, near its end
+                  [3.9, 0.45, -1.0], [3.9, 0.45, 1.0],   # over it, outside the first query box
+                  [-10, -10, -10], [10, 10, -10], [0, 10, 10]]) * mm
+    edges = np.array([[0, 1], [2, 3]], np.int32)
+    tris = np.array([[4, 5, 6]], np.int32)
+    eb = mesh_bvh.build([v[edges].mean(axis=1)], [0], median=False)
+    tb = mesh_bvh.build([v[tris].mean(axis=1)], [0])
+    mesh_bvh.refit_mesh(eb, 0, edges, np.array([0, 2]), v, v)
+    mesh_bvh.refit_mesh(tb, 0, tris, np.array([0, 1]), v, v)
+    every = eb.box.copy()  # every edge's own box infinite: each edge of a met leaf is tested
+    every[eb.child.shape[0]:, :3] = -np.inf
+    every[eb.child.shape[0]:, 3:] = np.inf
+    bodies = BodiesIn(np.zeros(1, np.int8), np.zeros((1, 3)), np.eye(3)[None].copy(), np.zeros(1), np.array([True]),
+                      np.array([False]), np.zeros((1, 3)), np.zeros((1, 3)), np.zeros((1, 3)))
+    start = np.array([[0.0, 0.0, 0.0], [4.0, 0.0, 0.0]]) * mm
+    out = []
+    for box in (eb.box, every):
+        meshes = MeshesIn(np.array([0]), np.array([False]), tris, edges, v, v, tb.node_start, tb.child, tb.prim_range,
+                          tb.box, tb.order, eb.node_start, eb.child, eb.prim_range, box, eb.order)
+        x = start.copy()
+        hits = collide_mesh_segments(np.array([[0, 1]], np.int64), np.ones((1, 1), np.bool_), meshes, bodies,
+                                     0.4 * mm, 1e-4, np.array([1.0, 1.0]), start.copy(), x)
+        out.append((hits, x))
+    assert out[0][0] == out[1][0] > 0
+    assert out[0][1].tobytes() == out[1][1].tobytes()

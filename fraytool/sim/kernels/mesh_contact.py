@@ -433,8 +433,9 @@ def _segment_pass(m, meshes_in, seg_start, seg_end_inout, inverse_masses, margin
             break
         for q in range(meshes_in.edge_range[node, 0], meshes_in.edge_range[node, 1]):
             e = meshes_in.edge_order[q]
-            if not prim_overlaps(meshes_in.edge_box, meshes_in.edge_child, e, lo0, lo1, lo2, hi0, hi1, hi2):
-                continue
+            if contacts == 0 and not prim_overlaps(meshes_in.edge_box, meshes_in.edge_child, e, lo0, lo1, lo2, hi0,
+                                                   hi1, hi2):
+                continue  # (once an edge has moved the segment, the query box is stale: test every edge met)
             e0s, e1s = va[meshes_in.edges[e, 0]], va[meshes_in.edges[e, 1]]
             e0e, e1e = vb[meshes_in.edges[e, 0]], vb[meshes_in.edges[e, 1]]
             s1, u1 = _closest_params(la1, lb1, e0e, e1e)
