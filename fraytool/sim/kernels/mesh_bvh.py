@@ -199,3 +199,38 @@ def refit_mesh(bvh: Bvh, m: int, prims: np.ndarray, prim_start: np.ndarray, vert
     prim_box = bvh.box[bvh.child.shape[0]:]
     primitive_boxes(prims[lo:hi], vertices_a, vertices_b, prim_box[lo:hi])
     refit(bvh.node_start[m], bvh.node_start[m + 1], bvh.child, bvh.prim_range, bvh.order, prim_box, bvh.box)
+
+
+# Traversal (the contact kernels, fraytool.sim.kernels.mesh_contact and mesh_clearance)
+
+@nb.njit(cache=True, inline="always")
+def overlaps(box, node, lo0, lo1, lo2, hi0, hi1, hi2):
+    """Whether row `node` of a box array meets the query box [lo, hi]."""
+    return not (box[node, 0] > hi0 or box[node, 3] < lo0 or box[node, 1] > hi1 or box[node, 4] < lo1
+                or box[node, 2] > hi2 or box[node, 5] < lo2)
+
+
+@nb.njit(cache=True, inline="always")
+def prim_overlaps(box, child, j, lo0, lo1, lo2, hi0, hi1, hi2):
+    """Whether primitive j's own box (row N + j of a tree's `box`, N its node count: child.shape[0]) meets
+    the query box: a leaf's primitives are tested only then (a primitive outside the query box is farther
+    than its pad from everything the query asks about)."""
+    return overlaps(box, child.shape[0] + j, lo0, lo1, lo2, hi0, hi1, hi2)
+
+
+@nb.njit(cache=True, inline="always")
+def next_leaf(stack_inout, top, child, box, lo0, lo1, lo2, hi0, hi1, hi2):
+    """The next leaf of a BVH traversal whose box meets the query box [lo, hi]: pops nodes off
+    stack_inout (top entries; the caller pushes the root), pushes the children of inner nodes that
+    meet it. Returns (leaf node, new top), or (-1, 0) when the traversal is done."""
+    while top > 0:
+        top -= 1
+        node = stack_inout[top]
+        if not overlaps(box, node, lo0, lo1, lo2, hi0, hi1, hi2):
+            continue
+        if child[node, 0] < 0:
+            return node, top
+        stack_inout[top] = child[node, 0]
+        stack_inout[top + 1] = child[node, 1]
+        top += 2
+    return -1, 0

@@ -33,6 +33,7 @@ import numba as nb
 import numpy as np
 
 from fraytool.geometry.triangles import closest_on_triangle
+from fraytool.sim.kernels.mesh_bvh import next_leaf, prim_overlaps
 
 SKIP_FACTOR = 1.01
 """A mass or segment is skipped when its bound exceeds the margin by 1 % (and the edge CCD's spatial
@@ -86,28 +87,17 @@ def nearest_distance(m, meshes_in, l, reach_m, stack_out):
     vb = meshes_in.vertex_end_m
     tris = meshes_in.triangles
     best2 = reach_m * reach_m
-    stack_out[0] = meshes_in.tri_node_start[m]
-    top = 1
-    box = meshes_in.tri_box
-    child = meshes_in.tri_child
     lo0, lo1, lo2 = l[0] - reach_m, l[1] - reach_m, l[2] - reach_m
     hi0, hi1, hi2 = l[0] + reach_m, l[1] + reach_m, l[2] + reach_m
-    while top > 0:
-        top -= 1
-        node = stack_out[top]
-        if box[node, 0] > hi0 or box[node, 3] < lo0 or box[node, 1] > hi1 or box[node, 4] < lo1 \
-                or box[node, 2] > hi2 or box[node, 5] < lo2:
-            continue
-        if child[node, 0] >= 0:
-            stack_out[top] = child[node, 0]
-            stack_out[top + 1] = child[node, 1]
-            top += 2
-            continue
+    stack_out[0] = meshes_in.tri_node_start[m]
+    top = 1
+    while True:
+        node, top = next_leaf(stack_out, top, meshes_in.tri_child, meshes_in.tri_box, lo0, lo1, lo2, hi0, hi1, hi2)
+        if node < 0:
+            break
         for q in range(meshes_in.tri_range[node, 0], meshes_in.tri_range[node, 1]):
             j = meshes_in.tri_order[q]
-            r = child.shape[0] + j  # the triangle's own box (fraytool.sim.kernels.mesh_contact.MeshesIn)
-            if box[r, 0] > hi0 or box[r, 3] < lo0 or box[r, 1] > hi1 or box[r, 4] < lo1 or box[r, 2] > hi2 \
-                    or box[r, 5] < lo2:
+            if not prim_overlaps(meshes_in.tri_box, meshes_in.tri_child, j, lo0, lo1, lo2, hi0, hi1, hi2):
                 continue  # (farther than the reach)
             ia, ib, ic = tris[j, 0], tris[j, 1], tris[j, 2]
             qx, qy, qz, _, _, _ = closest_on_triangle(l[0], l[1], l[2], vb[ia, 0], vb[ia, 1], vb[ia, 2],

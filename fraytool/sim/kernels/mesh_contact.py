@@ -49,6 +49,7 @@ from fraytool.collision.ccd import edge_edge_ccd_kernel
 from fraytool.geometry.frames import rotate, to_body, to_world
 from fraytool.geometry.segments import segment_closest_params
 from fraytool.geometry.triangles import closest_on_triangle, triangle_normal
+from fraytool.sim.kernels.mesh_bvh import next_leaf, overlaps, prim_overlaps
 from fraytool.sim.kernels.mesh_clearance import SKIP_FACTOR, clearance_left, renew, segment_skip_m
 from fraytool.sim.kernels.rigid_contact import coulomb_friction
 
@@ -79,38 +80,6 @@ MeshesIn = namedtuple("MeshesIn", [
 ])
 MeshesIn.__doc__ = """Mesh bodies' geometry and trees for the contact kernels (fraytool.sim.kernels.mesh_bvh). The box
 arrays hold the N nodes' boxes, then each primitive's own (row N + j: `prim_overlaps`)."""
-
-
-@nb.njit(cache=True, inline="always")
-def _overlaps(box, node, lo0, lo1, lo2, hi0, hi1, hi2):
-    return not (box[node, 0] > hi0 or box[node, 3] < lo0 or box[node, 1] > hi1 or box[node, 4] < lo1
-                or box[node, 2] > hi2 or box[node, 5] < lo2)
-
-
-@nb.njit(cache=True, inline="always")
-def prim_overlaps(box, child, j, lo0, lo1, lo2, hi0, hi1, hi2):
-    """Whether primitive j's own box (row N + j of a tree's `box`, N its node count: child.shape[0]) meets
-    the query box: a leaf's primitives are tested only then (a primitive outside the query box is farther
-    than its pad from everything the query asks about)."""
-    return _overlaps(box, child.shape[0] + j, lo0, lo1, lo2, hi0, hi1, hi2)
-
-
-@nb.njit(cache=True, inline="always")
-def next_leaf(stack_inout, top, child, box, lo0, lo1, lo2, hi0, hi1, hi2):
-    """The next leaf of a BVH traversal whose box meets the query box [lo, hi]: pops nodes off
-    stack_inout (top entries; the caller pushes the root), pushes the children of inner nodes that
-    meet it. Returns (leaf node, new top), or (-1, 0) when the traversal is done."""
-    while top > 0:
-        top -= 1
-        node = stack_inout[top]
-        if not _overlaps(box, node, lo0, lo1, lo2, hi0, hi1, hi2):
-            continue
-        if child[node, 0] < 0:
-            return node, top
-        stack_inout[top] = child[node, 0]
-        stack_inout[top + 1] = child[node, 1]
-        top += 2
-    return -1, 0
 
 
 @nb.njit(cache=True, inline="always")
@@ -310,7 +279,7 @@ def _mesh_range(particles, lo, hi, m, frame, meshes_in, margin_m, particles_in, 
         l1[0], l1[1], l1[2] = to_body(rot, c1, particle_position_m_inout[p, 0], particle_position_m_inout[p, 1],
                                       particle_position_m_inout[p, 2])
         l0[0], l0[1], l0[2] = to_body(rot0, c0, prev_position_m[p, 0], prev_position_m[p, 1], prev_position_m[p, 2])
-        if not _overlaps(box, root, min(l0[0], l1[0]) - pad, min(l0[1], l1[1]) - pad, min(l0[2], l1[2]) - pad,
+        if not overlaps(box, root, min(l0[0], l1[0]) - pad, min(l0[1], l1[1]) - pad, min(l0[2], l1[2]) - pad,
                          max(l0[0], l1[0]) + pad, max(l0[1], l1[1]) + pad, max(l0[2], l1[2]) + pad):
             continue
         if clearance_left(clear_inout, m, p, l0[0], l0[1], l0[2], l1[0], l1[1], l1[2]) > SKIP_FACTOR * margin_m:
@@ -563,7 +532,7 @@ def _segment_in_body(segments, s, rot, rot0, c0, c1, prev_position_m, particle_p
 @nb.njit(cache=True, inline="always")
 def _segment_near(box, root, start, end, pad):
     """Whether the segment's swept box, grown by pad, overlaps the mesh's root box."""
-    return _overlaps(box, root, min(start[0, 0], start[1, 0], end[0, 0], end[1, 0]) - pad,
+    return overlaps(box, root, min(start[0, 0], start[1, 0], end[0, 0], end[1, 0]) - pad,
                      min(start[0, 1], start[1, 1], end[0, 1], end[1, 1]) - pad,
                      min(start[0, 2], start[1, 2], end[0, 2], end[1, 2]) - pad,
                      max(start[0, 0], start[1, 0], end[0, 0], end[1, 0]) + pad,
