@@ -478,7 +478,7 @@ def test_a_slaved_crossing_in_a_body_ends_exactly_on_its_surface():
     free = multires.free_crossings(lay, state.coarse_cell_refined)
     s = int(np.flatnonzero(~free & (lay.crossing_weight > 0).all(axis=1))[0])  # inside a cell: four nodes
     cell = int(lay.crossing_weight_cell[s])
-    cell_nodes = lay.cell_nodes(model.warp_yarns)
+    cell_nodes = lay.cell_nodes
     cell_start = np.zeros(lay.cell_count + 1, np.int64)
     cell_start[cell + 1:] = 1
     cells = (cell_start, np.array([s], np.int32), cell_nodes, np.unique(cell_nodes[cell]).astype(np.int32),
@@ -548,7 +548,7 @@ def test_a_hot_cell_refines_exactly_its_band():
     ctx = StepContext.for_model(model)
     ctx.coarse = CoarseWork(model)
     lay = ctx.coarse.layout
-    node = int(lay.cell_nodes(model.warp_yarns)[lay.cell_count // 2 + lay.cells_x // 2, 0])
+    node = int(lay.cell_nodes[lay.cell_count // 2 + lay.cells_x // 2, 0])
     state.particle_position_m[node, 0] += 0.3 * 4 * model.spacing_m  # its coarse springs 30 % longer
     Refinement(model).run(state, ctx, 1e-4)
     hot = ctx.coarse.hot

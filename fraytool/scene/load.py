@@ -295,10 +295,6 @@ def _assemble(values: dict, bodies_raw: list, att_raw: list, cut_raw: list, sour
     problems.extend("cloth.multires", rules.multires_problems(multires))
     cloth, first_grid = _panel("cloth", c, values["cloth.springs"], strain, tear, multires, problems, scene_file)
     problems.extend("cloth", rules.cloth_problems(cloth.spacing_m, cloth.thickness_m))
-    if cloth.multires.factor > 1 and (cloth.outline_m or cloth.mask or panels_raw):
-        problems.add("cloth.multires", "factor", cloth.multires.factor,
-                     "a shaped panel (outline_m or mask) or several [[cloth]] panels are simulated at yarn "
-                     "resolution: factor must be 1")
     panels, grids = [], {(cloth.name or "cloth"): first_grid}
     for k, raw in enumerate(panels_raw, 1):
         where = f"cloth.{k}"

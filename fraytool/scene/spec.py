@@ -121,8 +121,9 @@ class MultiresSpec:
                           doc="width of the band of coarse cells refined around a cell past the refine strain "
                               "(and around a moving body)")
     refine_near_bodies: bool = key("bool", True,
-                                   doc="cells within band_cells of a moving body's bounding sphere refine before "
-                                       "the body reaches them")
+                                   doc="cells within band_cells of a moving analytic body's bounding sphere refine "
+                                       "before the body reaches them (near a mesh a cell refines by its own test, "
+                                       "always)")
 
 
 @dataclass(frozen=True, kw_only=True)

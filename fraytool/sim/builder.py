@@ -787,16 +787,13 @@ class ModelBuilder:
         )
 
     def _validate(self) -> None:
-        """What only the whole can show: a cloth at all, scissors without tearing, a coarse model of panels."""
+        """What only the whole can show: a cloth at all, scissors without tearing, a coarse model with drag."""
         c = self.cloth
         if c is None:
             self._raise("finalize", [(None, None, "no cloth: call add_cloth first")])
         if any(cut.path_m for cut in self.cuts) and not self.tearing.enabled:
             self._raise("finalize", [(None, None, "scissors (add_cut with path_m) cut in the tearing stage: "
                                                   "call set_tearing()")])
-        if self.multires.factor > 1 and (c.outline_m or c.mask or len(self._panels) > 1):
-            self._raise("finalize", [(None, None, "a shaped panel (outline_m or mask) or several panels are "
-                                                  "simulated at yarn resolution: set_multires(factor=1)")])
         if self.multires.factor > 1 and any(p.layout.spec.drag_normal or p.layout.spec.drag_tangential
                                             for p in self._panels):
             self._raise("finalize", [(None, None, "air drag (drag_normal, drag_tangential) acts at yarn resolution: "
@@ -840,8 +837,13 @@ class ModelBuilder:
             if t.enabled and structural.any() else math.inf
         nx, ny, n = crossings["warp_yarns"], crossings["weft_yarns"], crossings["crossing_count"]
         band = mr.band_cells
-        if mr.factor > 1 and n == nx * ny:
-            band = max(band, split_walk_band(crossings["crossing_weft_on_top"].reshape(ny, nx), mr.factor))
+        if mr.factor > 1:
+            weft_on_top = np.zeros((ny, nx), bool)
+            present = np.zeros((ny, nx), bool)
+            gi, gj = crossings["crossing_grid_i"], crossings["crossing_grid_j"]
+            weft_on_top[gj, gi] = crossings["crossing_weft_on_top"]
+            present[gj, gi] = True
+            band = max(band, split_walk_band(weft_on_top, mr.factor, present))
         return dict(
             strain_limit=strain.limit, strain_max_iterations=strain.max_iterations, strain_tolerance=strain.tolerance,
             strain_stiffness_n_per_m=strain.stiffness_n_per_m,
@@ -874,23 +876,31 @@ class ModelBuilder:
         return out
 
 
-def longest_float(weft_on_top: np.ndarray) -> int:
+def longest_float(weft_on_top: np.ndarray, present: Optional[np.ndarray] = None) -> int:
     """The most consecutive crossings along any yarn where the same yarn stays on top (a float),
-    from the weave pattern (crossing_weft_on_top as (weft_yarns, warp_yarns))."""
+    from the weave pattern (crossing_weft_on_top as (weft_yarns, warp_yarns)); with `present` (same
+    shape), a place without a crossing (a shaped panel's outside, the grid between panels) ends a run."""
+    code = weft_on_top.astype(np.int8)
+    if present is not None:
+        code = np.where(present, code, np.int8(-1))
     longest = 1
-    for grid in (weft_on_top, weft_on_top.T):
+    for grid in (code, code.T):
         for row in grid:
-            change = np.flatnonzero(np.diff(row.astype(np.int8)) != 0)
+            change = np.flatnonzero(np.diff(row) != 0)
             edges = np.concatenate([[-1], change, [row.size - 1]])
-            longest = max(longest, int(np.diff(edges).max()))
+            runs = np.diff(edges)
+            if present is not None:
+                runs = runs[row[edges[1:]] >= 0]  # each run's last place says what it is a run of
+            if runs.size:
+                longest = max(longest, int(runs.max()))
     return longest
 
 
-def split_walk_band(weft_on_top: np.ndarray, factor: int) -> int:
+def split_walk_band(weft_on_top: np.ndarray, factor: int, present: Optional[np.ndarray] = None) -> int:
     """Fewest coarse cells of band that hold a split's walk (docs/method.md §3.4: a split runs along the
     yarn up to and including the crossing where the weave flips, up to longest_float + 1 crossings past
     the spring), plus one so that no crossing the walk reaches sits on the border of a coarse cell."""
-    return -(-(longest_float(weft_on_top) + 1) // factor) + 1
+    return -(-(longest_float(weft_on_top, present) + 1) // factor) + 1
 
 
 _SHAPE_METHOD = {"sphere": "add_sphere", "box": "add_box", "plane": "add_plane", "mesh": "add_mesh"}

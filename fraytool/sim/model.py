@@ -351,7 +351,8 @@ class Model:
             attachment_offset_m=self.attachment_offset_m.copy() if self.attachment_catch_s.size else np.zeros((0, 3)),
         )
         if self.coarse_factor > 1:
-            multires.set_masses(self, layout, refined, state)  # lumped into the nodes, slaved 0
+            multires.refine_on_meshes_at_start(self, layout, state)
+            multires.set_masses(self, layout, state.coarse_cell_refined, state)  # lumped into the nodes, slaved 0
         return state
 
     def gravity_at_m_s2(self, time_s: float) -> np.ndarray:

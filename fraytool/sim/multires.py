@@ -33,7 +33,7 @@ from typing import Optional
 
 import numpy as np
 
-from fraytool.kinds import BEND_WARP, BEND_WEFT, SHEAR, STRUCT_WARP, STRUCT_WEFT
+from fraytool.kinds import BEND_WARP, BEND_WEFT, SHEAR, STITCH, STRUCT_WARP, STRUCT_WEFT
 
 
 @dataclass(frozen=True, eq=False)
@@ -69,6 +69,12 @@ class CoarseLayout:
     """Weight of each of those cells in the spring's share: a structural spring on a cell edge stands
     for half of each cell beside it, so its cells weigh their extent across it; 1 for the others
     (shape (coarse_spring_count, 4), 0 on padding)."""
+    cell_whole: np.ndarray
+    """True where every place of the cell's closed rectangle holds a crossing of one panel: only such a
+    cell can be coarse. A cell that a shaped panel's outline or mask crosses, or that lies between two
+    panels' blocks of the grid, is refined from the start (initial_refined). Shape (cell_count,), bool."""
+    cell_node: np.ndarray
+    """See cell_nodes."""
 
     @property
     def cells_x(self) -> int:
@@ -82,12 +88,12 @@ class CoarseLayout:
     def cell_count(self) -> int:
         return self.cells_x * self.cells_y
 
-    def cell_nodes(self, warp_yarns: int) -> np.ndarray:
+    @property
+    def cell_nodes(self) -> np.ndarray:
         """The four nodes of every cell, (i0, j0), (i1, j0), (i0, j1), (i1, j1) as crossings (the order of
-        crossing_node), shape (cell_count, 4), int64."""
-        ci, cj = (g.ravel() for g in np.meshgrid(np.arange(self.cells_x), np.arange(self.cells_y)))
-        i0, i1, j0, j1 = self.lines_i[ci], self.lines_i[ci + 1], self.lines_j[cj], self.lines_j[cj + 1]
-        return np.stack([j0 * warp_yarns + i0, j0 * warp_yarns + i1, j1 * warp_yarns + i0, j1 * warp_yarns + i1], axis=1)
+        crossing_node), -1 where the grid has no crossing (a cell that is not `cell_whole`), shape
+        (cell_count, 4), int64."""
+        return self.cell_node
 
 
 def coarse_lines(yarns: int, factor: int) -> np.ndarray:
@@ -142,45 +148,94 @@ def coarse_layout(model) -> CoarseLayout:
     return layout
 
 
+def panel_lines(model, factor: int) -> tuple[np.ndarray, np.ndarray]:
+    """The coarse lines of the Model's grid: each panel's own (`coarse_lines` over the columns and rows
+    its crossings span, from its first), together. Panels are blocks of one block-diagonal grid
+    (fraytool.sim.cloth_assembly), so no panel's lines cross another's crossings; a rectangle's lines
+    are coarse_lines(warp_yarns, factor) and coarse_lines(weft_yarns, factor)."""
+    gi, gj, panel = model.crossing_grid_i, model.crossing_grid_j, model.crossing_panel
+    li, lj = [], []
+    for p in np.unique(panel):
+        mine = panel == p
+        for lines, g in ((li, gi[mine]), (lj, gj[mine])):
+            lo, hi = int(g.min()), int(g.max())
+            lines.append(lo + coarse_lines(hi - lo + 1, factor))
+    return np.unique(np.concatenate(li)).astype(np.int64), np.unique(np.concatenate(lj)).astype(np.int64)
+
+
+def whole_cells(grid: np.ndarray, li: np.ndarray, lj: np.ndarray) -> np.ndarray:
+    """Cells whose closed rectangle holds a crossing at every place of the grid (`grid`: the crossing at
+    each place, -1 where none), shape (cells,), bool. Panels are apart in the grid, so a whole cell's
+    crossings are one panel's."""
+    absent = np.zeros((grid.shape[0] + 1, grid.shape[1] + 1), np.int64)
+    absent[1:, 1:] = np.cumsum(np.cumsum(grid < 0, axis=0), axis=1)  # absent places in [0, j) x [0, i)
+    i0, j0 = np.meshgrid(li[:-1], lj[:-1])
+    i1, j1 = np.meshgrid(li[1:] + 1, lj[1:] + 1)
+    count = absent[j1, i1] - absent[j0, i1] - absent[j1, i0] + absent[j0, i0]
+    return (count == 0).ravel()
+
+
 def _build_layout(model) -> CoarseLayout:
     k = int(model.coarse_factor)
-    nx, ny = model.warp_yarns, model.weft_yarns
-    li, lj = coarse_lines(nx, k), coarse_lines(ny, k)
+    grid = model.crossing_grid()
+    li, lj = panel_lines(model, k)
+    cx, cy = li.shape[0] - 1, lj.shape[0] - 1
     n = model.crossing_count
-    c = np.arange(n)
-    i, j = c % nx, c // nx
+    i = model.crossing_grid_i.astype(np.int64)
+    j = model.crossing_grid_j.astype(np.int64)
     crossing_cells = _cells_of(i.astype(float), j.astype(float), li.astype(float), lj.astype(float))
+    whole = whole_cells(grid, li, lj)
+    ci, cj = (g.ravel() for g in np.meshgrid(np.arange(cx), np.arange(cy)))
+    cell_node = np.stack([grid[lj[cj], li[ci]], grid[lj[cj], li[ci + 1]],
+                          grid[lj[cj + 1], li[ci]], grid[lj[cj + 1], li[ci + 1]]], axis=1)
+    cell_node[~whole] = -1
 
-    # bilinear weights in the lowest cell holding each crossing
-    qi = np.clip(np.searchsorted(li, i, side="right") - 1, 0, li.shape[0] - 2)
-    qj = np.clip(np.searchsorted(lj, j, side="right") - 1, 0, lj.shape[0] - 2)
+    # bilinear weights in the lowest cell holding each crossing, or else in another whole cell holding it (on a
+    # cell's edge the weights are the edge's linear ones, whichever cell); a crossing in no whole cell is
+    # always free, and interpolates itself
+    qi = np.clip(np.searchsorted(li, i, side="right") - 1, 0, cx - 1)
+    qj = np.clip(np.searchsorted(lj, j, side="right") - 1, 0, cy - 1)
+    cell = qj * cx + qi
+    for q in range(crossing_cells.shape[1]):
+        other = crossing_cells[:, q].astype(np.int64)
+        use = ~whole[cell] & (other >= 0) & whole[np.maximum(other, 0)]
+        cell = np.where(use, other, cell)
+    qi, qj = cell % cx, cell // cx
     t = (i - li[qi]) / (li[qi + 1] - li[qi])
     u = (j - lj[qj]) / (lj[qj + 1] - lj[qj])
-    node = np.stack([lj[qj] * nx + li[qi], lj[qj] * nx + li[qi + 1],
-                     lj[qj + 1] * nx + li[qi], lj[qj + 1] * nx + li[qi + 1]], axis=1).astype(np.int32)
+    node = cell_node[cell].astype(np.int32)
     weight = np.stack([(1 - t) * (1 - u), t * (1 - u), (1 - t) * u, t * u], axis=1)
+    alone = ~whole[cell]
+    node[alone] = np.arange(n, dtype=np.int32)[alone, None]
+    weight[alone] = (1.0, 0.0, 0.0, 0.0)
     is_node = np.isin(i, li) & np.isin(j, lj)
-    weight_cell = (qj * (li.shape[0] - 1) + qi).astype(np.int32)
+    weight_cell = cell.astype(np.int32)
 
     a, b = model.spring_crossing_a, model.spring_crossing_b
-    mid_x = 0.5 * ((a % nx) + (b % nx))
-    mid_y = 0.5 * ((a // nx) + (b // nx))
+    mid_x = 0.5 * (i[a] + i[b])
+    mid_y = 0.5 * (j[a] + j[b])
     spring_cells = _cells_of(mid_x, mid_y, li.astype(float), lj.astype(float))
+    # a stitch joins two panels: its midpoint is nowhere on the grid. It works at yarn resolution: the cells
+    # of its crossings are refined from the start (initial_refined), so it borders those of its end a
+    stitch = model.spring_kind == STITCH
+    spring_cells[stitch] = crossing_cells[a[stitch]]
 
-    ck, ca, cb, cs, ccells, cweight = _coarse_springs(model, li, lj)
+    ck, ca, cb, cs, ccells, cweight = _coarse_springs(model, grid, li, lj, whole)
     rest = model.crossing_rest_position_m
     coarse_rest = np.linalg.norm(rest[cb] - rest[ca], axis=1)
     return CoarseLayout(factor=k, lines_i=li, lines_j=lj, crossing_cells=crossing_cells, crossing_node=node,
                         crossing_weight=weight, crossing_is_node=is_node, crossing_weight_cell=weight_cell, spring_cells=spring_cells,
                         coarse_kind=ck, coarse_a=ca, coarse_b=cb, coarse_rest_length_m=coarse_rest,
-                        coarse_stiffness_n_per_m=cs, coarse_cells=ccells, coarse_cell_weight=cweight)
+                        coarse_stiffness_n_per_m=cs, coarse_cells=ccells, coarse_cell_weight=cweight,
+                        cell_whole=whole, cell_node=cell_node)
 
 
-def _coarse_springs(model, li: np.ndarray, lj: np.ndarray):
+def _coarse_springs(model, grid: np.ndarray, li: np.ndarray, lj: np.ndarray, whole: np.ndarray):
     """Structural, bend and shear springs between the nodes, with the kinds and stiffnesses of the
     cloth's own springs of those kinds (a spring grid's membrane stiffness does not depend on its
-    spacing: docs/multires.md "Coarse springs"), and the cells each borders."""
-    nx = model.warp_yarns
+    spacing: docs/multires.md "Coarse springs"), and the cells each borders. Only springs that border a
+    whole cell (one that can be coarse) are made; every such spring's ends are crossings of that cell's
+    panel."""
     px, py = li.shape[0], lj.shape[0]
     cx, cy = px - 1, py - 1
     stiff = {}
@@ -189,7 +244,7 @@ def _coarse_springs(model, li: np.ndarray, lj: np.ndarray):
         stiff[kind] = float(model.spring_base_stiffness_n_per_m[sel][0]) if sel.any() else 0.0
 
     def crossing(p, q):
-        return lj[q] * nx + li[p]
+        return grid[lj[q], li[p]]
 
     def cell(p, q):
         ok = (p >= 0) & (p < cx) & (q >= 0) & (q < cy)
@@ -204,6 +259,15 @@ def _coarse_springs(model, li: np.ndarray, lj: np.ndarray):
         the spring's length in spacings."""
         if stiff[kind] <= 0.0 or pa.size == 0:
             return
+        cl = np.stack(cell_list, axis=1).astype(np.int64)
+        keep = ((cl >= 0) & whole[np.maximum(cl, 0)]).any(axis=1) & (crossing(pa, qa) >= 0) & (crossing(pb, qb) >= 0)
+        if not keep.all():
+            pa, qa, pb, qb = pa[keep], qa[keep], pb[keep], qb[keep]
+            cell_list = [c[keep] for c in cell_list]
+            across = None if across is None else [x[keep] for x in across]
+            length = None if length is None else length[keep]
+            if pa.size == 0:
+                return
         kinds.append(np.full(pa.size, kind, np.int8))
         ends_a.append(crossing(pa, qa))
         ends_b.append(crossing(pb, qb))
@@ -272,7 +336,11 @@ def initial_refined(model, layout: CoarseLayout) -> np.ndarray:
     refined[held[held >= 0]] = True
     cut = layout.spring_cells[model.spring_precut | np.isfinite(model.spring_cut_time_s)].ravel()  # and scissors
     refined[cut[cut >= 0]] = True
+    stitch = model.spring_kind == STITCH  # a seam's crossings: the stitches pull on them at yarn resolution
+    sewn = layout.crossing_cells[np.concatenate([model.spring_crossing_a[stitch], model.spring_crossing_b[stitch]])]
+    refined[sewn[sewn >= 0]] = True
     refined = dilate(refined, layout.cells_x, layout.cells_y, int(model.refine_band_cells))
+    refined |= ~layout.cell_whole  # a panel's outline, mask or the grid between panels
     for k, reach in zip(*moving_body_reach(model, layout)):
         near = np.linalg.norm(model.crossing_rest_position_m - model.body_initial_position_m[k], axis=1) <= reach
         cells = layout.crossing_cells[layout.crossing_is_node & near].ravel()
@@ -280,20 +348,70 @@ def initial_refined(model, layout: CoarseLayout) -> np.ndarray:
     return refined
 
 
+def colliding_meshes(model) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The colliding mesh bodies' meshes (fraytool.meshes.MeshTable order) as cells_on_meshes takes them:
+    (meshes, the least distance a slaved crossing may come to each [m], whether that distance is unsigned).
+    A closed mesh without sharp edges is tested by depth (0, signed); an open one or one with sharp edges by
+    distance: half the longest yarn segment at rest plus the contact margin
+    (fraytool.sim.kernels.multires_mesh)."""
+    from fraytool.meshes import MeshTable
+    from fraytool.sim.cloth_assembly import is_structural
+
+    table = MeshTable(model)
+    meshes = [m for m in range(table.count) if model.body_collide[table.body[m]]]
+    unsigned = np.array([not table.closed[m] or table.edge_start[m + 1] > table.edge_start[m] for m in meshes],
+                        np.bool_)
+    structural = is_structural(model.spring_kind)
+    segment = float(model.spring_rest_length_m[structural].max()) if structural.any() else model.spacing_m
+    floor = np.where(unsigned, 0.5 * segment + 0.5 * model.thickness_m, 0.0)
+    return np.array(meshes, np.int64), floor, unsigned
+
+
+def slaved_by_cell(layout: CoarseLayout, slaved: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(the slaved crossings grouped by the cell whose nodes they interpolate, in index order within a
+    group; start of each cell's group, shape (cell_count + 1,), int64)."""
+    order = np.argsort(layout.crossing_weight_cell[slaved], kind="stable")
+    grouped = slaved[order]
+    start = np.searchsorted(layout.crossing_weight_cell[grouped], np.arange(layout.cell_count + 1)).astype(np.int64)
+    return grouped, start
+
+
+def refine_on_meshes_at_start(model, layout: CoarseLayout, state) -> None:
+    """Refine in `state` (at time 0) the cells a colliding mesh makes refine (cells_on_meshes, as the
+    Refinement stage tests every step after contact): a crossing that starts below a mesh's surface is
+    free from the first step, so the mass pass puts it back on the margin."""
+    meshes, floor, unsigned = colliding_meshes(model)
+    if not meshes.size:
+        return
+    from fraytool.sim.kernels.bodies import bodies_in
+    from fraytool.sim.kernels.mesh_contact import STACK
+    from fraytool.sim.kernels.multires_mesh import cells_on_meshes, empty_bounds
+    from fraytool.sim.mesh_geometry import MeshGeometry
+
+    refined = state.coarse_cell_refined
+    grouped, start = slaved_by_cell(layout, np.flatnonzero(~free_crossings(layout, refined)).astype(np.int32))
+    new = np.zeros(layout.cell_count, bool)
+    geometry = MeshGeometry(model)
+    cells = (start, grouped, layout.cell_nodes, layout.crossing_cells, layout.crossing_node, layout.crossing_weight)
+    cells_on_meshes((meshes, floor, unsigned), geometry.meshes_in(model), bodies_in(model, state),
+                    geometry.clearance.travel_m, cells, state.particle_position_m, refined,
+                    empty_bounds(meshes.size, model.crossing_count), (np.zeros(STACK, np.int64), np.zeros(3)), new)
+    refined |= new
+
+
 def moving_body_reach(model, layout: CoarseLayout) -> tuple[np.ndarray, np.ndarray]:
-    """(moving colliding bodies and every colliding mesh, their reach [m]) for refine_near_bodies: a body's
-    bounding radius (with the contact margin) plus refine_band_cells + 1 of the widest cell's diagonals at
-    rest; none without refine_near_bodies. Meshes are in even when static: only their nodes' and free
-    crossings' contact keeps the cloth out of them (docs/meshes.md)."""
+    """(moving colliding analytic bodies, their reach [m]) for refine_near_bodies: a body's bounding radius
+    (with the contact margin) plus refine_band_cells + 1 of the widest cell's diagonals at rest; none
+    without refine_near_bodies. Mesh bodies are not in: a cell refines near a mesh by its own test
+    (fraytool.sim.kernels.multires_mesh, every step, whatever refine_near_bodies says)."""
     from fraytool.kinds import MOTION_STATIC, SHAPE_MESH
     from fraytool.sim.kernels.rigid_contact import bounding_radius
 
     if not model.refine_near_bodies:
         return np.zeros(0, np.int64), np.zeros(0)
-    # mesh bodies, static ones too: slaved crossings are kept out of analytic bodies only (SlavedContact)
-    bodies = np.flatnonzero(((model.body_motion != MOTION_STATIC) | (model.body_shape == SHAPE_MESH))
+    bodies = np.flatnonzero((model.body_motion != MOTION_STATIC) & (model.body_shape != SHAPE_MESH)
                             & model.body_collide)
-    nodes = layout.cell_nodes(model.warp_yarns)
+    nodes = layout.cell_nodes[layout.cell_whole]
     rest = model.crossing_rest_position_m
     diagonal = float(np.max(np.linalg.norm(rest[nodes[:, 3]] - rest[nodes[:, 0]], axis=1)))
     reach = np.array([bounding_radius(model.body_shape[k], model.body_params[k], 0.5 * model.thickness_m)
@@ -309,14 +427,30 @@ def followed_by_interpolation(model, layout: CoarseLayout) -> np.ndarray:
     A body moves its held points by one rigid map x = c + R o, and the interpolation weights reproduce
     affine maps of the rest grid (sum w_q = 1, sum w_q o_q = o), so the interpolation of the nodes'
     attached positions is the crossing's own: a clipped edge between held nodes stays coarse. A grip
-    on a few crossings inside a cell (its nodes free) does not, and refines its cells."""
+    on a few crossings inside a cell (its nodes free) does not, and refines its cells. Nor does a pin on
+    a mesh's surface (it follows a triangle of a mesh that may bend), or an attachment caught later or that
+    can let go (each on its own)."""
     n = model.crossing_count
     body_of = np.full(n, -1, np.int64)
     body_of[model.attachment_particle] = model.attachment_body
     held = model.attachment_particle
     nodes = layout.crossing_node[held]
     same = (layout.crossing_weight[held] == 0.0) | (body_of[nodes] == body_of[held][:, None])
-    return same.all(axis=1)
+    followed = same.all(axis=1)
+    if model.attachment_triangle.size:  # pinned to a mesh's surface, which need not move rigidly
+        followed &= model.attachment_triangle < 0
+    return followed & ~held_changes(model)  # each caught or let go on its own: not one rigid map
+
+
+def held_changes(model) -> np.ndarray:
+    """For each attachment: True where it is caught later (catch_s) or can let go (release_force_n), so
+    whether it holds is the State's (inverse mass 0), not the Model's."""
+    out = np.zeros(model.attachment_count, bool)
+    if model.attachment_catch_s.size:
+        out |= model.attachment_catch_s > 0.0
+    if model.attachment_release_force_n.size:
+        out |= model.attachment_release_force_n > 0.0
+    return out
 
 
 def dilate(cells: np.ndarray, cells_x: int, cells_y: int, band: int) -> np.ndarray:
@@ -369,9 +503,12 @@ def set_masses(model, layout: CoarseLayout, refined: np.ndarray, state) -> np.nd
     # a split crossing (only ever free) keeps the masses of its couple as tearing set them
     base = ~state.crossing_yarn_level
     state.particle_mass_kg[:n][base] = mass[base]
-    inv = np.where(free & (mass > 0.0), 1.0 / np.where(mass > 0.0, mass, 1.0), 0.0)
     held = np.zeros(n, bool)
-    held[model.attachment_particle] = True
+    changing = held_changes(model)  # caught or let go during the run: held now where its inverse mass is 0
+    held[model.attachment_particle[~changing]] = True
+    moving = model.attachment_particle[changing]
+    held[moving] = state.particle_inv_mass[moving] == 0.0
+    inv = np.where(free & (mass > 0.0), 1.0 / np.where(mass > 0.0, mass, 1.0), 0.0)
     inv[held] = 0.0
     state.particle_inv_mass[:n][base] = inv[base]
     return free

@@ -35,11 +35,21 @@ class MeshContact:
         self._touching = np.zeros((0, 0), np.bool_)
         self._structural = (model.spring_kind == STRUCT_WEFT) | (model.spring_kind == STRUCT_WARP)
 
-    def segments(self, state: State) -> np.ndarray:
-        """Alive yarn segments (structural springs) as (S, 2) particle slots, kept per topology epoch."""
-        key = state.topology_epoch  # a cut or a split bumps it (State.bump_topology)
+    def segments(self, state: State, ctx: StepContext) -> np.ndarray:
+        """Alive yarn segments (structural springs) as (S, 2) particle slots, kept per topology epoch. In a
+        multi-resolution model, only those between free crossings: a segment with a slaved end is inside a
+        coarse cell or on its border, where the cell's nodes and cells_on_meshes answer for the cloth
+        (docs/multires.md, "Against a mesh"); and moving its free end alone to push a point near the
+        slaved end out would take an unbounded lever."""
+        key = state.topology_epoch  # a cut or a split bumps it (State.bump_topology); so does a refinement
         if key != self._segments_key:
-            s = np.flatnonzero(self._structural & state.spring_alive)
+            use = self._structural & state.spring_alive
+            slaved = ctx.slaved(state)
+            if slaved.size:
+                is_slaved = np.zeros(state.particle_position_m.shape[0], bool)
+                is_slaved[slaved] = True
+                use &= ~(is_slaved[state.spring_particle_a] | is_slaved[state.spring_particle_b])
+            s = np.flatnonzero(use)
             self._segments = np.ascontiguousarray(np.stack([state.spring_particle_a[s], state.spring_particle_b[s]],
                                                            axis=1).astype(np.int64))
             self._segments_key = key
@@ -56,7 +66,7 @@ class MeshContact:
         hits = collide_meshes(*ctx.lists.free(state), meshes, bodies, margin, dt_s, state.particle_inv_mass,
                               ctx.prev_position_m, state.particle_position_m, clear)
         if self.segments_too:
-            segments = self.segments(state)
+            segments = self.segments(state, ctx)
             segments_touching(segments, self._segment_units, meshes, bodies, margin, dt_s, state.particle_inv_mass,
                               ctx.prev_position_m, state.particle_position_m, clear, self._touching)
             hits += collide_mesh_segments(segments, self._touching, meshes, bodies, margin, dt_s,

@@ -22,7 +22,7 @@ from typing import Optional
 
 import numpy as np
 
-from fraytool.kinds import STRUCT_WARP, STRUCT_WEFT
+from fraytool.kinds import SHAPE_MESH, STRUCT_WARP, STRUCT_WEFT
 from fraytool.sim import multires
 from fraytool.sim.kernels.bodies import bodies_in
 from fraytool.sim.kernels.integrate import velocities_from_positions
@@ -35,6 +35,8 @@ from fraytool.sim.kernels.multires import (
     sync_slaved,
     zero_rows,
 )
+from fraytool.sim.kernels.mesh_contact import STACK
+from fraytool.sim.kernels.multires_mesh import cells_on_meshes, empty_bounds
 from fraytool.sim.kernels.work_split import even_units
 from fraytool.sim.model import Model
 from fraytool.sim.stages.base import (BODIES, FORCES, HANGING, POSITIONS, SLAVED, SLAVED_NEAR_HOT, START_POSITIONS,
@@ -53,7 +55,7 @@ class CoarseWork:
         self._structural = structural
         self._coarse_structural = (lay.coarse_kind == STRUCT_WEFT) | (lay.coarse_kind == STRUCT_WARP)
         self.coarse_alive = np.ones(lay.coarse_kind.shape[0], bool)
-        self.cell_nodes = lay.cell_nodes(model.warp_yarns)
+        self.cell_nodes = lay.cell_nodes
         self.hot = np.zeros(lay.cell_count, bool)
         """Cells with a spring past the refine strain in the last refinement pass (cells_to_refine)."""
         self.new = np.zeros(lay.cell_count, bool)
@@ -112,10 +114,7 @@ class CoarseWork:
         free = multires.free_crossings(lay, refined)
         self.slaved = np.flatnonzero(~free).astype(np.int32)
         # the slaved crossings grouped by the cell they interpolate (SlavedContact's cell test)
-        order = np.argsort(lay.crossing_weight_cell[self.slaved], kind="stable")
-        self.cell_slaved = self.slaved[order]
-        self.cell_start = np.searchsorted(lay.crossing_weight_cell[self.cell_slaved],
-                                          np.arange(lay.cell_count + 1)).astype(np.int64)
+        self.cell_slaved, self.cell_start = multires.slaved_by_cell(lay, self.slaved)
         fine_share = multires.share(lay.spring_cells, refined, at_fine=True)
         self.fine_listed = np.flatnonzero(fine_share > 0.0).astype(np.int32)
         self.fine_share = fine_share[self.fine_listed]
@@ -246,8 +245,9 @@ class SlavedContact:
         # get there, so no slaved crossing is within a cell's width of them: only the other bodies here.
         self.collide = model.body_collide.copy()
         self.collide[moving_bodies] = False
+        self.collide[model.body_shape == SHAPE_MESH] = False  # (Refinement: cells_on_meshes)
         self.any = bool(self.collide.any())
-        self._nodes = np.unique(lay.cell_nodes(model.warp_yarns)).astype(np.int32)
+        self._nodes = np.unique(lay.cell_nodes[lay.cell_whole]).astype(np.int32)
         self._outside = np.zeros(model.crossing_count, np.uint8)
 
     def run(self, state: State, ctx: StepContext, dt_s: float) -> None:
@@ -280,6 +280,10 @@ class Refinement:
         self.model = model
         lay = multires.coarse_layout(model)
         self._centre = np.zeros((multires.moving_body_reach(model, lay)[0].shape[0], 3))
+        self._meshes, self._floor, self._unsigned = multires.colliding_meshes(model)  # (cells_on_meshes)
+        self._bounds = empty_bounds(self._meshes.size, model.crossing_count)
+        self._stack = np.zeros(STACK, np.int64)
+        self._point = np.zeros(3)
 
     def run(self, state: State, ctx: StepContext, dt_s: float) -> None:
         rt, m = ctx.coarse, self.model
@@ -295,6 +299,13 @@ class Refinement:
         count = cells_to_refine(fine, coarse, state.particle_position_m, m.refine_strain, m.refine_band_cells,
                                 lay.cells_x, lay.cells_y, (self._centre, rt.body_reach_m), rt.cell_nodes,
                                 state.coarse_cell_refined, rt.hot, rt.new)
+        if self._meshes.size:  # after the mesh contact of this step (ctx.meshes is at the step's end)
+            cells = (rt.cell_start, rt.cell_slaved, rt.cell_nodes, lay.crossing_cells, lay.crossing_node,
+                     lay.crossing_weight)
+            count += cells_on_meshes((self._meshes, self._floor, self._unsigned), ctx.meshes.meshes_in(m),
+                                     bodies_in(m, state), ctx.meshes.clearance.travel_m, cells,
+                                     state.particle_position_m, state.coarse_cell_refined, self._bounds,
+                                     (self._stack, self._point), rt.new)
         if count:
             # a crossing freed now starts from its interpolation, and its velocity at the step's end
             # is (x - x_prev) / dt of the interpolated positions: the velocity its mass had while lumped

@@ -1,0 +1,120 @@
+"""Coarse cells against a mesh body (fraytool.sim.kernels.multires_mesh; docs/multires.md, "Against a
+mesh"): cloth on a gently curved body stays coarse, cloth on a tight curve refines, and in both no
+crossing ends below the surface by more than the contact margin. Checked with a brute-force signed
+distance (every triangle, its face normal), not the kernels' trees; and with the test switched off, the
+coarse cloth on the small ball does sink in (so the check can fail)."""
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+import pytest
+
+from fraytool.geometry.triangles import closest_on_triangle
+from fraytool.sim import multires
+from fraytool.sim.builder import ModelBuilder
+from fraytool.sim.solver import SolverExplicitPBD
+
+trimesh = pytest.importorskip("trimesh")
+
+THICKNESS = 0.0008
+MARGIN = 0.5 * THICKNESS
+SPACING = 0.004
+
+
+@nb.njit(cache=True)
+def _signed_distances(points, vertices, triangles, out):
+    """Signed distance of each point from a closed mesh: the nearest of all triangles, the sign from its
+    face normal (outward for a counter-clockwise winding seen from outside)."""
+    for i in range(points.shape[0]):
+        best, sign = np.inf, 1.0
+        x = points[i]
+        for j in range(triangles.shape[0]):
+            a, b, c = vertices[triangles[j, 0]], vertices[triangles[j, 1]], vertices[triangles[j, 2]]
+            qx, qy, qz, _, _, _ = closest_on_triangle(x[0], x[1], x[2], a[0], a[1], a[2], b[0], b[1], b[2],
+                                                      c[0], c[1], c[2])
+            d = np.sqrt((qx - x[0]) ** 2 + (qy - x[1]) ** 2 + (qz - x[2]) ** 2)
+            if d < best:
+                n = np.cross(b - a, c - a)
+                best = d
+                sign = 1.0 if (x[0] - qx) * n[0] + (x[1] - qy) * n[1] + (x[2] - qz) * n[2] >= 0.0 else -1.0
+        out[i] = sign * best
+
+
+def _drop_on_ball(radius_m: float, factor: int, steps: int = 700):
+    """A 32 x 32 cloth at `factor` dropped flat onto the top of a static icosphere of radius_m (its top at
+    y = 0), stepped `steps` times; returns (model, completed state, the sphere's vertices and faces)."""
+    ball = trimesh.creation.icosphere(subdivisions=4, radius=radius_m)
+    vertices = np.asarray(ball.vertices) - np.array([0.0, radius_m, 0.0])
+    faces = np.asarray(ball.faces)
+    b = ModelBuilder(seed=1, gravity_m_s2=(0.0, -9.81, 0.0))
+    n = 32
+    half = 0.5 * (n - 1) * SPACING
+    b.add_cloth(warp_yarns=n, weft_yarns=n, spacing_m=SPACING, thickness_m=THICKNESS, mass_per_crossing_kg=2e-5,
+                structural_n_per_m=20.0, bend_n_per_m=0.05, shear_n_per_m=1.0, origin_m=(-half, 0.002, -half))
+    b.add_mesh("ball", vertices_m=vertices[None], triangles=faces, key_times_s=[0.0], friction=0.3)
+    b.set_multires(factor=factor, band_cells=1)
+    model = b.finalize()
+    state, solver = model.state(), SolverExplicitPBD(model)
+    for _ in range(steps):
+        solver.step(state, 2e-4)
+    solver.complete(state, 2e-4)
+    return model, state, vertices, faces
+
+
+def _depths(model, state, vertices, faces) -> np.ndarray:
+    d = np.empty(model.crossing_count)
+    _signed_distances(state.particle_position_m[:model.crossing_count], vertices, faces, d)
+    return d
+
+
+def test_cloth_resting_on_a_large_ball_stays_coarse_and_outside():
+    """Radius 0.3 m under cells of 8 mm (factor 2): a cell's middle sags about D^2 / 4R = 0.1 mm, under
+    the margin, so the cells on the ball rest on it through their nodes and stay coarse."""
+    model, state, vertices, faces = _drop_on_ball(0.3, factor=2)
+    lay = multires.coarse_layout(model)
+    depth = _depths(model, state, vertices, faces)
+    assert depth.min() > -MARGIN, depth.min()
+    touching = depth < 3 * MARGIN
+    assert touching.sum() > 100  # the cloth lies on the ball
+    coarse = ~state.coarse_cell_refined
+    slaved_touching = touching & ~multires.free_crossings(lay, state.coarse_cell_refined)
+    assert coarse.sum() > 0.5 * coarse.size and slaved_touching.sum() > 50
+
+
+def test_cloth_on_a_small_ball_refines_where_it_wraps_and_stays_outside():
+    """Radius 0.02 m under cells of 16 mm (factor 4): a cell's middle would sag about 6 mm into it. The
+    cells over the ball refine; no crossing ends below the surface by more than the margin."""
+    model, state, vertices, faces = _drop_on_ball(0.02, factor=4)
+    lay = multires.coarse_layout(model)
+    depth = _depths(model, state, vertices, faces)
+    assert depth.min() > -MARGIN, depth.min()
+    near = depth < 3 * MARGIN
+    free = multires.free_crossings(lay, state.coarse_cell_refined)
+    assert near.sum() > 20 and free[near].all()
+    assert (~state.coarse_cell_refined).any()  # the corners, away from the ball, are still coarse
+
+
+def test_without_the_mesh_test_the_coarse_cloth_sinks_into_a_small_ball(monkeypatch):
+    import fraytool.sim.multires as layout_module
+    import fraytool.sim.stages.multires as stages
+
+    monkeypatch.setattr(stages, "cells_on_meshes", lambda *args: 0)
+    monkeypatch.setattr(layout_module, "refine_on_meshes_at_start", lambda *args: None)
+    model, state, vertices, faces = _drop_on_ball(0.02, factor=4)
+    assert _depths(model, state, vertices, faces).min() < -4 * MARGIN
+
+
+def test_mesh_contact_moves_no_segment_with_a_slaved_end():
+    """The segment pass takes the yarn segments between free crossings only: one with a slaved end would be
+    moved by its free end alone, with an unbounded lever near the slaved end."""
+    from fraytool.sim.stages.mesh_contact import MeshContact
+
+    model, state, _, _ = _drop_on_ball(0.3, factor=2, steps=5)
+    solver = SolverExplicitPBD(model)
+    stage = next(s for s in solver.stages if type(s) is MeshContact)
+    solver.context.coarse.ensure(state)
+    slaved = np.zeros(model.particle_count, bool)
+    slaved[solver.context.slaved(state)] = True
+    assert slaved.any()
+    segments = stage.segments(state, solver.context)
+    assert segments.shape[0] > 0 and not slaved[segments].any()
