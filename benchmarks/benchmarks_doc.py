@@ -32,7 +32,12 @@ ROWS = [
     ("fold_pile", ["scenes/fold_pile.toml"], 48, 4),
     ("mannequin_snag (a 3750-triangle mesh body)", ["scenes/mannequin_snag.toml"], 96, 4),
     ("shirt_snag (4 sewn panels on a 2,352-triangle moving figure)", ["scenes/shirt_snag.toml"], 72, 4),
+    ("shirt_snag, coarse base model at factor 2", ["scenes/shirt_snag.toml", "--set",
+                                                   "cloth.0.multires.factor=2"], 72, 4),
     ("shirt_snag, render 1280x720", ["scenes/shirt_snag.toml", "--render"], 12, 2),
+    ("round_tablecloth (a round panel torn by a ball)", ["scenes/round_tablecloth.toml"], 72, 4),
+    ("round_tablecloth, coarse base model at factor 4", ["scenes/round_tablecloth.toml", "--set",
+                                                         "cloth.multires.factor=4"], 72, 4),
     ("flag_tear (gusting wind, air drag, an orbiting camera)", ["scenes/flag_tear.toml"], 144, 4),
     ("flag_tear, render 1280x720", ["scenes/flag_tear.toml", "--render"], 12, 2),
     ("tablecloth_tear (first frames)", ["scenes/tablecloth_tear.toml"], 12, 2),
@@ -85,7 +90,9 @@ def main() -> int:
               "scripts: `benchmarks/ccd_bench.py` (edge-edge CCD), `benchmarks/mesh_contact.py` (a 20k and a 200k "
               "triangle mesh under fig7's cloth), `benchmarks/mesh_share.py` (mesh contact's share of a frame, "
               "one and two threads, mannequin_snag and a cloth draped over the mannequin), "
-              "`benchmarks/garment_scale.py` (shirt_snag at 1 mm yarn spacing), `benchmarks/memory_profile.py` (memory by "
+              "`benchmarks/garment_scale.py` (shirt_snag at 1 mm yarn spacing), `benchmarks/multires_panels.py` (the "
+              "coarse base model on a round panel, a garment and a cloth at rest on a mesh: speed-up, what stays "
+              "coarse, tear figures), `benchmarks/memory_profile.py` (memory by "
               "phase), `benchmarks/batch_scaling.py` (the farm), `benchmarks/frames_identical.py` (a refactor "
               "leaves the frames bit-identical).", ""]
     args.out.write_text("\n".join(lines))

@@ -2,13 +2,15 @@
 yarns a centimetre; the scene's own is 5 mm) for a few frames. Prints the crossings, the step, the time per frame
 simulated and rendered, and the peak resident memory.
 
-    python benchmarks/garment_scale.py [--spacing-mm 1.0] [--frames 2] [--render]
+    python benchmarks/garment_scale.py [--spacing-mm 1.0] [--frames 2] [--render] [--factor K]
 
 The cloth is the same material at a finer weave: every panel's and seam's spacing is the new one, a crossing's
 mass scales with its area (spacing^2), spring stiffnesses per spring stay (a membrane's stiffness per spring of a
 square lattice does not depend on its spacing), and the step shrinks with the spacing (the explicit bound
 2 / omega_max, omega ~ sqrt(k / m) ~ 1 / spacing) with the frame's simulated time kept. The frames simulated are
-the sewing pre-roll's first ones, where the whole garment lies against the moving figure."""
+the sewing pre-roll's first ones, where the whole garment lies against the moving figure. With --factor K the
+garment starts as the coarse base model ([cloth.multires] factor = K, docs/multires.md "Shaped panels and
+garments"), and each frame also prints the share of its crossings still slaved (coarse)."""
 from __future__ import annotations
 
 import argparse
@@ -41,20 +43,33 @@ def overrides(spacing_m: float, spec) -> list[tuple[str, object]]:
     return out
 
 
+def _coarse(sim) -> str:
+    """'; N % of the crossings slaved' for a coarse model, else ''."""
+    if sim.model.coarse_factor == 1:
+        return ""
+    from fraytool.sim import multires
+
+    free = multires.free_crossings(multires.coarse_layout(sim.model), sim.state.coarse_cell_refined)
+    return f"; {1.0 - free.mean():.0%} of the crossings slaved"
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--spacing-mm", type=float, default=1.0)
     ap.add_argument("--frames", type=int, default=2, help="frames simulated after frame 0")
     ap.add_argument("--render", action="store_true", help="also render the frames at 1280x720 (headless GL)")
+    ap.add_argument("--factor", type=int, default=1, help="[cloth.multires] factor (1, 2, 4 or 8; default 1)")
     args = ap.parse_args()
     base = load_scene(str(ROOT / "scenes" / "shirt_snag.toml"))
-    spec = load_scene(str(ROOT / "scenes" / "shirt_snag.toml"), overrides(1e-3 * args.spacing_mm, base))
+    spec = load_scene(str(ROOT / "scenes" / "shirt_snag.toml"), overrides(1e-3 * args.spacing_mm, base)
+                      + [("cloth.0.multires.factor", args.factor)])
     t0 = time.perf_counter()
     sim = Simulation(spec)
     build_s = time.perf_counter() - t0
     m = sim.model
-    print(f"shirt_snag at {args.spacing_mm:g} mm: {m.crossing_count:,} crossings, {m.spring_count:,} springs, "
-          f"step {spec.time.step_s:.3g} s x {spec.time.steps_per_frame} a frame; built in {build_s:.1f} s", flush=True)
+    print(f"shirt_snag at {args.spacing_mm:g} mm, factor {args.factor}: {m.crossing_count:,} crossings, "
+          f"{m.spring_count:,} springs, step {spec.time.step_s:.3g} s x {spec.time.steps_per_frame} a frame; built in "
+          f"{build_s:.1f} s" + _coarse(sim), flush=True)
     times = []
     for f in range(args.frames):
         t0 = time.perf_counter()
@@ -63,8 +78,8 @@ def main() -> int:
         stages = sim.solver.stage_s
         top = sorted(stages.items(), key=lambda kv: -kv[1])[:3]
         print(f"  frame {f + 1}: {times[-1]:.1f} s simulated (so far: " +
-              ", ".join(f"{k} {v:.1f} s" for k, v in top) + f"); peak RSS {peak_rss_bytes() / 2 ** 30:.2f} GiB",
-              flush=True)
+              ", ".join(f"{k} {v:.1f} s" for k, v in top) + f"); peak RSS {peak_rss_bytes() / 2 ** 30:.2f} GiB"
+              + _coarse(sim), flush=True)
     render_s = None
     if args.render:  # frame 0 (the garment whole) at 1280x720, through `fraytool bench --render`'s timing
         from fraytool.commands.render_bench import render_stage_timings

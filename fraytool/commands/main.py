@@ -368,6 +368,7 @@ def cmd_check(args) -> int:
         layout = multires.coarse_layout(model)
         refined = model.state().coarse_cell_refined
         info.update({"coarse_factor": model.coarse_factor, "coarse_cells": layout.cell_count,
+                     "coarse_whole_cells": int(layout.cell_whole.sum()),
                      "coarse_nodes": int(layout.crossing_is_node.sum()),
                      "cells_refined_at_start": int(refined.sum()),
                      "free_crossings_at_start": int(multires.free_crossings(layout, refined).sum()),

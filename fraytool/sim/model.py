@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import math
 from dataclasses import MISSING, dataclass, field, fields
+from typing import Optional
+
 import numpy as np
 
 from fraytool.kinds import SHEAR_TWIN, STITCH
@@ -41,13 +43,14 @@ def sewing_progress(time_s: np.ndarray | float, sew_s: np.ndarray) -> np.ndarray
     return np.where(sew_s > 0.0, u * u * (3.0 - 2.0 * u), 1.0)
 
 
-def sewn_rest_length_m(model, time_s: float) -> np.ndarray:
-    """Every spring's rest length at `time_s` with the seams sewn over time pulled in so far: from the stitch's
-    length where the panels are placed to its rest length (Model.spring_sew_s)."""
-    p = sewing_progress(time_s, model.spring_sew_s)
-    return np.where(model.spring_sew_s > 0.0,
-                    model.spring_sew_start_length_m + p * (model.spring_rest_length_m - model.spring_sew_start_length_m),
-                    model.spring_rest_length_m)
+def sewn_rest_length_m(model, time_s: float, springs: Optional[np.ndarray] = None) -> np.ndarray:
+    """Every spring's rest length (or the `springs` slots' only) at `time_s` with the seams sewn over time
+    pulled in so far: from the stitch's length where the panels are placed to its rest length
+    (Model.spring_sew_s)."""
+    pick = slice(None) if springs is None else springs
+    sew_s, start, rest = model.spring_sew_s[pick], model.spring_sew_start_length_m[pick], model.spring_rest_length_m[pick]
+    p = sewing_progress(time_s, sew_s)
+    return np.where(sew_s > 0.0, start + p * (rest - start), rest)
 
 
 def _empty_mesh(name: str) -> np.ndarray:

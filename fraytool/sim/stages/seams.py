@@ -71,7 +71,7 @@ class Sewing:
     def run(self, state: State, ctx: StepContext, dt_s: float) -> None:
         if state.time_s > self.until_s:
             return  # sewn: the stitches are ordinary ones (a split may rescale their rest lengths)
-        state.spring_rest_length_m[self.sewn] = sewn_rest_length_m(self.model, state.time_s + dt_s)[self.sewn]
+        state.spring_rest_length_m[self.sewn] = sewn_rest_length_m(self.model, state.time_s + dt_s, self.sewn)
 
     def summary(self, state: State) -> dict:
         return {}
