@@ -45,6 +45,8 @@ class Mutation:
 M = Mutation
 MESH_TESTS = ("tests/test_mesh_magnitudes.py", "tests/test_mesh_check.py", "tests/test_mesh_bodies.py")
 CLEARANCE_TESTS = ("tests/test_mesh_clearance.py",)
+MULTIRES_MESH_TESTS = ("tests/test_multires_mesh.py",)
+MULTIRES_PANEL_TESTS = ("tests/test_multires_panels.py",)
 SEAM_TESTS = ("tests/test_seams.py",)
 GARMENT_TESTS = ("tests/test_sewing.py", "tests/test_surface_pins.py")
 AIR_TESTS = ("tests/test_wind.py",)
@@ -319,13 +321,25 @@ MUTATIONS = [
       "        changed = key_changes(simulation_keys(old_spec), simulation_keys(spec))", "        changed = []",
       OUTPUT_TESTS),
     M("farm", "a lost worker's attempt recorded as a success", "fraytool/farm/watch.py",
-      "while self._close(key, None, start, LOST):", "while self._close(key, None, start, OK):", FARM_TESTS),    M("mesh", "a clearance bound that forgets the mesh's travel", "fraytool/sim/kernels/mesh_clearance.py",
+      "while self._close(key, None, start, LOST):", "while self._close(key, None, start, OK):", FARM_TESTS),
+    M("mesh", "a clearance bound that forgets the mesh's travel", "fraytool/sim/kernels/mesh_clearance.py",
       "    return d - r - (clear.travel_m[m] - clear.travel_at_m[m, p])", "    return d - r", CLEARANCE_TESTS),
     M("mesh", "a segment's clearance without its length", "fraytool/sim/kernels/mesh_contact.py",
       "return 0.5 * (da + db - length) >", "return 0.5 * (da + db) >", CLEARANCE_TESTS),
     M("mesh", "a clearance bound from the path's end only", "fraytool/sim/kernels/mesh_clearance.py",
       "    r = max(_dist(x0, y0, z0, ref, p), _dist(x1, y1, z1, ref, p))", "    r = _dist(x1, y1, z1, ref, p)",
       CLEARANCE_TESTS),
+    M("multires", "a coarse cell's mesh bound that forgets the mesh's travel", "fraytool/sim/kernels/multires_mesh.py",
+      "                    - (travel_m[m] - bounds_inout.group_travel_at_m[mi, c]) > floor:",
+      "                    - 0.0 > floor:", MULTIRES_MESH_TESTS),
+    M("multires", "a coarse cell's mesh bound that forgets its nodes' moves", "fraytool/sim/kernels/multires_mesh.py",
+      "            if bounds_inout.group_value_m[mi, c] - math.sqrt(moved2) \\",
+      "            if bounds_inout.group_value_m[mi, c] - 0.0 * moved2 \\", MULTIRES_MESH_TESTS),
+    M("multires", "cells an outline cuts may be coarse", "fraytool/sim/multires.py",
+      "    refined |= ~layout.cell_whole  # a panel's outline, mask or the grid between panels",
+      "    pass", MULTIRES_PANEL_TESTS),
+    M("multires", "a seam's crossings start slaved", "fraytool/sim/multires.py",
+      "    refined[sewn[sewn >= 0]] = True", "    pass", MULTIRES_PANEL_TESTS),
 ]
 
 

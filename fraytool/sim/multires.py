@@ -395,7 +395,8 @@ def refine_on_meshes_at_start(model, layout: CoarseLayout, state) -> None:
     cells = (start, grouped, layout.cell_nodes, layout.crossing_cells, layout.crossing_node, layout.crossing_weight)
     cells_on_meshes((meshes, floor, unsigned), geometry.meshes_in(model), bodies_in(model, state),
                     geometry.clearance.travel_m, cells, state.particle_position_m, refined,
-                    empty_bounds(meshes.size, model.crossing_count), (np.zeros(STACK, np.int64), np.zeros(3)), new)
+                    empty_bounds(meshes.size, model.crossing_count, layout.cell_count),
+                    (np.zeros(STACK, np.int64), np.zeros(3), np.zeros((4, 3))), new)
     refined |= new
 
 

@@ -19,8 +19,10 @@ step, after contact, every slaved crossing is checked against each colliding mes
 **Bounds.** The (signed) distance is 1-Lipschitz in the point and in the surface, as the clearance of the
 mass pass (fraytool.sim.kernels.mesh_clearance): a crossing queried at distance v, at body-frame point
 `reference`, is now at least v - |l - reference| - (the mesh's travel since) away, on the same side. While
-that stays over the floor (0, or the unsigned threshold) it is not queried again. Cloth resting on a body
-moves little from step to step, so most slaved crossings are queried once in many steps.
+that stays over the floor (0, or the unsigned threshold) it is not queried again. A cell keeps the least of its
+crossings' bounds the same way, against its nodes' moves (a slaved crossing moves no farther than the farthest
+node), and is passed over whole while that stays over the floor. Cloth resting on a body moves little from step
+to step, so most cells are passed over and most slaved crossings are queried once in many steps.
 
 So cloth that lies on a smooth body stays coarse; where it wraps round a tighter curve than its cells
 can follow (the middle of a cell sags into the surface by about D^2 / 4R on a radius R), it refines.
@@ -96,16 +98,21 @@ def _mark_holding(s, crossing_cells, refined, new_inout):
 
 
 BoundsInOut = namedtuple("BoundsInOut", [
-    "value_m",       # (M, C): the slaved crossing's distance from mesh m when last queried, signed (negative
-                     # inside) on a mesh tested by depth; -inf: never queried
-    "reference_m",   # (M, C, 3): where it was then, in the mesh body's frame
-    "travel_at_m",   # (M, C): the mesh's travel then (MeshGeometry.clearance.travel_m)
+    "value_m",             # (M, C): the slaved crossing's distance from mesh m when last queried, signed
+                           # (negative inside) on a mesh tested by depth; -inf: never queried
+    "reference_m",         # (M, C, 3): where it was then, in the mesh body's frame
+    "travel_at_m",         # (M, C): the mesh's travel then (MeshGeometry.clearance.travel_m)
+    "group_value_m",       # (M, cells): the least of the bounds of a cell's slaved crossings when they were
+                           # last gone through; -inf: never
+    "group_reference_m",   # (M, cells, 4, 3): where the cell's nodes were then, in the mesh body's frame
+    "group_travel_at_m",   # (M, cells): the mesh's travel then
 ])
 
 
-def empty_bounds(meshes: int, crossings: int) -> BoundsInOut:
+def empty_bounds(meshes: int, crossings: int, cells: int) -> BoundsInOut:
     return BoundsInOut(np.full((meshes, crossings), -np.inf), np.zeros((meshes, crossings, 3)),
-                       np.zeros((meshes, crossings)))
+                       np.zeros((meshes, crossings)), np.full((meshes, cells), -np.inf),
+                       np.zeros((meshes, cells, 4, 3)), np.zeros((meshes, cells)))
 
 
 @nb.njit(cache=True, fastmath=False)
@@ -118,37 +125,51 @@ def cells_on_meshes(
     # (the slaved crossings by the cell they interpolate: cell_start, cell_slaved; the cells' nodes; each
     # crossing's cells, nodes and weights)
     cells_in,
-    # state in; in: refined cells; in/out: the bounds (BoundsInOut); scratch: (BVH stack, a point)
+    # state in; in: refined cells; in/out: the bounds (BoundsInOut); scratch: (BVH stack, a point, the
+    # nodes of a cell (4, 3))
     particle_position_m, refined, bounds_inout, scratch_inout,
     # in/out: cells to refine now (the ones found are added)
     new_inout,
 ):
-    """Mark in `new` the coarse cells that a mesh makes refine now (module docstring); returns how many."""
+    """Mark in `new` the coarse cells that a mesh makes refine now (module docstring); returns how many.
+
+    A cell's slaved crossings are convex combinations of its nodes, so none has moved farther than the
+    farthest node: while the least of their bounds, less that move and the mesh's travel, stays over the
+    floor, the cell is passed over whole."""
     meshes, threshold_m, unsigned = tested_in
     cell_start, cell_slaved, cell_nodes, crossing_cells, crossing_node, crossing_weight = cells_in
-    stack_out, point_out = scratch_inout
+    stack_out, point_out, nodes_out = scratch_inout
     count = 0
     for c in range(cell_start.shape[0] - 1):
         if cell_start[c] == cell_start[c + 1]:
             continue
-        size2 = 0.0
-        for a in range(4):
-            pa = cell_nodes[c, a]
-            for b in range(a + 1, 4):
-                pb = cell_nodes[c, b]
-                d2 = 0.0
-                for r in range(3):
-                    d2 += (particle_position_m[pb, r] - particle_position_m[pa, r]) ** 2
-                size2 = max(size2, d2)
-        size = math.sqrt(size2) * (1.0 + 1e-12)
         for mi in range(meshes.shape[0]):
             m = meshes[mi]
             k = meshes_in.body[m]
             rot, centre = bodies_in.rotation[k], bodies_in.position_m[k]
             floor = threshold_m[mi]
-            # a slaved point below the surface is within `size` of it (an outside node is that near), so a
-            # query this far finds its triangle
+            moved2 = 0.0
+            for q in range(4):
+                p = cell_nodes[c, q]
+                l0, l1, l2 = to_body(rot, centre, particle_position_m[p, 0], particle_position_m[p, 1],
+                                     particle_position_m[p, 2])
+                nodes_out[q, 0], nodes_out[q, 1], nodes_out[q, 2] = l0, l1, l2
+                moved2 = max(moved2, (l0 - bounds_inout.group_reference_m[mi, c, q, 0]) ** 2
+                             + (l1 - bounds_inout.group_reference_m[mi, c, q, 1]) ** 2
+                             + (l2 - bounds_inout.group_reference_m[mi, c, q, 2]) ** 2)
+            if bounds_inout.group_value_m[mi, c] - math.sqrt(moved2) \
+                    - (travel_m[m] - bounds_inout.group_travel_at_m[mi, c]) > floor:
+                continue  # no slaved crossing of the cell can have come nearer than the floor
+            # the cell's size: a slaved point below the surface is within it of the surface (an outside node
+            # is that near), so a query this far finds its triangle
+            size2 = 0.0
+            for a in range(4):
+                for b in range(a + 1, 4):
+                    size2 = max(size2, (nodes_out[b, 0] - nodes_out[a, 0]) ** 2 + (nodes_out[b, 1] - nodes_out[a, 1]) ** 2
+                                + (nodes_out[b, 2] - nodes_out[a, 2]) ** 2)
+            size = math.sqrt(size2) * (1.0 + 1e-12)
             reach = (max(size, floor) + floor) * (1.0 + 1e-9) + 1e-12
+            least = np.inf
             for i in range(cell_start[c], cell_start[c + 1]):
                 s = cell_slaved[i]
                 x0 = x1 = x2 = 0.0
@@ -164,17 +185,25 @@ def cells_on_meshes(
                 left = bounds_inout.value_m[mi, s] - math.sqrt(e0 * e0 + e1 * e1 + e2 * e2) \
                     - (travel_m[m] - bounds_inout.travel_at_m[mi, s])
                 if left > floor:
+                    least = min(least, left)
                     continue  # it cannot have come nearer than the floor since it was last queried
                 point_out[0], point_out[1], point_out[2] = l0, l1, l2
                 d, inside = signed_distance(m, meshes_in, point_out, reach, stack_out)
                 value = -d if inside and not unsigned[mi] else d
                 if value <= floor:
-                    count += _mark_holding(s, crossing_cells, refined, new_inout)
+                    count += _mark_holding(s, crossing_cells, refined, new_inout)  # (free from the next step)
                     bounds_inout.value_m[mi, s] = -np.inf
                 else:
-                    bounds_inout.value_m[mi, s] = value * (1.0 - 1e-12)
+                    value *= 1.0 - 1e-12
+                    least = min(least, value)
+                    bounds_inout.value_m[mi, s] = value
                     bounds_inout.reference_m[mi, s, 0] = l0
                     bounds_inout.reference_m[mi, s, 1] = l1
                     bounds_inout.reference_m[mi, s, 2] = l2
                     bounds_inout.travel_at_m[mi, s] = travel_m[m]
+            bounds_inout.group_value_m[mi, c] = least
+            for q in range(4):
+                for r in range(3):
+                    bounds_inout.group_reference_m[mi, c, q, r] = nodes_out[q, r]
+            bounds_inout.group_travel_at_m[mi, c] = travel_m[m]
     return count

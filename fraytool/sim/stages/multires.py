@@ -281,7 +281,8 @@ class Refinement:
         lay = multires.coarse_layout(model)
         self._centre = np.zeros((multires.moving_body_reach(model, lay)[0].shape[0], 3))
         self._meshes, self._floor, self._unsigned = multires.colliding_meshes(model)  # (cells_on_meshes)
-        self._bounds = empty_bounds(self._meshes.size, model.crossing_count)
+        self._bounds = empty_bounds(self._meshes.size, model.crossing_count, lay.cell_count)
+        self._nodes_scratch = np.zeros((4, 3))
         self._stack = np.zeros(STACK, np.int64)
         self._point = np.zeros(3)
 
@@ -305,7 +306,7 @@ class Refinement:
             count += cells_on_meshes((self._meshes, self._floor, self._unsigned), ctx.meshes.meshes_in(m),
                                      bodies_in(m, state), ctx.meshes.clearance.travel_m, cells,
                                      state.particle_position_m, state.coarse_cell_refined, self._bounds,
-                                     (self._stack, self._point), rt.new)
+                                     (self._stack, self._point, self._nodes_scratch), rt.new)
         if count:
             # a crossing freed now starts from its interpolation, and its velocity at the step's end
             # is (x - x_prev) / dt of the interpolated positions: the velocity its mass had while lumped
