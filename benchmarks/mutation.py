@@ -340,6 +340,13 @@ MUTATIONS = [
       "    pass", MULTIRES_PANEL_TESTS),
     M("multires", "a seam's crossings start slaved", "fraytool/sim/multires.py",
       "    refined[sewn[sewn >= 0]] = True", "    pass", MULTIRES_PANEL_TESTS),
+    M("multires", "a thin smooth mesh tested by depth", "fraytool/sim/multires.py",
+      "        return tightest < THIN_SEGMENTS * segment", "        return False", MULTIRES_MESH_TESTS),
+    M("multires", "the free ends of segments with a slaved end not tested", "fraytool/sim/kernels/multires_mesh.py",
+      "        for i in range(mixed_free.shape[0]):", "        for i in range(0):", MULTIRES_MESH_TESTS),
+    M("multires", "a coarse bend spring across a slit", "fraytool/sim/multires.py",
+      "        straight = np.where(on_row, row_count, np.where(ia == ib, col_count, 0)) == 0",
+      "        straight = np.ones(ia.shape, bool)", MULTIRES_PANEL_TESTS),
 ]
 
 

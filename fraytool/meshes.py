@@ -135,3 +135,27 @@ def vertex_normals(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     n[length == 0.0] = (0.0, 1.0, 0.0)
     length[length == 0.0] = 1.0
     return n / length[:, None]
+
+
+def tightest_bend_radius_m(vertices: np.ndarray, triangles: np.ndarray) -> float:
+    """The smallest radius of curvature [m] across the mesh's edges shared by two faces: the distance
+    between the faces' centroids over the angle between their normals (inf for a flat mesh). A thin rod's
+    radius comes out about its own; a smooth body's, about its curvature's."""
+    a, b, c = (vertices[triangles[:, q]] for q in range(3))
+    normal = np.cross(b - a, c - a)
+    length = np.linalg.norm(normal, axis=1)
+    normal = normal / np.where(length > 0.0, length, 1.0)[:, None]
+    centroid = (a + b + c) / 3.0
+    edges = np.sort(np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]]), axis=1)
+    face = np.tile(np.arange(triangles.shape[0]), 3)
+    order = np.lexsort((edges[:, 1], edges[:, 0]))
+    edges, face = edges[order], face[order]
+    pair = np.flatnonzero((edges[1:] == edges[:-1]).all(axis=1))  # consecutive rows: one edge, two faces
+    if not pair.size:
+        return float("inf")
+    f1, f2 = face[pair], face[pair + 1]
+    angle = np.arccos(np.clip((normal[f1] * normal[f2]).sum(axis=1), -1.0, 1.0))
+    distance = np.linalg.norm(centroid[f1] - centroid[f2], axis=1)
+    turned = angle > 1e-9
+    return float((distance[turned] / angle[turned]).min()) if turned.any() else float("inf")
+

@@ -178,3 +178,45 @@ def test_a_refinement_keeps_whether_a_changing_attachment_holds(how):
     work.refine(state, new)
     after = state.particle_inv_mass[held] == 0.0
     assert after[0] == (how == "catch_s") and (after[1:] == before[1:]).all()
+
+
+def test_no_coarse_spring_bridges_a_slit_of_a_shaped_panel():
+    """A panel with a slot one spacing wide cut into it: the yarn model has no yarn or bend spring across the
+    slot, so no coarse spring may run across a place without a crossing (a coarse bend spring spans two cells)."""
+    from fraytool.kinds import BEND_WARP, BEND_WEFT
+
+    h = 0.0005
+    slot = [[-h, -h], [0.034 + h, -h], [0.034 + h, 0.026], [0.038 - h, 0.026], [0.038 - h, -h], [0.048 + h, -h],
+            [0.048 + h, 0.048 + h], [-h, 0.048 + h]]
+    b = ModelBuilder(seed=1)
+    b.add_cloth(spacing_m=SPACING_M, thickness_m=0.0006, mass_per_crossing_kg=1e-5, structural_n_per_m=20.0,
+                bend_n_per_m=5.0, shear_n_per_m=2.0, outline_m=slot, grain_deg=0.0)
+    b.set_multires(factor=2, band_cells=1)
+    model = b.finalize()
+    grid = model.crossing_grid()
+    assert (grid < 0).sum() > 5  # the slot is there
+    lay = multires.coarse_layout(model)
+    gi, gj = model.crossing_grid_i, model.crossing_grid_j
+    checked = 0
+    for s in range(lay.coarse_kind.size):
+        a, b_ = lay.coarse_a[s], lay.coarse_b[s]
+        if lay.coarse_kind[s] in (BEND_WEFT, STRUCT_WEFT):
+            places = grid[gj[a], gi[a]:gi[b_] + 1]
+        elif lay.coarse_kind[s] in (BEND_WARP, STRUCT_WARP):
+            places = grid[gj[a]:gj[b_] + 1, gi[a]]
+        else:
+            continue
+        checked += 1
+        assert (places >= 0).all(), (lay.coarse_kind[s], gi[a], gj[a], gi[b_], gj[b_])
+    assert checked > 20 and (lay.coarse_kind == BEND_WEFT).any()
+
+
+def test_a_panel_with_no_whole_cell_starts_refined_with_a_moving_body():
+    b = ModelBuilder(seed=1)
+    b.add_cloth(spacing_m=SPACING_M, thickness_m=0.0006, mass_per_crossing_kg=1e-5, structural_n_per_m=20.0,
+                outline_m=_circle(0.0105, 32, centre=(0.0125, 0.0125)), grain_deg=0.0)
+    b.add_sphere("ball", radius_m=0.01, position_m=(0.0, 0.05, 0.0), motion="kinematic", velocity_m_s=(0, -1, 0))
+    b.set_multires(factor=4)
+    model = b.finalize()
+    assert not multires.coarse_layout(model).cell_whole.any()
+    assert model.state().coarse_cell_refined.all()

@@ -2,8 +2,10 @@
 
 The paper (Metaaphanon et al., §7) leaves "simulating the untorn parts at a coarser resolution" as
 future work. Here the cloth's crossings keep their slots, and the grid is cut into **cells** of
-factor x factor yarn spacings by coarse lines at every factor-th yarn (and the last yarn). A cell is
-either *coarse* or *refined*; cells only refine, never coarsen.
+factor x factor yarn spacings by coarse lines at every factor-th yarn (and the last yarn) of each panel
+(a panel is a block of the Model's block-diagonal grid; fraytool.sim.cloth_assembly). A cell is either
+*coarse* or *refined*; cells only refine, never coarsen. Only a *whole* cell (a crossing at every place of
+it) can be coarse: the cells an outline or a mask cuts, and the grid between panels, are refined always.
 
 - The crossings on coarse lines' intersections are the **nodes**; they are always simulated.
 - A crossing is **free** (simulated) when it is a node or every cell whose closed rectangle holds it
@@ -42,13 +44,15 @@ class CoarseLayout:
 
     factor: int
     lines_i: np.ndarray
-    """Warp yarns (columns) on coarse lines, ascending, from 0 to warp_yarns - 1, int64."""
+    """Grid columns on coarse lines, ascending: each panel's every factor-th column from its first, and its
+    last (panel_lines; a rectangle's 0, factor, ..., warp_yarns - 1), int64."""
     lines_j: np.ndarray
-    """Weft yarns (rows) on coarse lines, ascending, from 0 to weft_yarns - 1, int64."""
+    """Grid rows on coarse lines, ascending, likewise, int64."""
     crossing_cells: np.ndarray
     """Cells whose closed rectangle holds each crossing, -1 padded, shape (crossing_count, 4), int32."""
     crossing_node: np.ndarray
-    """Nodes each crossing interpolates (bilinear in its cell), shape (crossing_count, 4), int32."""
+    """Nodes each crossing interpolates (bilinear in a whole cell holding it, crossing_weight_cell), shape
+    (crossing_count, 4), int32; a crossing in no whole cell (always free) names itself, with weight 1."""
     crossing_weight: np.ndarray
     """Their weights (sum 1; a node weighs 1 on itself), shape (crossing_count, 4), float64."""
     crossing_is_node: np.ndarray
@@ -73,8 +77,9 @@ class CoarseLayout:
     """True where every place of the cell's closed rectangle holds a crossing of one panel: only such a
     cell can be coarse. A cell that a shaped panel's outline or mask crosses, or that lies between two
     panels' blocks of the grid, is refined from the start (initial_refined). Shape (cell_count,), bool."""
-    cell_node: np.ndarray
-    """See cell_nodes."""
+    cell_nodes: np.ndarray
+    """The four nodes of every cell, (i0, j0), (i1, j0), (i0, j1), (i1, j1) as crossings (the order of
+    crossing_node), -1 for a cell that is not whole, shape (cell_count, 4), int64."""
 
     @property
     def cells_x(self) -> int:
@@ -87,13 +92,6 @@ class CoarseLayout:
     @property
     def cell_count(self) -> int:
         return self.cells_x * self.cells_y
-
-    @property
-    def cell_nodes(self) -> np.ndarray:
-        """The four nodes of every cell, (i0, j0), (i1, j0), (i0, j1), (i1, j1) as crossings (the order of
-        crossing_node), -1 where the grid has no crossing (a cell that is not `cell_whole`), shape
-        (cell_count, 4), int64."""
-        return self.cell_node
 
 
 def coarse_lines(yarns: int, factor: int) -> np.ndarray:
@@ -227,7 +225,7 @@ def _build_layout(model) -> CoarseLayout:
                         crossing_weight=weight, crossing_is_node=is_node, crossing_weight_cell=weight_cell, spring_cells=spring_cells,
                         coarse_kind=ck, coarse_a=ca, coarse_b=cb, coarse_rest_length_m=coarse_rest,
                         coarse_stiffness_n_per_m=cs, coarse_cells=ccells, coarse_cell_weight=cweight,
-                        cell_whole=whole, cell_node=cell_node)
+                        cell_whole=whole, cell_nodes=cell_node)
 
 
 def _coarse_springs(model, grid: np.ndarray, li: np.ndarray, lj: np.ndarray, whole: np.ndarray):
@@ -246,6 +244,22 @@ def _coarse_springs(model, grid: np.ndarray, li: np.ndarray, lj: np.ndarray, who
     def crossing(p, q):
         return grid[lj[q], li[p]]
 
+    absent = grid < 0  # places without a crossing, counted along rows and along columns
+    row_absent = np.concatenate([np.zeros((grid.shape[0], 1), np.int64), np.cumsum(absent, axis=1)], axis=1)
+    col_absent = np.concatenate([np.zeros((1, grid.shape[1]), np.int64), np.cumsum(absent, axis=0)], axis=0)
+
+    def along_crossings(pa, qa, pb, qb):
+        """Every place on the straight grid line from node (pa, qa) to node (pb, qb) holds a crossing (a line
+        along a row or a column: structural and bend springs; a shear spring's ends are a whole cell's)."""
+        ia, ib, ja, jb = li[pa], li[pb], lj[qa], lj[qb]
+        on_row = ja == jb
+        lo_i, hi_i = np.minimum(ia, ib), np.maximum(ia, ib)
+        lo_j, hi_j = np.minimum(ja, jb), np.maximum(ja, jb)
+        row_count = row_absent[ja, hi_i + 1] - row_absent[ja, lo_i]
+        col_count = col_absent[hi_j + 1, ia] - col_absent[lo_j, ia]
+        straight = np.where(on_row, row_count, np.where(ia == ib, col_count, 0)) == 0
+        return straight & (crossing(pa, qa) >= 0) & (crossing(pb, qb) >= 0)
+
     def cell(p, q):
         ok = (p >= 0) & (p < cx) & (q >= 0) & (q < cy)
         return np.where(ok, q * cx + p, -1)
@@ -260,7 +274,9 @@ def _coarse_springs(model, grid: np.ndarray, li: np.ndarray, lj: np.ndarray, who
         if stiff[kind] <= 0.0 or pa.size == 0:
             return
         cl = np.stack(cell_list, axis=1).astype(np.int64)
-        keep = ((cl >= 0) & whole[np.maximum(cl, 0)]).any(axis=1) & (crossing(pa, qa) >= 0) & (crossing(pb, qb) >= 0)
+        # a spring borders a whole cell and runs along crossings only: a bend spring spans two cells, and
+        # must not bridge a slit or a notch of a shaped panel (the yarn model has no bend spring there)
+        keep = ((cl >= 0) & whole[np.maximum(cl, 0)]).any(axis=1) & along_crossings(pa, qa, pb, qb)
         if not keep.all():
             pa, qa, pb, qb = pa[keep], qa[keep], pb[keep], qb[keep]
             cell_list = [c[keep] for c in cell_list]
@@ -348,23 +364,49 @@ def initial_refined(model, layout: CoarseLayout) -> np.ndarray:
     return refined
 
 
+THIN_SEGMENTS = 1.5
+"""A closed mesh without sharp edges is tested by distance, not depth, where its tightest bend radius
+(fraytool.meshes.tightest_bend_radius_m, over its keys) is under this many yarn segments: so thin a part (a
+rod, a needle, a finger) can pass between the crossings with none of them inside it."""
+
+
 def colliding_meshes(model) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The colliding mesh bodies' meshes (fraytool.meshes.MeshTable order) as cells_on_meshes takes them:
     (meshes, the least distance a slaved crossing may come to each [m], whether that distance is unsigned).
-    A closed mesh without sharp edges is tested by depth (0, signed); an open one or one with sharp edges by
-    distance: half the longest yarn segment at rest plus the contact margin
-    (fraytool.sim.kernels.multires_mesh)."""
-    from fraytool.meshes import MeshTable
+    A closed mesh without sharp edges and no part thinner than THIN_SEGMENTS yarn segments is tested by depth
+    (0, signed); the others (open, sharp edges, thin parts) by distance: half the longest yarn segment at rest
+    plus the contact margin (fraytool.sim.kernels.multires_mesh)."""
+    from fraytool.meshes import MeshTable, tightest_bend_radius_m
     from fraytool.sim.cloth_assembly import is_structural
 
     table = MeshTable(model)
-    meshes = [m for m in range(table.count) if model.body_collide[table.body[m]]]
-    unsigned = np.array([not table.closed[m] or table.edge_start[m + 1] > table.edge_start[m] for m in meshes],
-                        np.bool_)
     structural = is_structural(model.spring_kind)
     segment = float(model.spring_rest_length_m[structural].max()) if structural.any() else model.spacing_m
+    meshes = [m for m in range(table.count) if model.body_collide[table.body[m]]]
+
+    def by_distance(m: int) -> bool:
+        if not table.closed[m] or table.edge_start[m + 1] > table.edge_start[m]:
+            return True
+        faces = table.local_triangles(m)
+        tightest = min(tightest_bend_radius_m(table.key_vertices(m, k), faces) for k in range(table.key_count(m)))
+        return tightest < THIN_SEGMENTS * segment
+
+    unsigned = np.array([by_distance(m) for m in meshes], np.bool_)
     floor = np.where(unsigned, 0.5 * segment + 0.5 * model.thickness_m, 0.0)
     return np.array(meshes, np.int64), floor, unsigned
+
+
+def mixed_segments(model, free: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(free end, slaved end) of each yarn segment (structural spring of the Model) with one end of each:
+    the mesh segment pass leaves them out, so cells_on_meshes tests their free ends (a node, or a crossing
+    beside a hanging node) against meshes tested by distance."""
+    from fraytool.sim.cloth_assembly import is_structural
+
+    s = is_structural(model.spring_kind)
+    a, b = model.spring_crossing_a[s].astype(np.int64), model.spring_crossing_b[s].astype(np.int64)
+    one = free[a] != free[b]
+    f = np.where(free[a], a, b)[one]
+    return f.astype(np.int32), np.where(free[a], b, a)[one].astype(np.int32)
 
 
 def slaved_by_cell(layout: CoarseLayout, slaved: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -389,10 +431,12 @@ def refine_on_meshes_at_start(model, layout: CoarseLayout, state) -> None:
     from fraytool.sim.mesh_geometry import MeshGeometry
 
     refined = state.coarse_cell_refined
-    grouped, start = slaved_by_cell(layout, np.flatnonzero(~free_crossings(layout, refined)).astype(np.int32))
+    free = free_crossings(layout, refined)
+    grouped, start = slaved_by_cell(layout, np.flatnonzero(~free).astype(np.int32))
     new = np.zeros(layout.cell_count, bool)
     geometry = MeshGeometry(model)
-    cells = (start, grouped, layout.cell_nodes, layout.crossing_cells, layout.crossing_node, layout.crossing_weight)
+    cells = (start, grouped, layout.cell_nodes, layout.crossing_cells, layout.crossing_node, layout.crossing_weight,
+             mixed_segments(model, free))
     cells_on_meshes((meshes, floor, unsigned), geometry.meshes_in(model), bodies_in(model, state),
                     geometry.clearance.travel_m, cells, state.particle_position_m, refined,
                     empty_bounds(meshes.size, model.crossing_count, layout.cell_count),
@@ -414,7 +458,7 @@ def moving_body_reach(model, layout: CoarseLayout) -> tuple[np.ndarray, np.ndarr
                             & model.body_collide)
     nodes = layout.cell_nodes[layout.cell_whole]
     rest = model.crossing_rest_position_m
-    diagonal = float(np.max(np.linalg.norm(rest[nodes[:, 3]] - rest[nodes[:, 0]], axis=1)))
+    diagonal = float(np.max(np.linalg.norm(rest[nodes[:, 3]] - rest[nodes[:, 0]], axis=1), initial=0.0))
     reach = np.array([bounding_radius(model.body_shape[k], model.body_params[k], 0.5 * model.thickness_m)
                       + (model.refine_band_cells + 1) * diagonal
                       for k in bodies])

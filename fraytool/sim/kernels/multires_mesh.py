@@ -12,9 +12,16 @@ step, after contact, every slaved crossing is checked against each colliding mes
   the mesh through its nodes. A point below the surface is at most D below it (the segment to an outside
   node crosses the surface within D), so a query that far finds its triangle; the nearest triangle, the
   most face-on of equally near ones, says which side;
-- on an **open mesh** (a sheet has no inside) or one with **sharp edges** (yarns catch on them at yarn
-  resolution): a slaved crossing within half a yarn segment plus the margin of the mesh refines its cells
-  (a sharp edge or a sheet's border that touches a yarn segment is within half its length of an end).
+- on an **open mesh** (a sheet has no inside), one with **sharp edges** (yarns catch on them at yarn
+  resolution) or one with **thin parts** (a bend radius under 1.5 yarn segments: a rod or a needle can pass
+  between the crossings with none inside it; fraytool.sim.multires.colliding_meshes): a slaved crossing
+  within half a yarn segment plus the margin of the mesh refines its cells. A sharp edge, a thin part or a
+  sheet that touches a yarn segment is within half its length of one of its ends, so the free ends of the
+  segments with a slaved end (nodes, and crossings beside hanging nodes) are tested too: the mesh segment
+  pass leaves those segments out.
+
+It assumes what contact keeps: the nodes (free masses) are outside the mesh. The test is per mesh, so one
+sharp edge anywhere on a mesh puts all of it under the distance test: cloth resting anywhere on it refines.
 
 **Bounds.** The (signed) distance is 1-Lipschitz in the point and in the surface, as the clearance of the
 mass pass (fraytool.sim.kernels.mesh_clearance): a crossing queried at distance v, at body-frame point
@@ -123,7 +130,8 @@ def cells_on_meshes(
     # fraytool.sim.kernels.mesh_contact.MeshesIn (at the step's end), BodiesIn, each mesh's travel so far
     meshes_in, bodies_in, travel_m,
     # (the slaved crossings by the cell they interpolate: cell_start, cell_slaved; the cells' nodes; each
-    # crossing's cells, nodes and weights)
+    # crossing's cells, nodes and weights; the yarn segments with one free and one slaved end, as (free
+    # ends, slaved ends): fraytool.sim.multires.mixed_segments)
     cells_in,
     # state in; in: refined cells; in/out: the bounds (BoundsInOut); scratch: (BVH stack, a point, the
     # nodes of a cell (4, 3))
@@ -137,7 +145,8 @@ def cells_on_meshes(
     farthest node: while the least of their bounds, less that move and the mesh's travel, stays over the
     floor, the cell is passed over whole."""
     meshes, threshold_m, unsigned = tested_in
-    cell_start, cell_slaved, cell_nodes, crossing_cells, crossing_node, crossing_weight = cells_in
+    cell_start, cell_slaved, cell_nodes, crossing_cells, crossing_node, crossing_weight, mixed = cells_in
+    mixed_free, mixed_slaved = mixed
     stack_out, point_out, nodes_out = scratch_inout
     count = 0
     for c in range(cell_start.shape[0] - 1):
@@ -206,4 +215,35 @@ def cells_on_meshes(
                 for r in range(3):
                     bounds_inout.group_reference_m[mi, c, q, r] = nodes_out[q, r]
             bounds_inout.group_travel_at_m[mi, c] = travel_m[m]
+    # on a mesh tested by distance, a sharp edge or thin part touching a segment with a slaved end is within
+    # half the segment of one of its ends: the free one too (the segment pass leaves such segments out)
+    for mi in range(meshes.shape[0]):
+        if not unsigned[mi]:
+            continue
+        m = meshes[mi]
+        k = meshes_in.body[m]
+        rot, centre = bodies_in.rotation[k], bodies_in.position_m[k]
+        floor = threshold_m[mi]
+        reach = 2.0 * floor * (1.0 + 1e-9)
+        for i in range(mixed_free.shape[0]):
+            f = mixed_free[i]
+            l0, l1, l2 = to_body(rot, centre, particle_position_m[f, 0], particle_position_m[f, 1],
+                                 particle_position_m[f, 2])
+            e0 = l0 - bounds_inout.reference_m[mi, f, 0]
+            e1 = l1 - bounds_inout.reference_m[mi, f, 1]
+            e2 = l2 - bounds_inout.reference_m[mi, f, 2]
+            if bounds_inout.value_m[mi, f] - math.sqrt(e0 * e0 + e1 * e1 + e2 * e2) \
+                    - (travel_m[m] - bounds_inout.travel_at_m[mi, f]) > floor:
+                continue
+            point_out[0], point_out[1], point_out[2] = l0, l1, l2
+            d, _ = signed_distance(m, meshes_in, point_out, reach, stack_out)
+            if d <= floor:
+                count += _mark_holding(mixed_slaved[i], crossing_cells, refined, new_inout)
+                bounds_inout.value_m[mi, f] = -np.inf
+            else:
+                bounds_inout.value_m[mi, f] = d * (1.0 - 1e-12)
+                bounds_inout.reference_m[mi, f, 0] = l0
+                bounds_inout.reference_m[mi, f, 1] = l1
+                bounds_inout.reference_m[mi, f, 2] = l2
+                bounds_inout.travel_at_m[mi, f] = travel_m[m]
     return count

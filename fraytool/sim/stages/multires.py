@@ -115,6 +115,7 @@ class CoarseWork:
         self.slaved = np.flatnonzero(~free).astype(np.int32)
         # the slaved crossings grouped by the cell they interpolate (SlavedContact's cell test)
         self.cell_slaved, self.cell_start = multires.slaved_by_cell(lay, self.slaved)
+        self.mixed = multires.mixed_segments(self.model, free)  # (the coarse mesh test)
         fine_share = multires.share(lay.spring_cells, refined, at_fine=True)
         self.fine_listed = np.flatnonzero(fine_share > 0.0).astype(np.int32)
         self.fine_share = fine_share[self.fine_listed]
@@ -302,7 +303,7 @@ class Refinement:
                                 state.coarse_cell_refined, rt.hot, rt.new)
         if self._meshes.size:  # after the mesh contact of this step (ctx.meshes is at the step's end)
             cells = (rt.cell_start, rt.cell_slaved, rt.cell_nodes, lay.crossing_cells, lay.crossing_node,
-                     lay.crossing_weight)
+                     lay.crossing_weight, rt.mixed)
             count += cells_on_meshes((self._meshes, self._floor, self._unsigned), ctx.meshes.meshes_in(m),
                                      bodies_in(m, state), ctx.meshes.clearance.travel_m, cells,
                                      state.particle_position_m, state.coarse_cell_refined, self._bounds,
