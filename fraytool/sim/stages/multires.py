@@ -115,7 +115,8 @@ class CoarseWork:
         self.slaved = np.flatnonzero(~free).astype(np.int32)
         # the slaved crossings grouped by the cell they interpolate (SlavedContact's cell test)
         self.cell_slaved, self.cell_start = multires.slaved_by_cell(lay, self.slaved)
-        self.mixed = multires.mixed_segments(self.model, free)  # (the coarse mesh test)
+        self._free = free
+        self._mixed = None
         fine_share = multires.share(lay.spring_cells, refined, at_fine=True)
         self.fine_listed = np.flatnonzero(fine_share > 0.0).astype(np.int32)
         self.fine_share = fine_share[self.fine_listed]
@@ -134,6 +135,14 @@ class CoarseWork:
         loaded = np.zeros(m.crossing_count, bool)
         loaded[ends] = True
         self.loaded_slaved = np.flatnonzero(loaded & ~free).astype(np.int32)
+
+    @property
+    def mixed(self) -> tuple[np.ndarray, np.ndarray]:
+        """The yarn segments with one free and one slaved end (multires.mixed_segments), for the coarse mesh
+        test: made when first asked for after a rebuild (scenes without a mesh never ask)."""
+        if self._mixed is None:
+            self._mixed = multires.mixed_segments(self.model, self._free)
+        return self._mixed
 
     def refine(self, state: State, new: np.ndarray) -> None:
         """Refine the cells `new`: free crossings take their own mass back (set_masses), at the
