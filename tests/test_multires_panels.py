@@ -220,3 +220,13 @@ def test_a_panel_with_no_whole_cell_starts_refined_with_a_moving_body():
     model = b.finalize()
     assert not multires.coarse_layout(model).cell_whole.any()
     assert model.state().coarse_cell_refined.all()
+
+
+def test_a_scene_with_air_drag_and_a_coarse_model_is_refused_with_its_keys():
+    from fraytool.errors import SceneError
+    from fraytool.scene import load_scene
+
+    with pytest.raises(SceneError) as caught:
+        load_scene(ROOT / "scenes" / "flag_tear.toml", [("cloth.multires.factor", 2)])
+    text = str(caught.value)
+    assert "[cloth] drag_normal = 1.2" in text and "factor = 1" in text and "flag_tear.toml" in text

@@ -323,6 +323,12 @@ def _assemble(values: dict, bodies_raw: list, att_raw: list, cut_raw: list, sour
         grids[panel.name] = grid
         panels.append(panel)
     cloth = replace(cloth, name=cloth.name or "cloth")
+    if multires.factor > 1:
+        for where, panel in [("cloth", cloth)] + [(f"cloth.{k}", p) for k, p in enumerate(panels, 1)]:
+            for key in ("drag_normal", "drag_tangential"):
+                if getattr(panel, key):
+                    problems.add(where, key, getattr(panel, key), "air drag acts at yarn resolution: leave it out "
+                                 "or set [cloth.multires] factor = 1 (docs/wind.md)")
 
     def panel_grid(where: str, panel_name: str, key: str = "panel") -> tuple[int, int]:
         """(warp_yarns, weft_yarns) of the panel a table names in `key` ("": the first)."""
