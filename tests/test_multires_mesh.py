@@ -95,11 +95,7 @@ def test_cloth_on_a_small_ball_refines_where_it_wraps_and_stays_outside():
 
 
 def test_without_the_mesh_test_the_coarse_cloth_sinks_into_a_small_ball(monkeypatch):
-    import fraytool.sim.multires as layout_module
-    import fraytool.sim.stages.multires as stages
-
-    monkeypatch.setattr(stages, "cells_on_meshes", lambda *args: 0)
-    monkeypatch.setattr(layout_module, "refine_on_meshes_at_start", lambda *args: None)
+    monkeypatch.setattr(multires.CoarseMeshTest, "mark", lambda *args: 0)  # at the start and every step
     model, state, vertices, faces = _drop_on_ball(0.02, factor=4)
     assert _depths(model, state, vertices, faces).min() < -4 * MARGIN
 
@@ -151,8 +147,8 @@ def test_the_distance_bounds_change_nothing(moving):
         history = []
         for _ in range(400):
             if forget:
-                refinement._bounds.value_m[:] = -np.inf
-                refinement._bounds.group_value_m[:] = -np.inf
+                refinement.mesh_test.bounds.value_m[:] = -np.inf
+                refinement.mesh_test.bounds.group_value_m[:] = -np.inf
             solver.step(state, 2e-4)
             history.append(state.coarse_cell_refined.copy())
         runs.append((np.array(history), state.particle_position_m.copy()))

@@ -55,9 +55,7 @@ class MeshGeometry:
 
     @staticmethod
     def _reach(model) -> float:
-        structural = (model.spring_kind == STRUCT_WEFT) | (model.spring_kind == STRUCT_WARP)
-        longest = float(model.spring_rest_length_m[structural].max()) if structural.any() else model.spacing_m
-        return REACH_SPACINGS * longest + 2.0 * model.thickness_m
+        return REACH_SPACINGS * longest_yarn_segment_m(model) + 2.0 * model.thickness_m
 
     def _refit(self, m: int, lo_vertices: np.ndarray, hi_vertices: np.ndarray) -> None:
         t = self.table
@@ -98,6 +96,12 @@ class MeshGeometry:
         return MeshesIn(t.body, t.closed, t.triangles, t.sharp_edges, self.vertex_start_m, self.vertex_end_m,
                         tb.node_start, tb.child, tb.prim_range, tb.box, tb.order,
                         eb.node_start, eb.child, eb.prim_range, eb.box, eb.order)
+
+
+def longest_yarn_segment_m(model) -> float:
+    """The longest yarn segment (structural spring) at rest [m]; the spacing where there is none."""
+    structural = (model.spring_kind == STRUCT_WEFT) | (model.spring_kind == STRUCT_WARP)
+    return float(model.spring_rest_length_m[structural].max()) if structural.any() else model.spacing_m
 
 
 def _largest_move(a: np.ndarray, b: np.ndarray) -> float:

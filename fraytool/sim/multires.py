@@ -377,11 +377,10 @@ def colliding_meshes(model) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     (0, signed); the others (open, sharp edges, thin parts) by distance: half the longest yarn segment at rest
     plus the contact margin (fraytool.sim.kernels.multires_mesh)."""
     from fraytool.meshes import MeshTable, tightest_bend_radius_m
-    from fraytool.sim.cloth_assembly import is_structural
+    from fraytool.sim.mesh_geometry import longest_yarn_segment_m
 
     table = MeshTable(model)
-    structural = is_structural(model.spring_kind)
-    segment = float(model.spring_rest_length_m[structural].max()) if structural.any() else model.spacing_m
+    segment = longest_yarn_segment_m(model)
     meshes = [m for m in range(table.count) if model.body_collide[table.body[m]]]
 
     def by_distance(m: int) -> bool:
@@ -418,30 +417,53 @@ def slaved_by_cell(layout: CoarseLayout, slaved: np.ndarray) -> tuple[np.ndarray
     return grouped, start
 
 
+class CoarseMeshTest:
+    """The coarse cells' test against the colliding meshes (fraytool.sim.kernels.multires_mesh.cells_on_meshes,
+    docs/multires.md "Against a mesh"), with its distance bounds kept from call to call."""
+
+    def __init__(self, model, layout: CoarseLayout):
+        from fraytool.sim.kernels.mesh_contact import STACK
+        from fraytool.sim.kernels.multires_mesh import empty_bounds
+
+        self.model, self.layout = model, layout
+        self.tested = colliding_meshes(model)
+        self.bounds = empty_bounds(self.tested[0].size, model.crossing_count, layout.cell_count)
+        self._scratch = (np.zeros(STACK, np.int64), np.zeros(3), np.zeros((4, 3)))
+
+    @property
+    def any(self) -> bool:
+        return bool(self.tested[0].size)
+
+    def mark(self, geometry, state, cell_start: np.ndarray, cell_slaved: np.ndarray,
+             mixed: tuple[np.ndarray, np.ndarray], new: np.ndarray) -> int:
+        """Mark in `new` the coarse cells of `state` that a mesh (`geometry`, a MeshGeometry at the step's end)
+        makes refine; the slaved crossings grouped by cell (slaved_by_cell) and the mixed segments
+        (mixed_segments) are the state's. Returns how many."""
+        from fraytool.sim.kernels.bodies import bodies_in
+        from fraytool.sim.kernels.multires_mesh import cells_on_meshes
+
+        lay = self.layout
+        cells = (cell_start, cell_slaved, lay.cell_nodes, lay.crossing_cells, lay.crossing_node, lay.crossing_weight,
+                 mixed)
+        return cells_on_meshes(self.tested, geometry.meshes_in(self.model), bodies_in(self.model, state),
+                               geometry.clearance.travel_m, cells, state.particle_position_m,
+                               state.coarse_cell_refined, self.bounds, self._scratch, new)
+
+
 def refine_on_meshes_at_start(model, layout: CoarseLayout, state) -> None:
-    """Refine in `state` (at time 0) the cells a colliding mesh makes refine (cells_on_meshes, as the
+    """Refine in `state` (at time 0) the cells a colliding mesh makes refine (CoarseMeshTest, as the
     Refinement stage tests every step after contact): a crossing that starts below a mesh's surface is
     free from the first step, so the mass pass puts it back on the margin."""
-    meshes, floor, unsigned = colliding_meshes(model)
-    if not meshes.size:
+    test = CoarseMeshTest(model, layout)
+    if not test.any:
         return
-    from fraytool.sim.kernels.bodies import bodies_in
-    from fraytool.sim.kernels.mesh_contact import STACK
-    from fraytool.sim.kernels.multires_mesh import cells_on_meshes, empty_bounds
     from fraytool.sim.mesh_geometry import MeshGeometry
 
-    refined = state.coarse_cell_refined
-    free = free_crossings(layout, refined)
+    free = free_crossings(layout, state.coarse_cell_refined)
     grouped, start = slaved_by_cell(layout, np.flatnonzero(~free).astype(np.int32))
     new = np.zeros(layout.cell_count, bool)
-    geometry = MeshGeometry(model)
-    cells = (start, grouped, layout.cell_nodes, layout.crossing_cells, layout.crossing_node, layout.crossing_weight,
-             mixed_segments(model, free))
-    cells_on_meshes((meshes, floor, unsigned), geometry.meshes_in(model), bodies_in(model, state),
-                    geometry.clearance.travel_m, cells, state.particle_position_m, refined,
-                    empty_bounds(meshes.size, model.crossing_count, layout.cell_count),
-                    (np.zeros(STACK, np.int64), np.zeros(3), np.zeros((4, 3))), new)
-    refined |= new
+    test.mark(MeshGeometry(model), state, start, grouped, mixed_segments(model, free), new)
+    state.coarse_cell_refined |= new
 
 
 def moving_body_reach(model, layout: CoarseLayout) -> tuple[np.ndarray, np.ndarray]:

@@ -24,7 +24,7 @@ from typing import Optional, TextIO
 import numpy as np
 
 from fraytool._numba_cache import kernels_compiled
-from fraytool.kinds import STRUCT_WARP, STRUCT_WEFT
+from fraytool.sim.cloth_assembly import is_structural
 from fraytool.scene.spec import SceneSpec
 from fraytool.sim.multires import coarse_layout
 from fraytool.study.runner import run_variant, warm_up
@@ -134,8 +134,7 @@ def run_multires_study(spec: SceneSpec, factors: tuple[int, ...] = DEFAULT_FACTO
 def _broken_centroid(model, state) -> Optional[np.ndarray]:
     """Mean rest position of the midpoints of the broken structural springs [m] (as
     fraytool.study.runner.tear_figures), None when none is broken."""
-    kind = model.spring_kind
-    broken = state.spring_broken[:model.spring_count] & ((kind == STRUCT_WEFT) | (kind == STRUCT_WARP))
+    broken = state.spring_broken[:model.spring_count] & is_structural(model.spring_kind)
     if not broken.any():
         return None
     rest = model.crossing_rest_position_m

@@ -35,8 +35,6 @@ from fraytool.sim.kernels.multires import (
     sync_slaved,
     zero_rows,
 )
-from fraytool.sim.kernels.mesh_contact import STACK
-from fraytool.sim.kernels.multires_mesh import cells_on_meshes, empty_bounds
 from fraytool.sim.kernels.work_split import even_units
 from fraytool.sim.model import Model
 from fraytool.sim.stages.base import (BODIES, FORCES, HANGING, POSITIONS, SLAVED, SLAVED_NEAR_HOT, START_POSITIONS,
@@ -290,11 +288,7 @@ class Refinement:
         self.model = model
         lay = multires.coarse_layout(model)
         self._centre = np.zeros((multires.moving_body_reach(model, lay)[0].shape[0], 3))
-        self._meshes, self._floor, self._unsigned = multires.colliding_meshes(model)  # (cells_on_meshes)
-        self._bounds = empty_bounds(self._meshes.size, model.crossing_count, lay.cell_count)
-        self._nodes_scratch = np.zeros((4, 3))
-        self._stack = np.zeros(STACK, np.int64)
-        self._point = np.zeros(3)
+        self.mesh_test = multires.CoarseMeshTest(model, lay)
 
     def run(self, state: State, ctx: StepContext, dt_s: float) -> None:
         rt, m = ctx.coarse, self.model
@@ -310,13 +304,8 @@ class Refinement:
         count = cells_to_refine(fine, coarse, state.particle_position_m, m.refine_strain, m.refine_band_cells,
                                 lay.cells_x, lay.cells_y, (self._centre, rt.body_reach_m), rt.cell_nodes,
                                 state.coarse_cell_refined, rt.hot, rt.new)
-        if self._meshes.size:  # after the mesh contact of this step (ctx.meshes is at the step's end)
-            cells = (rt.cell_start, rt.cell_slaved, rt.cell_nodes, lay.crossing_cells, lay.crossing_node,
-                     lay.crossing_weight, rt.mixed)
-            count += cells_on_meshes((self._meshes, self._floor, self._unsigned), ctx.meshes.meshes_in(m),
-                                     bodies_in(m, state), ctx.meshes.clearance.travel_m, cells,
-                                     state.particle_position_m, state.coarse_cell_refined, self._bounds,
-                                     (self._stack, self._point, self._nodes_scratch), rt.new)
+        if self.mesh_test.any:  # after the mesh contact of this step (ctx.meshes is at the step's end)
+            count += self.mesh_test.mark(ctx.meshes, state, rt.cell_start, rt.cell_slaved, rt.mixed, rt.new)
         if count:
             # a crossing freed now starts from its interpolation, and its velocity at the step's end
             # is (x - x_prev) / dt of the interpolated positions: the velocity its mass had while lumped
