@@ -19,6 +19,22 @@ A yarn segment between masses a and b: a point at parameter s is at distance at 
 max(D_a - s L, D_b - (1 - s) L), with D the ends' bounds and L the segment's length (longest at the
 step's start or end: |a(t) - b(t)| is convex in t); its least value over s is (D_a + D_b - L) / 2.
 
+That bound is weak for a segment much longer than the margin: ends 1 mm off the surface clear a 4 mm
+segment of nothing. So each segment also keeps a bound of its own (`SegmentClearanceInOut`): its exact
+distance from the mesh when its end points were at `reference` (least over the triangles of the
+distances from each end to the triangle, from the segment to each of the triangle's edges, and, where
+the segment crosses the triangle's plane, from that crossing point: the closest points of a segment and
+a triangle that do not meet lie on an end or an edge). Every point of the segment now is the same
+combination of its ends as a point of the reference segment, each end within max(|a0 - a_ref|,
+|a1 - a_ref|) of its reference over the step, so its distance is at least
+
+    d_ref - max over both ends of that - travel.
+
+Over the margin (with the CCD's tolerance), the segment's pass would move nothing, as above. Over the
+rounding tolerance alone, the segment does not cross the surface, so a closed mesh's corner test
+(fraytool.sim.kernels.mesh_contact._segment_through) would find nothing: cloth resting on a smooth body,
+its segments just under the margin, runs the sharp edges' test only.
+
 `travel_m[m]` is a running sum, per step, of the largest move of mesh m's vertices (body frame: a
 static or rigidly moving mesh never travels); a reference taken during a step stores the sum at that
 step's start, so the step's own motion is counted. Positions are read live, so a mass moved by
@@ -32,7 +48,8 @@ from collections import namedtuple
 import numba as nb
 import numpy as np
 
-from fraytool.geometry.triangles import closest_on_triangle
+from fraytool.geometry.segments import segment_closest_params
+from fraytool.geometry.triangles import closest_on_triangle, triangle_normal
 from fraytool.sim.kernels.mesh_bvh import next_leaf, prim_overlaps
 
 SKIP_FACTOR = 1.01
@@ -53,6 +70,18 @@ ClearanceInOut = namedtuple("ClearanceInOut", [
     "reach_m",           # float: how far a refresh looks for the nearest triangle [m]
 ])
 ClearanceInOut.__doc__ = "Per-mass clearance bounds from each mesh (module docstring), read and renewed by the passes."
+
+SegmentClearanceInOut = namedtuple("SegmentClearanceInOut", [
+    "reference_m",   # (M, S, 2, 3) body-frame end points of segment s when its distance from mesh m was taken
+    "clearance_m",   # (M, S) that distance, a lower bound [m]; negative: none (never skip)
+    "travel_at_m",   # (M, S) the mesh's travel at the start of the step it was taken in
+])
+SegmentClearanceInOut.__doc__ = """Per-segment clearance bounds from each mesh (module docstring), rows as the contact
+stage's yarn segments; read and renewed by fraytool.sim.kernels.mesh_contact.segments_touching."""
+
+RENEW_MARGINS = 0.5
+"""A segment's bound is taken afresh when it is too low to skip and its ends have moved (or the mesh
+travelled) more than this many margins since it was taken: cloth at rest on a body keeps its bound."""
 
 
 @nb.njit(cache=True, inline="always")
@@ -78,6 +107,13 @@ def segment_skip_m(clear, m, margin_m, largest_coordinate_m):
     """The bound above which a segment's pass against mesh m cannot move it: the margin, and the edge
     CCD's tolerance (relative to the largest coordinate it sees, the mesh's or the segment's)."""
     return SKIP_FACTOR * margin_m + CCD_SCALE * max(clear.coordinate_scale_m[m], largest_coordinate_m)
+
+
+@nb.njit(cache=True, inline="always")
+def through_skip_m(clear, m, largest_coordinate_m):
+    """The bound above which a segment does not cross mesh m's surface (module docstring): a rounding
+    tolerance, as the edge CCD's in `segment_skip_m`."""
+    return CCD_SCALE * max(clear.coordinate_scale_m[m], largest_coordinate_m)
 
 
 @nb.njit(cache=True, inline="always")
@@ -108,21 +144,148 @@ def nearest_distance(m, meshes_in, l, reach_m, stack_out):
 
 
 @nb.njit(cache=True, inline="always")
-def renew(clear_inout, m, p, meshes_in, l, touched, margin_m, stack_out):
-    """After particle p's pass against mesh m: a mass it moved gets no bound (it touches, it will be tested
-    again); another one's distance from its end point l is taken afresh."""
+def renew(clearance_m_inout, reference_m_inout, travel_at_m_inout, clear, which, meshes_in, l, touched, margin_m,
+          stack_out):
+    """After particle p's pass against mesh m (which = (m, p)): a mass it moved gets no bound (it touches, it
+    will be tested again); another one's distance from its end point l is taken afresh. The first three: the
+    ClearanceInOut `clear`'s arrays (plain arrays: a parallel loop's writes through a tuple are lost, numba
+    issues 7135 and 10338)."""
+    m, p = which
     if touched:
-        clear_inout.clearance_m[m, p] = -1.0
+        clearance_m_inout[m, p] = -1.0
         return
-    near = min(NEAR_MARGINS * margin_m, clear_inout.reach_m)
+    near = min(NEAR_MARGINS * margin_m, clear.reach_m)
     d = nearest_distance(m, meshes_in, l, near, stack_out)  # a small box first: most renewals are near
     if d >= near * (1.0 - 1e-9):
-        d = nearest_distance(m, meshes_in, l, clear_inout.reach_m, stack_out)
-    clear_inout.clearance_m[m, p] = d
-    clear_inout.reference_m[m, p, 0] = l[0]
-    clear_inout.reference_m[m, p, 1] = l[1]
-    clear_inout.reference_m[m, p, 2] = l[2]
-    clear_inout.travel_at_m[m, p] = clear_inout.travel_start_m[m]
+        d = nearest_distance(m, meshes_in, l, clear.reach_m, stack_out)
+    clearance_m_inout[m, p] = d
+    reference_m_inout[m, p, 0] = l[0]
+    reference_m_inout[m, p, 1] = l[1]
+    reference_m_inout[m, p, 2] = l[2]
+    travel_at_m_inout[m, p] = clear.travel_start_m[m]
+
+
+@nb.njit(cache=True, inline="always")
+def segment_clearance_left(seg_reference_m, seg_clearance_m, seg_travel_at_m, clear, m, s, start, end):
+    """Lower bound [m] on segment s's distance from mesh m over the step: `start` and `end` (2, 3) its end
+    points at the step's start and end, body frame; the first three, a SegmentClearanceInOut's arrays
+    (module docstring). Negative when there is none."""
+    d = seg_clearance_m[m, s]
+    if d < 0.0:
+        return -1.0
+    ref = seg_reference_m[m, s]
+    r = 0.0
+    for e in range(2):
+        r = max(r, _dist(start[e, 0], start[e, 1], start[e, 2], ref, e), _dist(end[e, 0], end[e, 1], end[e, 2], ref, e))
+    return d - r - (clear.travel_m[m] - seg_travel_at_m[m, s])
+
+
+@nb.njit(cache=True, inline="always")
+def _to_segment(ax, ay, az, bx, by, bz, px, py, pz, qx, qy, qz):
+    """Distance between segments ab and pq."""
+    s, u = segment_closest_params(ax, ay, az, bx, by, bz, px, py, pz, qx, qy, qz)
+    dx = ax + s * (bx - ax) - px - u * (qx - px)
+    dy = ay + s * (by - ay) - py - u * (qy - py)
+    dz = az + s * (bz - az) - pz - u * (qz - pz)
+    return math.sqrt(dx * dx + dy * dy + dz * dz)
+
+
+@nb.njit(cache=True, inline="always")
+def _to_triangle(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz):
+    """Distance from point p to triangle abc."""
+    qx, qy, qz, _, _, _ = closest_on_triangle(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz)
+    return math.sqrt((px - qx) ** 2 + (py - qy) ** 2 + (pz - qz) ** 2)
+
+
+@nb.njit(cache=True)
+def segment_distance(m, meshes_in, a, b, reach_m, stack_out):
+    """Distance [m] from the segment ab (body-frame end points, (3,) each) to mesh m's surface at the
+    step's end, or reach_m when no triangle is nearer (module docstring: ends, edges, plane crossing)."""
+    vb = meshes_in.vertex_end_m
+    tris = meshes_in.triangles
+    best = reach_m
+    lo0, lo1, lo2 = min(a[0], b[0]) - reach_m, min(a[1], b[1]) - reach_m, min(a[2], b[2]) - reach_m
+    hi0, hi1, hi2 = max(a[0], b[0]) + reach_m, max(a[1], b[1]) + reach_m, max(a[2], b[2]) + reach_m
+    stack_out[0] = meshes_in.tri_node_start[m]
+    top = 1
+    while True:
+        node, top = next_leaf(stack_out, top, meshes_in.tri_child, meshes_in.tri_box, lo0, lo1, lo2, hi0, hi1, hi2)
+        if node < 0:
+            break
+        for q in range(meshes_in.tri_range[node, 0], meshes_in.tri_range[node, 1]):
+            j = meshes_in.tri_order[q]
+            if not prim_overlaps(meshes_in.tri_box, meshes_in.tri_child, j, lo0, lo1, lo2, hi0, hi1, hi2):
+                continue  # (farther than the reach)
+            ia, ib, ic = tris[j, 0], tris[j, 1], tris[j, 2]
+            ax, ay, az = vb[ia, 0], vb[ia, 1], vb[ia, 2]
+            bx, by, bz = vb[ib, 0], vb[ib, 1], vb[ib, 2]
+            cx, cy, cz = vb[ic, 0], vb[ic, 1], vb[ic, 2]
+            d = min(_to_triangle(a[0], a[1], a[2], ax, ay, az, bx, by, bz, cx, cy, cz),
+                    _to_triangle(b[0], b[1], b[2], ax, ay, az, bx, by, bz, cx, cy, cz),
+                    _to_segment(a[0], a[1], a[2], b[0], b[1], b[2], ax, ay, az, bx, by, bz),
+                    _to_segment(a[0], a[1], a[2], b[0], b[1], b[2], bx, by, bz, cx, cy, cz),
+                    _to_segment(a[0], a[1], a[2], b[0], b[1], b[2], cx, cy, cz, ax, ay, az))
+            nx, ny, nz = triangle_normal(ax, ay, az, bx, by, bz, cx, cy, cz)
+            da = (a[0] - ax) * nx + (a[1] - ay) * ny + (a[2] - az) * nz
+            db = (b[0] - ax) * nx + (b[1] - ay) * ny + (b[2] - az) * nz
+            if (da > 0.0 and db < 0.0) or (da < 0.0 and db > 0.0):  # through the plane: where, off the triangle
+                t = da / (da - db)
+                d = min(d, _to_triangle(a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1]), a[2] + t * (b[2] - a[2]),
+                                        ax, ay, az, bx, by, bz, cx, cy, cz))
+            best = min(best, d)
+    return best * (1.0 - 1e-12)
+
+
+@nb.njit(cache=True, inline="always")
+def segment_clearance(seg_reference_m_inout, seg_clearance_m_inout, seg_travel_at_m_inout, clear, which, meshes_in,
+                      start, end, margin_m, skip_m, stack_out):
+    """Segment s's bound from mesh m over the step (`segment_clearance_left`; which = (m, s)), taken afresh
+    first, at its end points `end`, when it is not over skip_m (`segment_skip_m`) and the ends have moved
+    more than RENEW_MARGINS since it was taken. The first three: a SegmentClearanceInOut's arrays (plain
+    arrays: a parallel loop's writes through a tuple are lost, numba issues 7135 and 10338)."""
+    m, s = which
+    left = segment_clearance_left(seg_reference_m_inout, seg_clearance_m_inout, seg_travel_at_m_inout, clear, m, s,
+                                  start, end)
+    if left > skip_m:
+        return left
+    taken = seg_clearance_m_inout[m, s]
+    if taken >= 0.0:
+        ref = seg_reference_m_inout[m, s]
+        moved = max(_dist(end[0, 0], end[0, 1], end[0, 2], ref, 0), _dist(end[1, 0], end[1, 1], end[1, 2], ref, 1))
+        if moved + clear.travel_start_m[m] - seg_travel_at_m_inout[m, s] <= RENEW_MARGINS * margin_m:
+            return left  # taken afresh, it would be about as low: what is left is the step's own sweep
+    near = min(NEAR_MARGINS * margin_m, clear.reach_m)
+    d = segment_distance(m, meshes_in, end[0], end[1], near, stack_out)  # a small box first, as `renew`
+    if d >= near * (1.0 - 1e-9):
+        d = segment_distance(m, meshes_in, end[0], end[1], clear.reach_m, stack_out)
+    seg_clearance_m_inout[m, s] = d
+    for e in range(2):
+        for c in range(3):
+            seg_reference_m_inout[m, s, e, c] = end[e, c]
+    seg_travel_at_m_inout[m, s] = clear.travel_start_m[m]
+    return segment_clearance_left(seg_reference_m_inout, seg_clearance_m_inout, seg_travel_at_m_inout, clear, m, s,
+                                  start, end)
+
+
+def empty_segment_clearance(meshes: int, segments: int) -> SegmentClearanceInOut:
+    """No segment bounds yet."""
+    return SegmentClearanceInOut(np.zeros((meshes, segments, 2, 3)), np.full((meshes, segments), -1.0),
+                                 np.zeros((meshes, segments)))
+
+
+def carry_segment_clearance(old: SegmentClearanceInOut, old_slots: np.ndarray,
+                            new_slots: np.ndarray) -> SegmentClearanceInOut:
+    """Bounds for a new list of segments (spring slots `new_slots`, ascending) from the old list's: a slot in
+    both keeps its bound (a bound is a fact about the reference segment, whatever particles its ends are
+    now), a new one has none."""
+    out = empty_segment_clearance(old.clearance_m.shape[0], new_slots.shape[0])
+    if old_slots.size and new_slots.size:
+        at = np.minimum(np.searchsorted(old_slots, new_slots), old_slots.size - 1)
+        kept = old_slots[at] == new_slots
+        out.reference_m[:, kept] = old.reference_m[:, at[kept]]
+        out.clearance_m[:, kept] = old.clearance_m[:, at[kept]]
+        out.travel_at_m[:, kept] = old.travel_at_m[:, at[kept]]
+    return out
 
 
 def empty_clearance(meshes: int, particles: int, coordinate_scale_m: np.ndarray, reach_m: float) -> ClearanceInOut:

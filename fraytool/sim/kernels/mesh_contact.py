@@ -50,7 +50,8 @@ from fraytool.geometry.frames import rotate, to_body, to_world
 from fraytool.geometry.segments import segment_closest_params
 from fraytool.geometry.triangles import closest_on_triangle, triangle_normal
 from fraytool.sim.kernels.mesh_bvh import next_leaf, overlaps, prim_overlaps
-from fraytool.sim.kernels.mesh_clearance import SKIP_FACTOR, clearance_left, renew, segment_skip_m
+from fraytool.sim.kernels.mesh_clearance import (SKIP_FACTOR, clearance_left, renew, segment_clearance,
+                                                  segment_skip_m, through_skip_m)
 from fraytool.sim.kernels.rigid_contact import coulomb_friction
 
 PASSES = 3
@@ -254,13 +255,15 @@ def start_rotation(rot, omega, dt_s):
     return out
 
 
-@nb.njit(cache=True)
-def _mesh_range(particles, lo, hi, m, frame, meshes_in, margin_m, particles_in, particle_position_m_inout, clear_inout,
-                stack_out):
-    """Particles particles[lo:hi] against mesh m; `frame` = (rotation (3, 3), centre at the step's end (3),
-    centre at its start (3), friction, rotation at the step's start (3, 3)). A mass whose clearance bound
-    (`clear_inout`, fraytool.sim.kernels.mesh_clearance) is over the margin is skipped; the others' bounds are
-    renewed. Returns the number of masses in contact."""
+@nb.njit(cache=True, inline="always")
+def _mesh_range(span, m, frame, meshes_in, margin_m, particles_in, particle_position_m_inout, clear,
+                clearance_m_inout, reference_m_inout, travel_at_m_inout, stack_out):
+    """Particles particles[lo:hi] against mesh m (span = (particles, lo, hi)); `frame` = (rotation (3, 3),
+    centre at the step's end (3), centre at its start (3), friction, rotation at the step's start (3, 3)). A
+    mass whose clearance bound (`clear`, fraytool.sim.kernels.mesh_clearance; its arrays the three after it,
+    which the pass renews) is over the margin is skipped; the others' bounds are renewed. Returns the number
+    of masses in contact."""
+    particles, lo, hi = span
     rot, c1, c0, friction, rot0 = frame
     particle_inv_mass, prev_position_m = particles_in
     box = meshes_in.tri_box
@@ -282,7 +285,7 @@ def _mesh_range(particles, lo, hi, m, frame, meshes_in, margin_m, particles_in, 
         if not overlaps(box, root, min(l0[0], l1[0]) - pad, min(l0[1], l1[1]) - pad, min(l0[2], l1[2]) - pad,
                          max(l0[0], l1[0]) + pad, max(l0[1], l1[1]) + pad, max(l0[2], l1[2]) + pad):
             continue
-        if clearance_left(clear_inout, m, p, l0[0], l0[1], l0[2], l1[0], l1[1], l1[2]) > SKIP_FACTOR * margin_m:
+        if clearance_left(clear, m, p, l0[0], l0[1], l0[2], l1[0], l1[1], l1[2]) > SKIP_FACTOR * margin_m:
             continue  # it cannot come within the margin this step: the passes would find nothing
         touched = False
         nx = ny = nz = depth = deepest = 0.0
@@ -303,7 +306,8 @@ def _mesh_range(particles, lo, hi, m, frame, meshes_in, margin_m, particles_in, 
             passes += 1
             touched = True
             depth += max(push.depth, 0.0)  # the push over every pass: a later pass may move it a rounding error only
-        renew(clear_inout, m, p, meshes_in, l1, touched, margin_m, stack_out)
+        renew(clearance_m_inout, reference_m_inout, travel_at_m_inout, clear, (m, p), meshes_in, l1, touched, margin_m,
+              stack_out)
         if not touched:
             continue
         hits += 1
@@ -353,6 +357,9 @@ def collide_meshes(
     over the units."""
     contacts = 0
     particles_in = (particle_inv_mass, prev_position_m)
+    # the bounds' arrays out of their named tuple (numba drops a parallel loop's writes through a tuple: numba
+    # issues 7135, 10338), so that the pass can be inlined into the loop (a call per unit costs twice the work)
+    clearance_m, reference_m, travel_at_m = clear_inout.clearance_m, clear_inout.reference_m, clear_inout.travel_at_m
     for m in range(meshes_in.body.shape[0]):
         k = meshes_in.body[m]
         if not bodies_in.collide[k]:
@@ -361,12 +368,13 @@ def collide_meshes(
         c0 = c1 - dt_s * bodies_in.velocity_m_s[k]
         frame = (bodies_in.rotation[k], c1, c0, bodies_in.friction[k],
                  start_rotation(bodies_in.rotation[k], bodies_in.angular_velocity_rad_s[k], dt_s))
-        hits = 0
-        for u in nb.prange(unit_bounds.shape[0] - 1):
+        hits = np.zeros(unit_bounds.shape[0] - 1, np.int64)  # (per unit: a reduction over the inlined pass
+        for u in nb.prange(unit_bounds.shape[0] - 1):        # does not compile)
             stack = np.empty(STACK, np.int64)
-            hits += _mesh_range(particles, unit_bounds[u], unit_bounds[u + 1], m, frame, meshes_in, margin_m,
-                                particles_in, particle_position_m_inout, clear_inout, stack)
-        contacts += hits
+            hits[u] = _mesh_range((particles, unit_bounds[u], unit_bounds[u + 1]), m, frame, meshes_in, margin_m,
+                                  particles_in, particle_position_m_inout, clear_inout, clearance_m, reference_m,
+                                  travel_at_m, stack)
+        contacts += hits.sum()
     return contacts
 
 
@@ -563,9 +571,19 @@ def _mesh_frame(m, meshes_in, bodies_in, dt_s):
 
 
 @nb.njit(cache=True, inline="always")
-def _segment_clear(clear, m, a, b, start, end, margin_m):
-    """Whether a segment's ends' clearance bounds keep every point of it over the margin from mesh m through
-    the step (fraytool.sim.kernels.mesh_clearance: (D_a + D_b - L) / 2)."""
+def _largest_coordinate(start, end):
+    """The largest |body-frame coordinate| of a segment's ends over the step."""
+    largest = 0.0
+    for end_ in range(2):
+        for c in range(3):
+            largest = max(largest, abs(start[end_, c]), abs(end[end_, c]))
+    return largest
+
+
+@nb.njit(cache=True, inline="always")
+def _segment_clear(clear, m, a, b, start, end, skip_m):
+    """Whether a segment's ends' clearance bounds keep every point of it over skip_m (`segment_skip_m`) from
+    mesh m through the step (fraytool.sim.kernels.mesh_clearance: (D_a + D_b - L) / 2)."""
     da = clearance_left(clear, m, a, start[0, 0], start[0, 1], start[0, 2], end[0, 0], end[0, 1], end[0, 2])
     if da < 0.0:
         return False
@@ -573,22 +591,23 @@ def _segment_clear(clear, m, a, b, start, end, margin_m):
     if db < 0.0:
         return False
     length = math.sqrt(max(_dist2(start[0], start[1]), _dist2(end[0], end[1])))
-    largest = 0.0
-    for end_ in range(2):
-        for c in range(3):
-            largest = max(largest, abs(start[end_, c]), abs(end[end_, c]))
-    return 0.5 * (da + db - length) > segment_skip_m(clear, m, margin_m, largest)
+    return 0.5 * (da + db - length) > skip_m
 
 
 @nb.njit(cache=True, fastmath=False, parallel=True)
 def segments_touching(segments, unit_bounds, meshes_in, bodies_in, margin_m, dt_s, particle_inv_mass,
-                      prev_position_m, particle_position_m, clear, touching_out):
+                      prev_position_m, particle_position_m, clear, seg_clear_inout, touching_out):
     """touching_out[m, s]: whether segment s's first pass against colliding mesh m would move it, from the
-    positions as they are (nothing is written but the flags). Parallel over the units of `segments`: the costly
-    part of collide_mesh_segments' first sweep, which then runs only the flagged segments and those at a mass
-    moved before them in the sweep; a segment neither flagged nor moved would have met nothing, so the result
-    is the serial sweep's, bit for bit, on any number of threads. A segment whose ends' clearance bounds
-    (`clear`, fraytool.sim.kernels.mesh_clearance) keep all of it over the margin is not tested."""
+    positions as they are (nothing is written but the flags and the segments' bounds). Parallel over the
+    units of `segments`: the costly part of collide_mesh_segments' first sweep, which then runs only the
+    flagged segments and those at a mass moved before them in the sweep; a segment neither flagged nor moved
+    would have met nothing, so the result is the serial sweep's, bit for bit, on any number of threads.
+    A segment whose ends' clearance bounds (`clear`) or its own (`seg_clear_inout`, renewed here: each
+    segment's by one thread) keep all of it over the margin is not tested; one kept off the surface skips
+    the corner test (fraytool.sim.kernels.mesh_clearance)."""
+    # the bounds' arrays taken out of their named tuple: numba drops writes made through a tuple in a
+    # parallel loop (numba issues 7135, 10338)
+    seg_reference_m, seg_clearance_m, seg_travel_at_m = seg_clear_inout
     for u in nb.prange(unit_bounds.shape[0] - 1):
         stack = np.empty(STACK, np.int64)
         start = np.empty((2, 3))
@@ -606,10 +625,18 @@ def segments_touching(segments, unit_bounds, meshes_in, bodies_in, margin_m, dt_
                 _segment_in_body(segments, s, rot, rot0, c0, c1, prev_position_m, particle_position_m, start, end)
                 if not _segment_near(meshes_in.tri_box, meshes_in.tri_node_start[m], start, end, pad):
                     continue
-                if _segment_clear(clear, m, segments[s, 0], segments[s, 1], start, end, margin_m):
+                largest = _largest_coordinate(start, end)
+                skip_m = segment_skip_m(clear, m, margin_m, largest)
+                if _segment_clear(clear, m, segments[s, 0], segments[s, 1], start, end, skip_m):
                     continue
-                touching_out[m, s] = _segment_hits(m, meshes_in, sharp, meshes_in.closed[m], start, end,
-                                                   inverse_masses, margin_m, stack) > 0
+                left = segment_clearance(seg_reference_m, seg_clearance_m, seg_travel_at_m, clear, (m, s), meshes_in,
+                                         start, end, margin_m, skip_m, stack)
+                if left > skip_m:
+                    continue
+                # the sharp edges' pass comes first: when it moves nothing, the segment is where its bound holds
+                through = meshes_in.closed[m] and left <= through_skip_m(clear, m, largest)
+                touching_out[m, s] = _segment_hits(m, meshes_in, sharp, through, start, end, inverse_masses,
+                                                   margin_m, stack) > 0
 
 
 @nb.njit(cache=True, fastmath=False)

@@ -18,6 +18,7 @@ from __future__ import annotations
 import math
 
 import numba as nb
+import numpy as np
 
 from fraytool.kinds import SHAPE_MESH, SHAPE_PLANE, SHAPE_SPHERE
 
@@ -139,7 +140,7 @@ def project_out_of_body(k, bodies_in, margin_m, x_inout):
     return d, nx, ny, nz
 
 
-@nb.njit(cache=True, fastmath=False)
+@nb.njit(cache=True, fastmath=False, inline="always")
 def _contact_range(particles, lo, hi, k, frame, dynamic, dt_s, bodies_in, margin_m, particles_in,
                    particle_position_m_inout, body_impulse_out):
     """Particles particles[lo:hi] against body k: each one in contact is moved out with friction, and for a
@@ -227,6 +228,7 @@ def collide_rigid(
     contacts = 0
     body_impulse_out[:] = 0.0
     particles_in = (particle_inv_mass, particle_mass_kg, prev_position_m)
+    hits = np.zeros(unit_bounds.shape[0] - 1, np.int64)  # contacts per unit, against one body
     for k in range(bodies_in.shape.shape[0]):
         if not bodies_in.collide[k]:
             continue
@@ -246,12 +248,13 @@ def collide_rigid(
         if bodies_in.dynamic[k]:
             contacts += _contact_range(particles, 0, particles.shape[0], k, frame, True, dt_s, bodies_in, margin_m,
                                        particles_in, particle_position_m_inout, body_impulse_out)
-        else:
-            hits = 0
+        else:  # (inlined into the loop: a call per unit costs more than its work; counts per unit, as a
+            # reduction over the inlined code does not compile)
+            hits[:] = 0
             for u in nb.prange(unit_bounds.shape[0] - 1):
-                hits += _contact_range(particles, unit_bounds[u], unit_bounds[u + 1], k, frame, False, dt_s,
-                                       bodies_in, margin_m, particles_in, particle_position_m_inout, body_impulse_out)
-            contacts += hits
+                hits[u] = _contact_range(particles, unit_bounds[u], unit_bounds[u + 1], k, frame, False, dt_s,
+                                         bodies_in, margin_m, particles_in, particle_position_m_inout, body_impulse_out)
+            contacts += hits.sum()
     return contacts
 
 

@@ -6,6 +6,7 @@ import numpy as np
 
 from fraytool.kinds import STRUCT_WARP, STRUCT_WEFT
 from fraytool.sim.kernels.bodies import bodies_in
+from fraytool.sim.kernels.mesh_clearance import carry_segment_clearance, empty_segment_clearance
 from fraytool.sim.kernels.mesh_contact import collide_mesh_segments, collide_meshes, segments_touching
 from fraytool.sim.kernels.work_split import even_units
 from fraytool.sim.mesh_geometry import MeshGeometry
@@ -33,6 +34,11 @@ class MeshContact:
         self._segments = np.zeros((0, 2), np.int64)
         self._segment_units = even_units(0)
         self._touching = np.zeros((0, 0), np.bool_)
+        self._slots = np.zeros(0, np.int64)
+        """Spring slot of each row of `_segments`."""
+        self.segment_clearance = empty_segment_clearance(geometry.table.body.shape[0], 0)
+        """Each segment's own distance bound from each mesh (fraytool.sim.kernels.mesh_clearance), carried over
+        by spring slot when the segments change."""
         self._structural = (model.spring_kind == STRUCT_WEFT) | (model.spring_kind == STRUCT_WARP)
 
     def segments(self, state: State, ctx: StepContext) -> np.ndarray:
@@ -50,6 +56,8 @@ class MeshContact:
                 is_slaved[slaved] = True
                 use &= ~(is_slaved[state.spring_particle_a] | is_slaved[state.spring_particle_b])
             s = np.flatnonzero(use)
+            self.segment_clearance = carry_segment_clearance(self.segment_clearance, self._slots, s)
+            self._slots = s
             self._segments = np.ascontiguousarray(np.stack([state.spring_particle_a[s], state.spring_particle_b[s]],
                                                            axis=1).astype(np.int64))
             self._segments_key = key
@@ -68,7 +76,8 @@ class MeshContact:
         if self.segments_too:
             segments = self.segments(state, ctx)
             segments_touching(segments, self._segment_units, meshes, bodies, margin, dt_s, state.particle_inv_mass,
-                              ctx.prev_position_m, state.particle_position_m, clear, self._touching)
+                              ctx.prev_position_m, state.particle_position_m, clear, self.segment_clearance,
+                              self._touching)
             hits += collide_mesh_segments(segments, self._touching, meshes, bodies, margin, dt_s,
                                           state.particle_inv_mass, ctx.prev_position_m, state.particle_position_m)
         if self.after_analytic:
