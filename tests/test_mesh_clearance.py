@@ -10,8 +10,9 @@ import pytest
 from fraytool.geometry.triangles import closest_on_triangle
 from fraytool.kinds import STRUCT_WARP, STRUCT_WEFT
 from fraytool.sim.builder import ModelBuilder
-from fraytool.sim.kernels.mesh_clearance import (SKIP_FACTOR, clearance_left, empty_segment_clearance, nearest_distance,
-                                                  segment_clearance, segment_clearance_left, segment_distance)
+from fraytool.sim.kernels.mesh_clearance import (SKIP_FACTOR, clearance_left, empty_clearance, empty_segment_clearance,
+                                                  nearest_distance, segment_clearance, segment_clearance_left,
+                                                  segment_distance)
 from fraytool.sim.kernels.mesh_contact import STACK
 from fraytool.sim.mesh_geometry import MeshGeometry
 from fraytool.sim.solver import SolverExplicitPBD
@@ -297,8 +298,9 @@ def test_an_edge_push_does_not_hide_the_next_edge_behind_the_stale_query_box():
         meshes = MeshesIn(np.array([0]), np.array([False]), tris, edges, v, v, tb.node_start, tb.child, tb.prim_range,
                           tb.box, tb.order, eb.node_start, eb.child, eb.prim_range, box, eb.order)
         x = start.copy()
+        none = (empty_clearance(1, 2, np.zeros(1), 0.0), empty_segment_clearance(1, 1))  # no bounds: no skip
         hits = collide_mesh_segments(np.array([[0, 1]], np.int64), np.ones((1, 1), np.bool_), meshes, bodies,
-                                     0.4 * mm, 1e-4, np.array([1.0, 1.0]), start.copy(), x)
+                                     0.4 * mm, 1e-4, np.array([1.0, 1.0]), start.copy(), x, none)
         out.append((hits, x))
     assert out[0][0] == out[1][0] > 0
     assert out[0][1].tobytes() == out[1][1].tobytes()

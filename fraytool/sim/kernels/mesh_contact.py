@@ -50,8 +50,8 @@ from fraytool.geometry.frames import rotate, to_body, to_world
 from fraytool.geometry.segments import segment_closest_params
 from fraytool.geometry.triangles import closest_on_triangle, triangle_normal
 from fraytool.sim.kernels.mesh_bvh import next_leaf, overlaps, prim_overlaps
-from fraytool.sim.kernels.mesh_clearance import (SKIP_FACTOR, clearance_left, renew, segment_clearance,
-                                                  segment_skip_m, through_skip_m)
+from fraytool.sim.kernels.mesh_clearance import (CCD_SCALE, SKIP_FACTOR, clearance_left, renew, segment_clearance,
+                                                  segment_clearance_left, segment_skip_m, through_skip_m)
 from fraytool.sim.kernels.rigid_contact import coulomb_friction
 
 PASSES = 3
@@ -385,6 +385,23 @@ def _closest_params(p0, p1, q0, q1):
 
 
 @nb.njit(cache=True, inline="always")
+def _largest_move(seg_start, seg_end, e0s, e1s, e0e, e1e):
+    """The most a segment's end or an edge's end moves over the step (body frame), 3-vectors and (2, 3)s."""
+    return max(math.sqrt(_dist2(seg_start[0], seg_end[0])), math.sqrt(_dist2(seg_start[1], seg_end[1]))) + max(
+        math.sqrt(_dist2(e0s, e0e)), math.sqrt(_dist2(e1s, e1e)))
+
+
+@nb.njit(cache=True, inline="always")
+def _largest_abs(seg_start, seg_end, e0s, e1s, e0e, e1e):
+    """The largest |coordinate| of a segment and an edge at the step's two ends (the CCD's scale)."""
+    largest = 0.0
+    for c in range(3):
+        largest = max(largest, abs(seg_start[0, c]), abs(seg_start[1, c]), abs(seg_end[0, c]), abs(seg_end[1, c]),
+                      abs(e0s[c]), abs(e1s[c]), abs(e0e[c]), abs(e1e[c]))
+    return largest
+
+
+@nb.njit(cache=True, inline="always")
 def _segment_pass(m, meshes_in, seg_start, seg_end_inout, inverse_masses, margin_m, stack_out):
     """One pass of a yarn segment against mesh m's sharp edges, body frame: `seg_start` (2, 3) its ends at
     the step's start, `seg_end_inout` (2, 3) at its end (moved in place), `inverse_masses` (w_a, w_b).
@@ -418,8 +435,14 @@ def _segment_pass(m, meshes_in, seg_start, seg_end_inout, inverse_masses, margin
             s1, u1 = _closest_params(la1, lb1, e0e, e1e)
             wx = la1 + s1 * (lb1 - la1) - (e0e + u1 * (e1e - e0e))
             dist = math.sqrt(_dot3(wx, wx))
-            # did the edge pass through the segment during the step? (interval CCD, no false negative)
-            crossed, _ = edge_edge_ccd_kernel(la0, lb0, e0s, e1s, la1, lb1, e0e, e1e, 0.0)
+            # did the edge pass through the segment during the step? (interval CCD, no false negative). Not
+            # when they stay apart: their distance at the end less the most any of the four ends moved over
+            # the step bounds it at every time (1-Lipschitz), and the CCD reports only pairs that come within
+            # its tolerance (DELTA_REL of the largest coordinate; ten times that here)
+            crossed = False
+            if dist - _largest_move(seg_start, seg_end_inout, e0s, e1s, e0e, e1e) <= CCD_SCALE * _largest_abs(
+                    seg_start, seg_end_inout, e0s, e1s, e0e, e1e):
+                crossed, _ = edge_edge_ccd_kernel(la0, lb0, e0s, e1s, la1, lb1, e0e, e1e, 0.0)
             if crossed:  # back to the side of the start: along the common normal, oriented by then
                 s0, u0 = _closest_params(la0, lb0, e0s, e1s)
                 w0 = la0 + s0 * (lb0 - la0) - (e0s + u0 * (e1s - e0s))
@@ -649,10 +672,16 @@ def collide_mesh_segments(
     particle_inv_mass, prev_position_m,
     # state in/out
     particle_position_m_inout,
+    # the masses' and the segments' clearance bounds (ClearanceInOut, SegmentClearanceInOut), read only
+    bounds_in,
 ):
     """Yarn segments against the meshes' sharp edges, and through closed meshes (module docstring), up to
     PASSES passes per segment (a corner where edges meet); returns the number of contacts. The first sweep
-    visits the segments `touching` flags and those at a mass an earlier segment of the sweep moved."""
+    visits the segments `touching` flags and those at a mass an earlier segment of the sweep moved. A pass
+    whose segment's own bound (`bounds_in`, as in segments_touching, from the positions as they are then)
+    clears it of the margin is not made, and one that clears it of the surface makes no corner test."""
+    clear, seg_clear = bounds_in
+    seg_reference_m, seg_clearance_m, seg_travel_at_m = seg_clear
     contacts = 0
     stack = np.empty(STACK, np.int64)
     start = np.empty((2, 3))
@@ -683,7 +712,19 @@ def collide_mesh_segments(
                     continue
                 moved = 0
                 for _ in range(PASSES):
-                    hits = _segment_hits(m, meshes_in, sharp, closed, start, end, inverse_masses, margin_m, stack)
+                    largest = _largest_coordinate(start, end)
+                    left = segment_clearance_left(seg_reference_m, seg_clearance_m, seg_travel_at_m, clear, m, s,
+                                                  start, end)
+                    if left > segment_skip_m(clear, m, margin_m, largest):
+                        break  # the pass would move nothing
+                    hits = _segment_pass(m, meshes_in, start, end, inverse_masses, margin_m, stack) if sharp else 0
+                    if closed:
+                        if hits:  # moved off an edge: the bound from where it is now
+                            largest = _largest_coordinate(start, end)
+                            left = segment_clearance_left(seg_reference_m, seg_clearance_m, seg_travel_at_m, clear,
+                                                          m, s, start, end)
+                        if left <= through_skip_m(clear, m, largest):
+                            hits += _segment_through(m, meshes_in, end, inverse_masses, margin_m, stack)
                     moved += hits
                     if hits == 0:
                         break

@@ -79,7 +79,8 @@ class MeshContact:
                               ctx.prev_position_m, state.particle_position_m, clear, self.segment_clearance,
                               self._touching)
             hits += collide_mesh_segments(segments, self._touching, meshes, bodies, margin, dt_s,
-                                          state.particle_inv_mass, ctx.prev_position_m, state.particle_position_m)
+                                          state.particle_inv_mass, ctx.prev_position_m, state.particle_position_m,
+                                          (clear, self.segment_clearance))
         if self.after_analytic:
             ctx.counters.rigid_contacts_last += hits
         else:
