@@ -1,9 +1,11 @@
 """Every numba kernel follows one convention, checked on the source (tests/kernel_convention.py): at most
-12 flat arguments (grouped beyond that), and writes only to arguments named `*_out` / `*_inout`."""
+12 flat arguments (grouped beyond that), writes only to arguments named `*_out` / `*_inout`, and writes
+nothing through a tuple in a parallel loop."""
+import ast
 from pathlib import Path
 
 import pytest
-from kernel_convention import MAX_FLAT_ARGUMENTS, kernel_problems, package_problems
+from kernel_convention import MAX_FLAT_ARGUMENTS, kernel_problems, package_problems, parallel_group_writes
 
 pytestmark = pytest.mark.fast  # `pytest -m fast` (docs/testing.md)
 
@@ -50,6 +52,71 @@ def needs_blas(a_in, b_in):
 def not_a_kernel(x_in):
     x_in[0] = 1.0
 '''
+
+
+PARALLEL = '''
+import numba as nb
+
+@nb.njit(parallel=True)
+def writes_a_field_in_the_loop(t_inout):
+    for i in nb.prange(4):
+        t_inout.a[i] = 1.0
+
+@nb.njit(inline="always")
+def unpacks_and_writes(g_inout, i):
+    a, b = g_inout
+    a[i] = 1.0
+
+@nb.njit(inline="always")
+def hands_its_group_on(g_inout, i):
+    unpacks_and_writes(g_inout, i)
+
+@nb.njit(inline="always")
+def writes_a_plain_array(h_out, i):
+    h_out[i] = 2.0
+
+@nb.njit(parallel=True)
+def calls_an_inlined_group_writer(g_inout):
+    for i in nb.prange(4):
+        hands_its_group_on(g_inout, i)
+
+@nb.njit(parallel=True)
+def unpacks_in_the_loop(g_inout):
+    for i in nb.prange(4):
+        a, b = g_inout
+        a[i] = 1.0
+
+@nb.njit(parallel=True)
+def takes_the_arrays_out_first(g_inout, h_out):
+    a, b = g_inout
+    for i in nb.prange(4):
+        a[i] = 1.0
+        writes_a_plain_array(h_out, i)
+        unpacks_and_writes_not_inlined(g_inout, i)
+
+@nb.njit
+def unpacks_and_writes_not_inlined(g_inout, i):
+    a, b = g_inout
+    a[i] = 1.0
+
+@nb.njit
+def serial_field_write(t_inout):
+    for i in range(4):
+        t_inout.a[i] = 1.0
+'''
+
+
+def test_writes_through_a_tuple_in_a_parallel_loop_are_found():
+    """numba drops them (numba issues 7135, 10338): a field written in the loop, a callee inlined into it that
+    writes through its group argument (directly or through another inlined callee), a group unpacked in the
+    loop; not arrays taken out before the loop, a plain array handed to an inlined callee, a non-inlined
+    callee, or a serial loop."""
+    tree = ast.parse(PARALLEL)
+    problems = parallel_group_writes([tree], ["p.py"])
+    assert [p.split(": ", 1)[0] for p in problems] == [
+        "p.py:5 writes_a_field_in_the_loop", "p.py:23 calls_an_inlined_group_writer",
+        "p.py:28 unpacks_in_the_loop"], problems
+    assert "writes its 'g_inout' through a tuple" in problems[1]
 
 
 def test_the_check_fails_on_an_injected_kernel_of_each_kind():
