@@ -299,7 +299,7 @@ def test_an_edge_push_does_not_hide_the_next_edge_behind_the_stale_query_box():
                           tb.box, tb.order, eb.node_start, eb.child, eb.prim_range, box, eb.order)
         x = start.copy()
         none = (empty_clearance(1, 2, np.zeros(1), 0.0), empty_segment_clearance(1, 1))  # no bounds: no skip
-        hits = collide_mesh_segments(np.array([[0, 1]], np.int64), np.ones((1, 1), np.bool_), meshes, bodies,
+        hits = collide_mesh_segments(np.array([[0, 1, 0]], np.int64), np.ones((1, 1), np.bool_), meshes, bodies,
                                      0.4 * mm, 1e-4, np.array([1.0, 1.0]), start.copy(), x, none)
         out.append((hits, x))
     assert out[0][0] == out[1][0] > 0

@@ -72,12 +72,14 @@ ClearanceInOut = namedtuple("ClearanceInOut", [
 ClearanceInOut.__doc__ = "Per-mass clearance bounds from each mesh (module docstring), read and renewed by the passes."
 
 SegmentClearanceInOut = namedtuple("SegmentClearanceInOut", [
-    "reference_m",   # (M, S, 2, 3) body-frame end points of segment s when its distance from mesh m was taken
+    "reference_m",   # (M, S, 2, 3) body-frame end points of spring s when its distance from mesh m was taken
     "clearance_m",   # (M, S) that distance, a lower bound [m]; negative: none (never skip)
     "travel_at_m",   # (M, S) the mesh's travel at the start of the step it was taken in
 ])
-SegmentClearanceInOut.__doc__ = """Per-segment clearance bounds from each mesh (module docstring), rows as the contact
-stage's yarn segments; read and renewed by fraytool.sim.kernels.mesh_contact.segments_touching."""
+SegmentClearanceInOut.__doc__ = """Per-segment clearance bounds from each mesh (module docstring), a row per spring slot
+(the slots of the contact stage's yarn segments change as yarns are cut and cells refine; a slot keeps its bound
+meanwhile: a bound is a fact about the reference segment, whatever particles the spring's ends are now); read and
+renewed by fraytool.sim.kernels.mesh_contact.segments_touching."""
 
 RENEW_MARGINS = 0.5
 """A segment's bound is taken afresh when it is too low to skip and its ends have moved (or the mesh
@@ -273,18 +275,15 @@ def empty_segment_clearance(meshes: int, segments: int) -> SegmentClearanceInOut
                                  np.zeros((meshes, segments)))
 
 
-def carry_segment_clearance(old: SegmentClearanceInOut, old_slots: np.ndarray,
-                            new_slots: np.ndarray) -> SegmentClearanceInOut:
-    """Bounds for a new list of segments (spring slots `new_slots`, ascending) from the old list's: a slot in
-    both keeps its bound (a bound is a fact about the reference segment, whatever particles its ends are
-    now), a new one has none."""
-    out = empty_segment_clearance(old.clearance_m.shape[0], new_slots.shape[0])
-    if old_slots.size and new_slots.size:
-        at = np.minimum(np.searchsorted(old_slots, new_slots), old_slots.size - 1)
-        kept = old_slots[at] == new_slots
-        out.reference_m[:, kept] = old.reference_m[:, at[kept]]
-        out.clearance_m[:, kept] = old.clearance_m[:, at[kept]]
-        out.travel_at_m[:, kept] = old.travel_at_m[:, at[kept]]
+def grown_segment_clearance(old: SegmentClearanceInOut, slots: int) -> SegmentClearanceInOut:
+    """`old` with rows for at least `slots` spring slots: its own rows kept, new ones without a bound."""
+    have = old.clearance_m.shape[1]
+    if have >= slots:
+        return old
+    out = empty_segment_clearance(old.clearance_m.shape[0], slots)
+    out.reference_m[:, :have] = old.reference_m
+    out.clearance_m[:, :have] = old.clearance_m
+    out.travel_at_m[:, :have] = old.travel_at_m
     return out
 
 

@@ -621,7 +621,8 @@ def _segment_clear(clear, m, a, b, start, end, skip_m):
 def segments_touching(segments, unit_bounds, meshes_in, bodies_in, margin_m, dt_s, particle_inv_mass,
                       prev_position_m, particle_position_m, clear, seg_clear_inout, touching_out):
     """touching_out[m, s]: whether segment s's first pass against colliding mesh m would move it, from the
-    positions as they are (nothing is written but the flags and the segments' bounds). Parallel over the
+    positions as they are (nothing is written but the flags and the segments' bounds). `segments`: (S, 3) the
+    end particles and the spring slot of each (its row of the bounds). Parallel over the
     units of `segments`: the costly part of collide_mesh_segments' first sweep, which then runs only the
     flagged segments and those at a mass moved before them in the sweep; a segment neither flagged nor moved
     would have met nothing, so the result is the serial sweep's, bit for bit, on any number of threads.
@@ -652,8 +653,8 @@ def segments_touching(segments, unit_bounds, meshes_in, bodies_in, margin_m, dt_
                 skip_m = segment_skip_m(clear, m, margin_m, largest)
                 if _segment_clear(clear, m, segments[s, 0], segments[s, 1], start, end, skip_m):
                     continue
-                left = segment_clearance(seg_reference_m, seg_clearance_m, seg_travel_at_m, clear, (m, s), meshes_in,
-                                         start, end, margin_m, skip_m, stack)
+                left = segment_clearance(seg_reference_m, seg_clearance_m, seg_travel_at_m, clear, (m, segments[s, 2]),
+                                         meshes_in, start, end, margin_m, skip_m, stack)
                 if left > skip_m:
                     continue
                 # the sharp edges' pass comes first: when it moves nothing, the segment is where its bound holds
@@ -664,7 +665,7 @@ def segments_touching(segments, unit_bounds, meshes_in, bodies_in, margin_m, dt_
 
 @nb.njit(cache=True, fastmath=False)
 def collide_mesh_segments(
-    # yarn segments: (S, 2) particle slots, and which would move in a first pass (segments_touching)
+    # yarn segments: (S, 3) end particles and spring slot, and which would move in a first pass (segments_touching)
     segments, touching,
     # model and state: the meshes (MeshesIn) and the bodies (BodiesIn)
     meshes_in, bodies_in, margin_m, dt_s,
@@ -713,8 +714,8 @@ def collide_mesh_segments(
                 moved = 0
                 for _ in range(PASSES):
                     largest = _largest_coordinate(start, end)
-                    left = segment_clearance_left(seg_reference_m, seg_clearance_m, seg_travel_at_m, clear, m, s,
-                                                  start, end)
+                    left = segment_clearance_left(seg_reference_m, seg_clearance_m, seg_travel_at_m, clear, m,
+                                                  segments[s, 2], start, end)
                     if left > segment_skip_m(clear, m, margin_m, largest):
                         break  # the pass would move nothing
                     hits = _segment_pass(m, meshes_in, start, end, inverse_masses, margin_m, stack) if sharp else 0
@@ -722,7 +723,7 @@ def collide_mesh_segments(
                         if hits:  # moved off an edge: the bound from where it is now
                             largest = _largest_coordinate(start, end)
                             left = segment_clearance_left(seg_reference_m, seg_clearance_m, seg_travel_at_m, clear,
-                                                          m, s, start, end)
+                                                          m, segments[s, 2], start, end)
                         if left <= through_skip_m(clear, m, largest):
                             hits += _segment_through(m, meshes_in, end, inverse_masses, margin_m, stack)
                     moved += hits

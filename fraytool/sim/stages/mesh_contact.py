@@ -6,7 +6,7 @@ import numpy as np
 
 from fraytool.kinds import STRUCT_WARP, STRUCT_WEFT
 from fraytool.sim.kernels.bodies import bodies_in
-from fraytool.sim.kernels.mesh_clearance import carry_segment_clearance, empty_segment_clearance
+from fraytool.sim.kernels.mesh_clearance import empty_segment_clearance, grown_segment_clearance
 from fraytool.sim.kernels.mesh_contact import collide_mesh_segments, collide_meshes, segments_touching
 from fraytool.sim.kernels.work_split import even_units
 from fraytool.sim.mesh_geometry import MeshGeometry
@@ -31,18 +31,17 @@ class MeshContact:
         self.geometry = geometry
         self.after_analytic = after_analytic
         self._segments_key = None
-        self._segments = np.zeros((0, 2), np.int64)
+        self._segments = np.zeros((0, 3), np.int64)
         self._segment_units = even_units(0)
         self._touching = np.zeros((0, 0), np.bool_)
-        self._slots = np.zeros(0, np.int64)
-        """Spring slot of each row of `_segments`."""
-        self.segment_clearance = empty_segment_clearance(geometry.table.body.shape[0], 0)
-        """Each segment's own distance bound from each mesh (fraytool.sim.kernels.mesh_clearance), carried over
-        by spring slot when the segments change."""
+        self.segment_clearance = empty_segment_clearance(geometry.table.body.shape[0], model.spring_count)
+        """Each segment's own distance bound from each mesh (fraytool.sim.kernels.mesh_clearance), a row per
+        spring slot, kept as the segments change."""
         self._structural = (model.spring_kind == STRUCT_WEFT) | (model.spring_kind == STRUCT_WARP)
 
     def segments(self, state: State, ctx: StepContext) -> np.ndarray:
-        """Alive yarn segments (structural springs) as (S, 2) particle slots, kept per topology epoch. In a
+        """Alive yarn segments (structural springs) as (S, 3): end particles a, b and the spring slot, kept per
+        topology epoch. In a
         multi-resolution model, only those between free crossings: a segment with a slaved end is inside a
         coarse cell or on its border, where the cell's nodes and cells_on_meshes answer for the cloth
         (docs/multires.md, "Against a mesh"); and moving its free end alone to push a point near the
@@ -56,9 +55,8 @@ class MeshContact:
                 is_slaved[slaved] = True
                 use &= ~(is_slaved[state.spring_particle_a] | is_slaved[state.spring_particle_b])
             s = np.flatnonzero(use)
-            self.segment_clearance = carry_segment_clearance(self.segment_clearance, self._slots, s)
-            self._slots = s
-            self._segments = np.ascontiguousarray(np.stack([state.spring_particle_a[s], state.spring_particle_b[s]],
+            self.segment_clearance = grown_segment_clearance(self.segment_clearance, use.shape[0])
+            self._segments = np.ascontiguousarray(np.stack([state.spring_particle_a[s], state.spring_particle_b[s], s],
                                                            axis=1).astype(np.int64))
             self._segments_key = key
             self._segment_units = even_units(self._segments.shape[0])
