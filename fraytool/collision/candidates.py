@@ -172,6 +172,29 @@ def pair_segments(candidates, flag_inout):
 
 
 @nb.njit(cache=True, fastmath=False)
+def movable_pairs(candidates, spring_particle_a, spring_particle_b, particle_inv_mass):
+    """The candidate pairs (in order) with an end particle of inverse mass > 0: a pair of two segments whose
+    four ends are all held or slaved to coarse nodes cannot be moved by any pass (every correction is
+    weighted by the inverse masses), so the passes need not look at it."""
+    keep = np.empty(candidates.shape[0], np.bool_)
+    count = 0
+    for k in range(candidates.shape[0]):
+        i = candidates[k, 0]
+        j = candidates[k, 1]
+        keep[k] = (particle_inv_mass[spring_particle_a[i]] > 0.0 or particle_inv_mass[spring_particle_b[i]] > 0.0
+                   or particle_inv_mass[spring_particle_a[j]] > 0.0 or particle_inv_mass[spring_particle_b[j]] > 0.0)
+        count += keep[k]
+    out = np.empty((count, 2), candidates.dtype)
+    n = 0
+    for k in range(candidates.shape[0]):
+        if keep[k]:
+            out[n, 0] = candidates[k, 0]
+            out[n, 1] = candidates[k, 1]
+            n += 1
+    return out
+
+
+@nb.njit(cache=True, fastmath=False)
 def reattached_segments(spring_particle_a, spring_particle_b, spring_alive, segments, build_ends):
     """Indices into ``segments`` (increasing) of the live segments whose end particles are no longer
     those of ``build_ends``."""

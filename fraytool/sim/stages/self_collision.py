@@ -40,6 +40,7 @@ from fraytool.collision.candidates import (
     escaped_segments,
     inflate_boxes,
     merge_pairs,
+    movable_pairs,
     pair_segments,
     particle_reach,
     reattached_pairs,
@@ -142,6 +143,12 @@ class SelfCollision:
         """Scratch of the kernels, kept across steps (``_scratch``); ``_box`` has a row per yarn segment."""
         self._segs = self._segs_of = None
         """The spring slots in the candidates ``self._segs_of`` (``_pair_segments``)."""
+        self._skip_fixed = model.coarse_factor > 1
+        """The passes leave out the pairs nothing can move (``_worked``): a coarse model's slaved crossings
+        have inverse mass 0, and most of a coarse garment's candidates join two slaved segments."""
+        self._work = None
+        self._work_of = (None, -1)
+        """``_worked``'s list, and the candidates and topology epoch it was made from."""
 
     def _scratch(self, state) -> None:
         """(Re)allocate the kernels' scratch when the particle or spring slot count changed."""
@@ -153,20 +160,34 @@ class SelfCollision:
             self._before = np.empty((p, 3))
             self._flag = np.zeros(s, np.bool_)
 
-    def _pair_segments(self) -> np.ndarray:
-        """The spring slots in the candidates, each once: the segments whose boxes the passes use."""
-        if self._segs_of is not self._cand:
-            self._segs = pair_segments(self._cand, self._flag)
-            self._segs_of = self._cand
+    def _worked(self, state) -> np.ndarray:
+        """The candidates the passes look at: all of them, or in a coarse model those with an end particle of
+        inverse mass > 0 (``movable_pairs``; a pair of two segments whose ends are all slaved or held moves in no
+        pass, so leaving it out changes no position). Inverse masses change with the topology epoch only
+        (fraytool.sim.kernels.work_split.ParticleLists)."""
+        if not self._skip_fixed:
+            return self._cand
+        if self._work_of[0] is not self._cand or self._work_of[1] != state.topology_epoch:
+            self._work = movable_pairs(self._cand, state.spring_particle_a, state.spring_particle_b,
+                                       state.particle_inv_mass)
+            self._work_of = (self._cand, state.topology_epoch)
+        return self._work
+
+    def _pair_segments(self, state) -> np.ndarray:
+        """The spring slots in the candidates the passes look at, each once: the segments whose boxes they use."""
+        work = self._worked(state)
+        if self._segs_of is not work:
+            self._segs = pair_segments(work, self._flag)
+            self._segs_of = work
         return self._segs
 
     def _ccd(self, state, prev_position_m, moved=None):
         """CCD pass on the candidates (all of them, or those touching ``moved`` particles)."""
         x, a, b, alive = state.particle_position_m, state.spring_particle_a, state.spring_particle_b, state.spring_alive
         if moved is None:
-            return ccd_pairs_all(prev_position_m, x, self._cand, a, b, alive, self._pair_segments(), self._box_row,
-                                 self._box)
-        return ccd_pairs(prev_position_m, x, self._cand, a, b, alive, moved)
+            return ccd_pairs_all(prev_position_m, x, self._worked(state), a, b, alive, self._pair_segments(state),
+                                 self._box_row, self._box)
+        return ccd_pairs(prev_position_m, x, self._worked(state), a, b, alive, moved)
 
     def _build(self, state, prev_position_m) -> None:
         """Broad phase on the segments swept from x_prev to the look-ahead x + LOOKAHEAD_STEPS (x - x_prev),
@@ -235,16 +256,18 @@ class SelfCollision:
         a, b, w, alive = state.spring_particle_a, state.spring_particle_b, state.particle_inv_mass, state.spring_alive
         total, first = 0, 0
         while True:
-            moved, stop = repel_close_pairs(self.contact_distance_m, self.friction, prev_position_m, self._cand,
+            work = self._worked(state)
+            moved, stop = repel_close_pairs(self.contact_distance_m, self.friction, prev_position_m, work,
                                             first, (a, b, alive), w, self._reach, x,
-                                            (self._pair_segments(), self._box_row), (self._box, self._dirty))
+                                            (self._pair_segments(state), self._box_row), (self._box, self._dirty))
             total += moved
             if stop < 0:
                 return total
             n = np.int64(self.model.spring_count)
-            last = np.int64(self._cand[stop, 0]) * n + self._cand[stop, 1]
+            last = np.int64(work[stop, 0]) * n + work[stop, 1]
             self._ensure_valid(state, prev_position_m)
-            keys = self._cand[:, 0].astype(np.int64) * n + self._cand[:, 1]
+            work = self._worked(state)
+            keys = work[:, 0].astype(np.int64) * n + work[:, 1]
             first = int(np.searchsorted(keys, last, side="right"))
 
     def __call__(self, state, prev_position_m: np.ndarray, dt_s: float) -> None:
