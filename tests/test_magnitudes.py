@@ -97,7 +97,7 @@ def _sliding_pair(friction: float):
     xe = xs.copy()
     xe[2:] += [1e-4, 0.0, -3e-4]
     before = xe.copy()
-    moved, _ = repel_close_pairs(d_c, friction, xs, np.array([[0, 1]], np.int32), 0,
+    moved, _ = repel_close_pairs(d_c, (friction, np.inf), xs, np.array([[0, 1]], np.int32), 0,
                                  (np.array([0, 2], np.int32), np.array([1, 3], np.int32), np.ones(2, np.bool_)),
                                  np.ones(4), np.array([[-1e9] * 3 + [1e9] * 3] * 4), xe,
                                  (np.array([0, 1], np.int32), np.array([0, 1], np.int32)),

@@ -94,7 +94,7 @@ def test_lines_apart_leaves_nearly_parallel_pairs_at_the_distance_to_the_exact_t
     x, d_c = cases[0]
     assert not _lines_apart(x, 0, 1, 2, 3, d_c)
     xe = x.copy()
-    moved, _ = repel_close_pairs(d_c, 0.0, x.copy(), np.array([[0, 1]], np.int32), 0,
+    moved, _ = repel_close_pairs(d_c, (0.0, np.inf), x.copy(), np.array([[0, 1]], np.int32), 0,
                                  (np.array([0, 2], np.int32), np.array([1, 3], np.int32), np.ones(2, np.bool_)),
                                  np.ones(4), np.array([[-1e9] * 3 + [1e9] * 3] * 4), xe,
                                  (np.array([0, 1], np.int32), np.array([0, 1], np.int32)),

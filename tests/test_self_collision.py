@@ -478,46 +478,83 @@ def test_movable_pairs_keeps_exactly_the_pairs_with_an_end_that_can_move():
     assert np.array_equal(kept, expected)
 
 
-def test_a_coarse_model_leaves_out_pairs_nothing_can_move_and_moves_the_same():
-    """A coarse cloth folded onto itself (two coarse layers 0.5 mm apart: farther than the contact distance of
-    0.1 mm, within the candidates' reach of 0.65 mm): most of the candidates join two segments whose ends are all
-    slaved. The passes leave those out
-    (SelfCollision._worked); the positions are those of passes over every candidate, bit for bit."""
+def _folded_coarse_cloth(thickness_m, lift_m):
+    """A 17 x 17 coarse cloth (factor 4, self-collision on) folded along its coarse line j = 8: row j > 8 lies
+    over row 16 - j, `lift_m` above it. Returns (model, state, the fold's normal)."""
     from fraytool.sim import multires
     from fraytool.sim.builder import ModelBuilder
-    from fraytool.sim.solver import SolverExplicitPBD
 
     b = ModelBuilder(seed=3)
-    b.add_cloth(warp_yarns=17, weft_yarns=17, spacing_m=0.004, thickness_m=0.0002, mass_per_crossing_kg=1e-5,
+    b.add_cloth(warp_yarns=17, weft_yarns=17, spacing_m=0.004, thickness_m=thickness_m, mass_per_crossing_kg=1e-5,
                 structural_n_per_m=20.0, bend_n_per_m=0.5, shear_n_per_m=2.0)
     b.set_multires(factor=4, band_cells=1)
     b.set_self_collision()
     model = b.finalize()
+    state = model.state()
+    x = state.particle_position_m
+    grid = model.crossing_grid()  # (j, i) -> crossing
+    rest = model.crossing_rest_position_m
+    normal = np.cross(rest[grid[0, 1]] - rest[grid[0, 0]], rest[grid[1, 0]] - rest[grid[0, 0]])
+    normal /= np.linalg.norm(normal)
+    for jj in range(9, 17):
+        x[grid[jj]] = rest[grid[16 - jj]] + lift_m * normal
+    layout = multires.coarse_layout(model)
+    multires.interpolate_slaved(layout, multires.free_crossings(layout, state.coarse_cell_refined), x)
+    return model, state, normal
+
+
+def test_a_coarse_model_leaves_out_pairs_nothing_can_move_and_moves_the_same():
+    """A coarse cloth folded onto itself, its layers 0.2 mm apart (within the contact distance of 0.3 mm): most
+    of the candidates join two segments whose ends are all slaved. The passes leave those out
+    (SelfCollision._worked: exactly the pairs with an end of inverse mass > 0), and the positions are those of
+    passes over every candidate, bit for bit, while the passes push the pairs they can move."""
+    from fraytool.sim.solver import SolverExplicitPBD
+
     runs = []
     for skip in (True, False):
-        state = model.state()
-        x = state.particle_position_m
-        grid = model.crossing_grid()  # (j, i) -> crossing
-        rest = model.crossing_rest_position_m
-        normal = np.cross(rest[grid[0, 1]] - rest[grid[0, 0]], rest[grid[1, 0]] - rest[grid[0, 0]])
-        normal /= np.linalg.norm(normal)
-        for jj in range(9, 17):  # fold along the coarse line j = 8: row j over row 16 - j, 0.5 mm above it
-            x[grid[jj]] = rest[grid[16 - jj]] + 0.0005 * normal
-        multires.interpolate_slaved(multires.coarse_layout(model), multires.free_crossings(
-            multires.coarse_layout(model), state.coarse_cell_refined), x)
+        model, state, _ = _folded_coarse_cloth(0.0006, 0.0002)
         solver = SolverExplicitPBD(model)
         stage = solver.self_collision
         stage._skip_fixed = skip
-        left_out = 0
-        for _ in range(5):
-            solver.step(state, 1e-4)
+        left_out = [0]
+        mark = stage._mark_self_contact
+
+        def after_the_passes(state_, coarse, mark=mark, stage=stage, left_out=left_out, skip=skip):
+            """Before the Refinement stage frees the slaved crossings in contact."""
             if skip:
-                cand, w = stage._cand, state.particle_inv_mass
-                sa, sb = state.spring_particle_a, state.spring_particle_b
+                cand, w = stage._cand, state_.particle_inv_mass
+                sa, sb = state_.spring_particle_a, state_.spring_particle_b
                 movable = (w[sa[cand[:, 0]]] > 0) | (w[sb[cand[:, 0]]] > 0) | (w[sa[cand[:, 1]]] > 0) | (
                     w[sb[cand[:, 1]]] > 0)
-                assert 0 < movable.sum() and np.array_equal(stage._worked(state), cand[movable])
-                left_out = max(left_out, len(cand) - len(stage._worked(state)))
-        runs.append((state.particle_position_m.copy(), left_out))
+                assert np.array_equal(stage._worked(state_), cand[movable])
+                left_out[0] = max(left_out[0], len(cand) - len(stage._worked(state_)))
+            mark(state_, coarse)
+
+        stage._mark_self_contact = after_the_passes
+        for _ in range(5):
+            solver.step(state, 1e-4)
+        assert stage.proximity_total > 0  # the passes moved pairs
+        runs.append((state.particle_position_m.copy(), left_out[0]))
     assert runs[0][1] > 100  # pairs of two slaved segments were left out
     assert np.array_equal(runs[0][0], runs[1][0])
+
+
+def test_a_coarse_cloth_folded_onto_itself_refines_where_it_touches_and_stays_apart():
+    """The coarse layers 0.2 mm apart, within the contact distance (0.3 mm): their slaved crossings cannot be
+    pushed, so the cells holding them refine on the first step (docs/multires.md, "When a cell refines"), and
+    the layers are then kept apart at yarn resolution. Before, a segment from a node to a slaved crossing touched near
+    its slaved end moved the node by the gap over (1 - s): the cloth blew up on its first step."""
+    from fraytool.sim.solver import SolverExplicitPBD
+
+    model, state, normal = _folded_coarse_cloth(0.0006, 0.0002)
+    assert not state.coarse_cell_refined.any()
+    solver = SolverExplicitPBD(model)
+    solver.step(state, 1e-4)
+    assert state.coarse_cell_refined.all()  # every cell of both layers touches the other layer
+    for _ in range(39):
+        solver.step(state, 1e-4)
+    speed = np.linalg.norm(state.particle_velocity_m_s[:model.crossing_count], axis=1)
+    assert np.isfinite(speed).all() and speed.max() < 2.0  # (the fold's own bend alone: 0.6 m/s)
+    grid, x = model.crossing_grid(), state.particle_position_m
+    height = np.array([(x[grid[jj]] - x[grid[16 - jj]]) @ normal for jj in range(9, 17)])
+    assert height.min() > 0.0  # the upper layer is still over the lower one

@@ -42,6 +42,18 @@ from fraytool.collision.narrow import (_apart_at_end, _apart_boxes_end, _lines_a
 from fraytool.geometry.segments import segment_closest_params
 
 
+LEVER_MAX = 1.0
+"""In a coarse model, a correction moves no end particle farther along the normal than LEVER_MAX times the gap it
+closes (``_correct_pair``; friction adds its tangential part, at most mu times that). A segment from a coarse
+node to a slaved crossing, touched near the slaved end, would move the node by the gap over (1 - s): without
+bound as s -> 1 (a coarse cloth folded flat onto itself blew up on its first step, before the Refinement stage
+could refine the cells in contact). With equal masses and every end free an end moves at most 0.683 times the
+gap (at s = 1 - sqrt(3)/2, u = 1/2), so the bound holds back pairs with an end that cannot move, and pairs of
+unequal masses (a free crossing beside a node that carries its cell's mass): those are under-corrected, and the
+next pass, the failsafe, or the refinement of their cells does the rest. The yarn-resolution model has no bound
+(inf): a segment with an end held by a body keeps its full correction there, as it always had."""
+
+
 @nb.njit(cache=True, fastmath=False)
 def closest_parameters(p1, p2, p3, p4):
     """Parameters (s, u) in [0, 1]^2 of the closest points of segments p1p2 and p3p4."""
@@ -82,10 +94,12 @@ def _normal(xs, xe, i1, i2, i3, i4, t):
 
 
 @nb.njit(cache=True, fastmath=False)
-def _correct_pair(contact_distance_m, friction, x_start, i1, i2, i3, i4, n0, n1, n2, particle_inv_mass, x_end_inout):
+def _correct_pair(contact_distance_m, response_in, x_start, i1, i2, i3, i4, n0, n1, n2, particle_inv_mass, x_end_inout):
     """Move the four end points so the closest points are contact_distance_m apart along n, with
-    friction on the tangential relative motion (module docstring, steps 2-3). Returns True if moved.
+    friction on the tangential relative motion (module docstring, steps 2-3); `response_in`: (friction, the
+    lever bound, LEVER_MAX in a coarse model and inf otherwise). Returns True if moved.
     Scalars throughout: no allocation per pair."""
+    friction, lever_max = response_in
     s, u = closest_parameters(x_end_inout[i1], x_end_inout[i2], x_end_inout[i3], x_end_inout[i4])
     w1, w2, w3, w4 = particle_inv_mass[i1], particle_inv_mass[i2], particle_inv_mass[i3], particle_inv_mass[i4]
     denom = (1.0 - s) ** 2 * w1 + s * s * w2 + (1.0 - u) ** 2 * w3 + u * u * w4
@@ -101,6 +115,11 @@ def _correct_pair(contact_distance_m, friction, x_start, i1, i2, i3, i4, n0, n1,
     if gap >= contact_distance_m:
         return False
     lam = (contact_distance_m - gap) / denom
+    # the lever: an end moves k lam along n (k below), up to (contact_distance_m - gap) / (1 - s) when the
+    # segment's other end cannot move and the contact is near it; lever_max bounds it (LEVER_MAX)
+    k_max = max(max((1.0 - s) * w1, s * w2), max((1.0 - u) * w3, u * w4))
+    if k_max * lam > lever_max * (contact_distance_m - gap):
+        lam = lever_max * (contact_distance_m - gap) / k_max
     # relative displacement of the closest points over the step
     r0 = (a0 - ((1.0 - s) * x_start[i1, 0] + s * x_start[i2, 0])) - (b0 - ((1.0 - u) * x_start[i3, 0] + u * x_start[i4, 0]))
     r1 = (a1 - ((1.0 - s) * x_start[i1, 1] + s * x_start[i2, 1])) - (b1 - ((1.0 - u) * x_start[i3, 1] + u * x_start[i4, 1]))
@@ -139,8 +158,8 @@ def _correct_pair(contact_distance_m, friction, x_start, i1, i2, i3, i4, n0, n1,
 
 @nb.njit(cache=True, fastmath=False)
 def respond_pairs(
-    # model
-    contact_distance_m, friction,
+    # model: the contact distance, (friction, lever bound) as _correct_pair
+    contact_distance_m, response_in,
     # state in
     x_start, pairs, t_hit, spring_particle_a, spring_particle_b, particle_inv_mass, reach,
     # state in/out
@@ -172,7 +191,8 @@ def respond_pairs(
                 touched[n_touched] = p
                 n_touched += 1
         n0, n1, n2 = _normal(x_start, x_end_inout, i1, i2, i3, i4, t_hit[k])
-        if _correct_pair(contact_distance_m, friction, x_start, i1, i2, i3, i4, n0, n1, n2, particle_inv_mass, x_end_inout):
+        if _correct_pair(contact_distance_m, response_in, x_start, i1, i2, i3, i4, n0, n1, n2, particle_inv_mass,
+                         x_end_inout):
             moved += 1
             left = left or _outside_reach(x_end_inout, reach, i1, i2, i3, i4)
     for q in range(n_touched):
@@ -183,8 +203,8 @@ def respond_pairs(
 
 @nb.njit(cache=True, fastmath=False)
 def repel_close_pairs(
-    # model
-    contact_distance_m, friction,
+    # model: the contact distance, (friction, lever bound) as _correct_pair
+    contact_distance_m, response_in,
     # state in: start-of-step positions, the candidate pairs and where to start in them, the springs'
     # (ends a, ends b, alive flags), inverse masses, each particle's reach
     x_start, candidates, first, springs_in, particle_inv_mass, reach,
@@ -241,7 +261,8 @@ def repel_close_pairs(
             n0, n1, n2 = d0 / dist, d1 / dist, d2 / dist
         else:
             n0, n1, n2 = _normal(x_start, x_end_inout, i1, i2, i3, i4, 0.0)
-        if _correct_pair(contact_distance_m, friction, x_start, i1, i2, i3, i4, n0, n1, n2, particle_inv_mass, x_end_inout):
+        if _correct_pair(contact_distance_m, response_in, x_start, i1, i2, i3, i4, n0, n1, n2, particle_inv_mass,
+                         x_end_inout):
             moved += 1
             dirty_inout[i1] = True
             dirty_inout[i2] = True
@@ -270,20 +291,34 @@ def freeze_pairs(pairs, spring_particle_a, spring_particle_b, particle_inv_mass,
 
 
 @nb.njit(cache=True, fastmath=False)
-def mark_touching_pairs(candidates_in, spring_particle_a, spring_particle_b, spring_alive, particle_position_m,
-                        distance_m, touching_out):
-    """touching_out[p] = True for the four ends of every candidate pair of live segments that share no
-    end and lie closer than `distance_m` (closest points of the two segments); touching_out is not
-    cleared. For the woven-strain figure away from contact (fraytool.sim.pieces.woven_strain_away)."""
+def mark_close_pairs(candidates, springs_in, particle_inv_mass, particle_position_m, distance_m, fixed_only,
+                     touching_out):
+    """touching_out[p] = True for the ends of every candidate pair of live segments (``springs_in``: the springs'
+    ends a, ends b, alive flags) that share no end and lie closer than `distance_m` (closest points of the two
+    segments, positions as they are); touching_out is not cleared. All four ends, or with `fixed_only` only those
+    of inverse mass 0 (held, or slaved to coarse nodes), and only pairs with such an end.
+    - All four: where the cloth touches itself, for the woven-strain figure away from contact
+      (fraytool.sim.pieces.woven_strain_away, at twice the contact distance).
+    - Fixed only: where a coarse cloth touches itself or another yarn, the passes cannot move its slaved
+      crossings, so the Refinement stage refines their cells (fraytool.sim.stages.multires). Pairs within the
+      contact distance are in the candidates whenever these were built (fraytool.collision.candidates), so the
+      marks do not depend on when that was.
+    The two pre-tests skip only pairs the distance test skips (fraytool.collision.narrow)."""
+    spring_particle_a, spring_particle_b, spring_alive = springs_in
     x = particle_position_m
-    for k in range(candidates_in.shape[0]):
-        i = candidates_in[k, 0]
-        j = candidates_in[k, 1]
+    w = particle_inv_mass
+    for k in range(candidates.shape[0]):
+        i = candidates[k, 0]
+        j = candidates[k, 1]
         if not (spring_alive[i] and spring_alive[j]):
             continue
         i1, i2 = spring_particle_a[i], spring_particle_b[i]
         i3, i4 = spring_particle_a[j], spring_particle_b[j]
-        if i1 == i3 or i1 == i4 or i2 == i3 or i2 == i4:
+        if fixed_only and w[i1] > 0.0 and w[i2] > 0.0 and w[i3] > 0.0 and w[i4] > 0.0:
+            continue  # the passes move every end of this pair
+        if _share_end(i1, i2, i3, i4) or _apart_at_end(x, i1, i2, i3, i4, distance_m):
+            continue
+        if _lines_apart(x, i1, i2, i3, i4, distance_m):
             continue
         s, t = segment_closest_params(x[i1, 0], x[i1, 1], x[i1, 2], x[i2, 0], x[i2, 1], x[i2, 2],
                                       x[i3, 0], x[i3, 1], x[i3, 2], x[i4, 0], x[i4, 1], x[i4, 2])
@@ -292,7 +327,6 @@ def mark_touching_pairs(candidates_in, spring_particle_a, spring_particle_b, spr
             v = (x[i1, d] + s * (x[i2, d] - x[i1, d])) - (x[i3, d] + t * (x[i4, d] - x[i3, d]))
             d2 += v * v
         if d2 < distance_m * distance_m:
-            touching_out[i1] = True
-            touching_out[i2] = True
-            touching_out[i3] = True
-            touching_out[i4] = True
+            for p in (i1, i2, i3, i4):
+                if not fixed_only or w[p] == 0.0:
+                    touching_out[p] = True

@@ -45,6 +45,10 @@ SLAVED_NEAR_HOT = "slaved_near_hot"
 """Slaved crossings within the band + 1 cells of a hot cell (a spring past the refine strain) on
 their interpolation: the ones a split can read (its couple's normal, its settle's yarn segments)."""
 
+SELF_CONTACT = "self_contact"
+"""StepContext.coarse.self_contact: the particles of inverse mass 0 (slaved crossings among them) that
+self-collision found within the contact distance of another yarn segment this step."""
+
 COARSE_VIEWS = (SLAVED, HANGING, SLAVED_NEAR_HOT)
 """What the coarse base model brings up to date on demand (a reader declares it; build_stages syncs)."""
 STALES_VIEWS = (POSITIONS, START_POSITIONS, TOPOLOGY)

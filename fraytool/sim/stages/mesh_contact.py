@@ -34,9 +34,10 @@ class MeshContact:
         self._segments = np.zeros((0, 3), np.int64)
         self._segment_units = even_units(0)
         self._touching = np.zeros((0, 0), np.bool_)
-        self.segment_clearance = empty_segment_clearance(geometry.table.body.shape[0], model.spring_count)
+        self.segment_clearance = empty_segment_clearance(geometry.table.body.shape[0], 0)
         """Each segment's own distance bound from each mesh (fraytool.sim.kernels.mesh_clearance), a row per
-        spring slot, kept as the segments change."""
+        spring slot, kept as the segments change (made with the first segment list: the masses-only pass before
+        the strain limit never needs it)."""
         self._structural = (model.spring_kind == STRUCT_WEFT) | (model.spring_kind == STRUCT_WARP)
 
     def segments(self, state: State, ctx: StepContext) -> np.ndarray:

@@ -37,8 +37,8 @@ from fraytool.sim.kernels.multires import (
 )
 from fraytool.sim.kernels.work_split import even_units
 from fraytool.sim.model import Model
-from fraytool.sim.stages.base import (BODIES, FORCES, HANGING, POSITIONS, SLAVED, SLAVED_NEAR_HOT, START_POSITIONS,
-                                      TOPOLOGY, StepContext)
+from fraytool.sim.stages.base import (BODIES, FORCES, HANGING, POSITIONS, SELF_CONTACT, SLAVED, SLAVED_NEAR_HOT,
+                                      START_POSITIONS, TOPOLOGY, StepContext)
 from fraytool.sim.state import State
 
 
@@ -67,6 +67,9 @@ class CoarseWork:
         """State.topology_epoch at the last rebuild of the lists (what caches derived from them key on)."""
         self._seen_epoch: Optional[int] = None
         self._refined: Optional[np.ndarray] = None
+        self.self_contact: Optional[np.ndarray] = None
+        """Per particle: held or slaved, and within the contact distance of another yarn segment at the end of
+        this step's self-collision (SELF_CONTACT; None in a scene without self-collision)."""
 
     def ensure(self, state: State) -> None:
         """The lists of `state`'s refinement: checked when its topology epoch changed, rebuilt when its
@@ -113,7 +116,8 @@ class CoarseWork:
         self.slaved = np.flatnonzero(~free).astype(np.int32)
         # the slaved crossings grouped by the cell they interpolate (SlavedContact's cell test)
         self.cell_slaved, self.cell_start = multires.slaved_by_cell(lay, self.slaved)
-        self._free = free
+        self.is_free = free
+        """Per crossing: free (simulated) in the current refinement."""
         self._mixed = None
         fine_share = multires.share(lay.spring_cells, refined, at_fine=True)
         self.fine_listed = np.flatnonzero(fine_share > 0.0).astype(np.int32)
@@ -139,7 +143,7 @@ class CoarseWork:
         """The yarn segments with one free and one slaved end (multires.mixed_segments), for the coarse mesh
         test: made when first asked for after a rebuild (scenes without a mesh never ask)."""
         if self._mixed is None:
-            self._mixed = multires.mixed_segments(self.model, self._free)
+            self._mixed = multires.mixed_segments(self.model, self.is_free)
         return self._mixed
 
     def refine(self, state: State, new: np.ndarray) -> None:
@@ -281,7 +285,7 @@ class Refinement:
 
     name = "refinement"
     kernel = "cells_to_refine"
-    reads = frozenset({POSITIONS, HANGING, BODIES, TOPOLOGY})
+    reads = frozenset({POSITIONS, HANGING, BODIES, TOPOLOGY, SELF_CONTACT})
     writes = frozenset({TOPOLOGY})
 
     def __init__(self, model: Model):
@@ -306,11 +310,26 @@ class Refinement:
                                 state.coarse_cell_refined, rt.hot, rt.new)
         if self.mesh_test.any:  # after the mesh contact of this step (ctx.meshes is at the step's end)
             count += self.mesh_test.mark(ctx.meshes, state, rt.cell_start, rt.cell_slaved, rt.mixed, rt.new)
+        if rt.self_contact is not None:  # a slaved crossing touching a yarn: its cells refine (docs/multires.md)
+            count += self._mark_self_contact(rt, state)
         if count:
             # a crossing freed now starts from its interpolation, and its velocity at the step's end
             # is (x - x_prev) / dt of the interpolated positions: the velocity its mass had while lumped
             rt.sync_all(state, ctx.prev_position_m)
             rt.refine(state, rt.new)
+
+    def _mark_self_contact(self, rt: CoarseWork, state: State) -> int:
+        """Mark in rt.new the coarse cells holding a slaved crossing that self-collision found in contact
+        (rt.self_contact); returns how many more cells are marked."""
+        touching = rt.self_contact[:self.model.crossing_count]
+        if not touching.any():
+            return 0
+        crossings = np.flatnonzero(touching & ~rt.is_free)
+        cells = rt.layout.crossing_cells[crossings].ravel()
+        cells = np.unique(cells[cells >= 0])
+        cells = cells[~state.coarse_cell_refined[cells] & ~rt.new[cells]]
+        rt.new[cells] = True
+        return int(cells.shape[0])
 
     def summary(self, state: State) -> dict:
         refined = state.coarse_cell_refined

@@ -51,9 +51,9 @@ from fraytool.collision.candidates import (
 )
 from fraytool.collision.narrow import ccd_pairs, ccd_pairs_all
 from fraytool.kinds import STRUCT_WARP, STRUCT_WEFT
-from fraytool.sim.kernels.self_collision import freeze_pairs, mark_touching_pairs, repel_close_pairs, respond_pairs
+from fraytool.sim.kernels.self_collision import LEVER_MAX, freeze_pairs, mark_close_pairs, repel_close_pairs, respond_pairs
 from fraytool.sim.model import Model
-from fraytool.sim.stages.base import POSITIONS, SLAVED, START_POSITIONS, TOPOLOGY
+from fraytool.sim.stages.base import POSITIONS, SELF_CONTACT, SLAVED, START_POSITIONS, TOPOLOGY
 
 CONTACT_FRACTION = 0.5
 """d_c = CONTACT_FRACTION x thickness."""
@@ -103,6 +103,8 @@ class SelfCollision:
         """Extra broad-phase margin: candidates stay valid while no end point leaves its box by more."""
         self.margin_m = 0.5 * self.contact_distance_m + self.slack_m
         self.friction = model.self_collision_friction
+        self._response = (self.friction, LEVER_MAX if model.coarse_factor > 1 else np.inf)
+        """The corrections' (friction, lever bound) (fraytool.sim.kernels.self_collision.LEVER_MAX)."""
         self.yarn_segments = np.nonzero(yarn_segment_ids(model) >= 0)[0].astype(np.int32)
         self._box_row = np.full(model.spring_count, -1, np.int32)
         """Spring slot -> its row in ``_box`` (yarn segments only; the kernels' ``box_row``)."""
@@ -143,7 +145,10 @@ class SelfCollision:
         """Scratch of the kernels, kept across steps (``_scratch``); ``_box`` has a row per yarn segment."""
         self._segs = self._segs_of = None
         """The spring slots in the candidates ``self._segs_of`` (``_pair_segments``)."""
-        self._skip_fixed = model.coarse_factor > 1
+        self._coarse = model.coarse_factor > 1
+        if self._coarse:
+            self.writes = self.writes | {SELF_CONTACT}
+        self._skip_fixed = self._coarse
         """The passes leave out the pairs nothing can move (``_worked``): a coarse model's slaved crossings
         have inverse mass 0, and most of a coarse garment's candidates join two slaved segments."""
         self._work = None
@@ -257,7 +262,7 @@ class SelfCollision:
         total, first = 0, 0
         while True:
             work = self._worked(state)
-            moved, stop = repel_close_pairs(self.contact_distance_m, self.friction, prev_position_m, work,
+            moved, stop = repel_close_pairs(self.contact_distance_m, self._response, prev_position_m, work,
                                             first, (a, b, alive), w, self._reach, x,
                                             (self._pair_segments(state), self._box_row), (self._box, self._dirty))
             total += moved
@@ -292,7 +297,7 @@ class SelfCollision:
                 return
             if it == self.iterations:
                 break
-            _, left = respond_pairs(self.contact_distance_m, self.friction, prev_position_m, pairs, t, a, b, w,
+            _, left = respond_pairs(self.contact_distance_m, self._response, prev_position_m, pairs, t, a, b, w,
                                     self._reach, x, self._changed, self._before)
             moved = self._changed  # later passes test only pairs these particles touch
         self.cap_hits += 1
@@ -341,12 +346,29 @@ class SelfCollision:
         (particle_count,), bool."""
         out = np.zeros(state.particle_position_m.shape[0], np.bool_)
         if self._cand is not None and self._cand.shape[0]:
-            mark_touching_pairs(self._cand, state.spring_particle_a, state.spring_particle_b, state.spring_alive,
-                                state.particle_position_m, 2.0 * self.contact_distance_m, out)
+            mark_close_pairs(self._cand, (state.spring_particle_a, state.spring_particle_b, state.spring_alive),
+                             state.particle_inv_mass, state.particle_position_m, 2.0 * self.contact_distance_m, False,
+                             out)
         return out
 
     def run(self, state, ctx, dt_s: float) -> None:
         self(state, ctx.prev_position_m, dt_s)
+        if self._coarse:
+            self._mark_self_contact(state, ctx.coarse)
+
+    def _mark_self_contact(self, state, coarse) -> None:
+        """For the Refinement stage (docs/multires.md, "When a cell refines", self-contact): the particles of
+        inverse mass 0 at the ends of candidate pairs closer than the contact distance at the end of the step, in
+        coarse.self_contact (none once every cell is refined)."""
+        n = state.particle_position_m.shape[0]
+        if coarse.self_contact is None or coarse.self_contact.shape[0] != n:
+            coarse.self_contact = np.zeros(n, np.bool_)
+        else:
+            coarse.self_contact[:] = False
+        if self._cand is not None and self._cand.shape[0] and not state.coarse_cell_refined.all():
+            mark_close_pairs(self._cand, (state.spring_particle_a, state.spring_particle_b, state.spring_alive),
+                             state.particle_inv_mass, state.particle_position_m, self.contact_distance_m, True,
+                             coarse.self_contact)
 
     def summary(self, state=None) -> dict:
         return {"self_collision_pairs": self.pairs_total, "self_collision_proximity_pushes": self.proximity_total,
