@@ -558,3 +558,21 @@ def test_a_coarse_cloth_folded_onto_itself_refines_where_it_touches_and_stays_ap
     grid, x = model.crossing_grid(), state.particle_position_m
     height = np.array([(x[grid[jj]] - x[grid[16 - jj]]) @ normal for jj in range(9, 17)])
     assert height.min() > 0.0  # the upper layer is still over the lower one
+
+
+def test_fold_pile_at_factor_4_stays_coarse_until_its_layers_touch():
+    """fold_pile (two bars fold a cloth over itself) as a coarse model: nothing strains it past the refine
+    strain, so it stays coarse until the fold brings one layer onto the other; then the cells in contact refine
+    (docs/multires.md, "When a cell refines"), and the shot ends calm, every position finite."""
+    from fraytool.scene import load_scene
+    from fraytool.sim.simulation import Simulation
+
+    sim = Simulation(load_scene(ROOT / "scenes" / "fold_pile.toml", [("cloth.multires.factor", 4)]))
+    refined = []
+    for _ in range(sim.spec.time.frames):
+        sim.advance_frame()
+        refined.append(int(sim.state.coarse_cell_refined.sum()))
+    cells = sim.state.coarse_cell_refined.size
+    assert refined[29] == 0 and refined[-1] == cells  # coarse through the first half, refined where it folded
+    speed = np.linalg.norm(sim.state.particle_velocity_m_s, axis=1)
+    assert np.isfinite(sim.state.particle_position_m).all() and speed.max() < 1.0
