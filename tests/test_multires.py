@@ -556,3 +556,22 @@ def test_a_hot_cell_refines_exactly_its_band():
     want = multires.dilate(hot, lay.cells_x, lay.cells_y, model.refine_band_cells)
     assert model.refine_band_cells >= 2
     assert np.array_equal(state.coarse_cell_refined, want)
+
+
+def test_the_parallel_sync_gives_the_serial_sync_bit_for_bit():
+    """sync_slaved_parallel (CoarseWork.sync_all on a garment's tens of thousands of slaved crossings) against
+    the serial sync_slaved: the same interpolation of every slaved crossing, bit for bit, the nodes untouched."""
+    from fraytool.sim.kernels.multires import sync_slaved, sync_slaved_parallel
+
+    model = _cloth(nx=41, ny=37, factor=4)
+    lay = multires.coarse_layout(model)
+    slaved = np.flatnonzero(~multires.free_crossings(lay, np.zeros(lay.cell_count, bool))).astype(np.int32)
+    assert slaved.size > 1000
+    values = np.random.default_rng(2).normal(size=(model.crossing_count, 3))
+    serial, parallel = values.copy(), values.copy()
+    sync_slaved(slaved, lay.crossing_node, lay.crossing_weight, serial)
+    sync_slaved_parallel(slaved, lay.crossing_node, lay.crossing_weight, parallel)
+    assert np.array_equal(serial, parallel)
+    assert not np.array_equal(serial[slaved], values[slaved])  # it did interpolate
+    nodes = np.setdiff1d(np.arange(model.crossing_count), slaved)
+    assert np.array_equal(parallel[nodes], values[nodes])

@@ -15,8 +15,9 @@ the slack of its B_i: the segment's box this step is then inside B_i + slack, so
 whose boxes this step, inflated by d_c/2, touch -- everything the proximity pass (closer than d_c
 at the end) and the CCD (meeting during the step) can act on -- are candidates. The check runs at
 the start of every step, on every particle against its reach (the intersection of B_i + slack over
-the live segments ending at it), and after corrections on the particles they moved (the passes
-report it); when it fails, the segments are examined one by one. The few out of their slack (or
+the live segments ending at it; only the particles with one), and after corrections on the particles
+they moved (the passes report it); whether the live segments still have their build's end particles
+only after a change of topology (the self-collision stage knows when); when it fails, the segments are examined one by one. The few out of their slack (or
 alive now but dead at their build) are re-boxed alone, as a build would (the boxes B_i may come
 from different steps: the argument is per segment): their pairs are dropped and all their pairs
 with the other segments' B_j recomputed (brute force over the segments, then a merge), which
@@ -109,16 +110,22 @@ def update_reach(reach_inout, touched, spring_particle_a, spring_particle_b, spr
 
 @nb.njit(cache=True, fastmath=False)
 def check_candidates(x_start, x_end, spring_particle_a, spring_particle_b, spring_alive, segments, reach,
-                     build_ends, build_alive):
+                     build_ends, build_alive, reached, check_segments):
     """Fast test of the candidates (module docstring, "Candidates"): True if every particle is within
     its ``reach`` at the start and the end of the step (NaN compares False: left to the solver's
     guard), every live listed segment was alive at its build and still has the end particles of
-    ``build_ends`` (for which ``reach`` was computed); False: see ``escaped_segments``."""
-    for p in range(reach.shape[0]):
+    ``build_ends`` (for which ``reach`` was computed); False: see ``escaped_segments``. ``reached``:
+    the particles whose reach is bounded (the ends of live listed segments: every other particle is
+    within its unbounded reach); ``check_segments`` False skips the segments' test, for a caller who
+    knows they have not changed since they last passed it (no change of topology since)."""
+    for k in range(reached.shape[0]):
+        p = reached[k]
         for d in range(3):
             if (x_start[p, d] < reach[p, d] or x_end[p, d] < reach[p, d]
                     or x_start[p, d] > reach[p, 3 + d] or x_end[p, d] > reach[p, 3 + d]):
                 return False
+    if not check_segments:
+        return True
     for k in range(segments.shape[0]):
         s = segments[k]
         if spring_alive[s] and (not build_alive[k] or spring_particle_a[s] != build_ends[k, 0]

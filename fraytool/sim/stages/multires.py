@@ -33,6 +33,7 @@ from fraytool.sim.kernels.multires import (
     gather_slaved_forces,
     sync_near_hot,
     sync_slaved,
+    sync_slaved_parallel,
     zero_rows,
 )
 from fraytool.sim.kernels.work_split import even_units
@@ -40,6 +41,11 @@ from fraytool.sim.model import Model
 from fraytool.sim.stages.base import (BODIES, FORCES, HANGING, POSITIONS, SELF_CONTACT, SLAVED, SLAVED_NEAR_HOT,
                                       START_POSITIONS, TOPOLOGY, StepContext)
 from fraytool.sim.state import State
+
+
+PARALLEL_SYNC_MIN = 16384
+"""Slaved crossings from which `CoarseWork.sync_all` runs in parallel (below it, waking the threads costs more
+than the serial loop; a 1 mm garment has 58,000)."""
 
 
 class CoarseWork:
@@ -90,8 +96,9 @@ class CoarseWork:
         """Every slaved crossing on its interpolation: positions, and start-of-step positions from the
         nodes' (the interpolation of a node's move over the step is the slaved crossing's move)."""
         lay = self.layout
-        sync_slaved(self.slaved, lay.crossing_node, lay.crossing_weight, state.particle_position_m)
-        sync_slaved(self.slaved, lay.crossing_node, lay.crossing_weight, prev_position_m)
+        sync = sync_slaved_parallel if self.slaved.shape[0] >= PARALLEL_SYNC_MIN else sync_slaved
+        sync(self.slaved, lay.crossing_node, lay.crossing_weight, state.particle_position_m)
+        sync(self.slaved, lay.crossing_node, lay.crossing_weight, prev_position_m)
 
     def sync_hanging(self, state: State, prev_position_m: np.ndarray) -> None:
         """The hanging nodes (slaved crossings a working fine spring pulls on) on their interpolation."""

@@ -115,6 +115,11 @@ class SelfCollision:
         """Build boxes inflated by the margin, (M, 6)."""
         self._reach = None
         """Per particle, the box it may stay in (``particle_reach``), (P, 6)."""
+        self._reached = np.zeros(0, np.int64)
+        """The particles whose reach may be bounded (a superset of those with a bounded reach): the check tests
+        these only."""
+        self._segments_at = None
+        """State.topology_epoch when the check's segment part last passed (``_ensure_valid``)."""
         self._ends = None
         """End particles of every yarn segment at the build or the last patch, (M, 2) int32."""
         self._alive = None
@@ -209,11 +214,18 @@ class SelfCollision:
         self.broad_phase_builds += 1
 
     def _ensure_valid(self, state, prev_position_m) -> None:
-        """Keep, re-box, patch or build the candidates (module docstring, "Candidates")."""
+        """Keep, re-box, patch or build the candidates (module docstring, "Candidates"). The segments' part of
+        the check (alive and end particles as at the build) runs only after a change of topology: every path
+        below leaves it passing (the candidates then hold the segments as they are)."""
+        self._renew(state, prev_position_m)
+        self._segments_at = state.topology_epoch
+
+    def _renew(self, state, prev_position_m) -> None:
         x = state.particle_position_m
         a, b, alive = state.spring_particle_a, state.spring_particle_b, state.spring_alive
         if self._cand is not None and check_candidates(prev_position_m, x, a, b, alive, self.yarn_segments,
-                                                       self._reach, self._ends, self._alive):
+                                                       self._reach, self._ends, self._alive, self._reached,
+                                                       state.topology_epoch != self._segments_at):
             return
         if self._cand is None:
             self._build(state, prev_position_m)
@@ -250,9 +262,11 @@ class SelfCollision:
             if touched is not None:
                 update_reach(self._reach, touched, a, b, alive, self.yarn_segments, self._box_lo, self._box_hi,
                              self.slack_m)
+                self._reached = np.union1d(self._reached, np.flatnonzero(touched)).astype(np.int64)
                 return
         self._reach = particle_reach(a, b, alive, self.yarn_segments, self._box_lo, self._box_hi, self.slack_m,
                                      x.shape[0])
+        self._reached = np.flatnonzero(np.isfinite(self._reach).any(axis=1)).astype(np.int64)
 
     def _proximity(self, state, prev_position_m) -> int:
         """The proximity pass over the candidates, in their order; when a correction moves a particle
