@@ -359,6 +359,17 @@ MUTATIONS = [
     M("multires", "a coarse bend spring across a slit", "fraytool/sim/multires.py",
       "        straight = np.where(on_row, row_count, np.where(ia == ib, col_count, 0)) == 0",
       "        straight = np.ones(ia.shape, bool)", MULTIRES_PANEL_TESTS),
+    M("multires", "a slaved crossing in self-contact does not refine", "fraytool/sim/stages/multires.py",
+      "            count += self._mark_self_contact(rt, state)", "            pass", ("tests/test_self_collision.py",)),
+    M("multires", "the coarse model's lever unbounded", "fraytool/sim/stages/self_collision.py",
+      "LEVER_MAX if model.coarse_factor > 1 else np.inf", "np.inf", ("tests/test_self_collision.py",)),
+    M("multires", "the passes leave out a pair with one movable end", "fraytool/collision/candidates.py",
+      "        keep[k] = (particle_inv_mass[spring_particle_a[i]] > 0.0 or particle_inv_mass[spring_particle_b[i]] > 0.0",
+      "        keep[k] = (particle_inv_mass[spring_particle_a[i]] > 0.0 and particle_inv_mass[spring_particle_b[i]] > 0.0",
+      ("tests/test_self_collision.py",)),
+    M("self-collision", "the check skips the segments even after a change of topology",
+      "fraytool/sim/stages/self_collision.py", "state.topology_epoch != self._segments_at", "False",
+      ("tests/test_self_collision.py", "tests/test_tearing_scenes.py")),
 ]
 
 
