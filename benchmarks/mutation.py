@@ -360,7 +360,7 @@ MUTATIONS = [
       "        straight = np.where(on_row, row_count, np.where(ia == ib, col_count, 0)) == 0",
       "        straight = np.ones(ia.shape, bool)", MULTIRES_PANEL_TESTS),
     M("multires", "a slaved crossing in self-contact does not refine", "fraytool/sim/stages/multires.py",
-      "            count += self._mark_self_contact(rt, state)", "            pass", ("tests/test_self_collision.py",)),
+      "            count += self._refine_self_contact(rt, state)", "            pass", ("tests/test_self_collision.py",)),
     M("multires", "the coarse model's lever unbounded", "fraytool/sim/stages/self_collision.py",
       "LEVER_MAX if model.coarse_factor > 1 else np.inf", "np.inf", ("tests/test_self_collision.py",)),
     M("multires", "the passes leave out a pair with one movable end", "fraytool/collision/candidates.py",

@@ -16,14 +16,14 @@ whose boxes this step, inflated by d_c/2, touch -- everything the proximity pass
 at the end) and the CCD (meeting during the step) can act on -- are candidates. The check runs at
 the start of every step, on every particle against its reach (the intersection of B_i + slack over
 the live segments ending at it; only the particles with one), and after corrections on the particles
-they moved (the passes report it); whether the live segments still have their build's end particles
-only after a change of topology (the self-collision stage knows when); when it fails, the segments are examined one by one. The few out of their slack (or
-alive now but dead at their build) are re-boxed alone, as a build would (the boxes B_i may come
-from different steps: the argument is per segment): their pairs are dropped and all their pairs
-with the other segments' B_j recomputed (brute force over the segments, then a merge), which
-restores the invariant; more than REBOX_LIMIT of them at once start a full build. Look-ahead: a
-segment moving at constant velocity stays valid for about LOOKAHEAD_STEPS steps more than with
-the slack alone, which matters for fast torn yarn ends.
+they moved (the passes report it); whether the live segments still have their build's end particles,
+only after a change of topology (the self-collision stage knows when). When it fails, the segments
+are examined one by one. The few out of their slack (or alive now but dead at their build) are re-boxed alone, as a
+build would (the boxes B_i may come from different steps: the argument is per segment): their pairs are dropped and
+all their pairs with the other segments' B_j recomputed (brute force over the segments, then a merge), which
+restores the invariant; more than REBOX_LIMIT of them at once start a full build. Look-ahead: a segment moving at
+constant velocity stays valid for about LOOKAHEAD_STEPS steps more than with the slack alone, which matters for fast
+torn yarn ends.
 
 A split (tearing) re-attaches segments to the new mass of a couple: the weft and the warp segments
 that met at a base crossing mass, skipped then as sharing an end particle, no longer share one.

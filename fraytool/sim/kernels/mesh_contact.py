@@ -621,11 +621,11 @@ def _segment_clear(clear, m, a, b, start, end, skip_m):
 def segments_touching(segments, unit_bounds, meshes_in, bodies_in, margin_m, dt_s, particle_inv_mass,
                       prev_position_m, particle_position_m, clear, seg_clear_inout, touching_out):
     """touching_out[m, s]: whether segment s's first pass against colliding mesh m would move it, from the
-    positions as they are (nothing is written but the flags and the segments' bounds). `segments`: (S, 3) the
-    end particles and the spring slot of each (its row of the bounds). Parallel over the
-    units of `segments`: the costly part of collide_mesh_segments' first sweep, which then runs only the
-    flagged segments and those at a mass moved before them in the sweep; a segment neither flagged nor moved
-    would have met nothing, so the result is the serial sweep's, bit for bit, on any number of threads.
+    positions as they are (nothing is written but the flags and the segments' bounds). `segments`: (S, 3) the end
+    particles and the spring slot of each (its row of the bounds). Parallel over the units of `segments`: the costly
+    part of collide_mesh_segments' first sweep, which then runs only the flagged segments and those at a mass moved
+    before them in the sweep; a segment neither flagged nor moved would have met nothing, so the result is the
+    serial sweep's, bit for bit, on any number of threads.
     A segment whose ends' clearance bounds (`clear`) or its own (`seg_clear_inout`, renewed here: each
     segment's by one thread) keep all of it over the margin is not tested; one kept off the surface skips
     the corner test (fraytool.sim.kernels.mesh_clearance)."""

@@ -42,9 +42,8 @@ class MeshContact:
 
     def segments(self, state: State, ctx: StepContext) -> np.ndarray:
         """Alive yarn segments (structural springs) as (S, 3): end particles a, b and the spring slot, kept per
-        topology epoch. In a
-        multi-resolution model, only those between free crossings: a segment with a slaved end is inside a
-        coarse cell or on its border, where the cell's nodes and cells_on_meshes answer for the cloth
+        topology epoch. In a multi-resolution model, only those between free crossings: a segment with a slaved end
+        is inside a coarse cell or on its border, where the cell's nodes and cells_on_meshes answer for the cloth
         (docs/multires.md, "Against a mesh"); and moving its free end alone to push a point near the
         slaved end out would take an unbounded lever."""
         key = state.topology_epoch  # a cut or a split bumps it (State.bump_topology); so does a refinement

@@ -318,14 +318,14 @@ class Refinement:
         if self.mesh_test.any:  # after the mesh contact of this step (ctx.meshes is at the step's end)
             count += self.mesh_test.mark(ctx.meshes, state, rt.cell_start, rt.cell_slaved, rt.mixed, rt.new)
         if rt.self_contact is not None:  # a slaved crossing touching a yarn: its cells refine (docs/multires.md)
-            count += self._mark_self_contact(rt, state)
+            count += self._refine_self_contact(rt, state)
         if count:
             # a crossing freed now starts from its interpolation, and its velocity at the step's end
             # is (x - x_prev) / dt of the interpolated positions: the velocity its mass had while lumped
             rt.sync_all(state, ctx.prev_position_m)
             rt.refine(state, rt.new)
 
-    def _mark_self_contact(self, rt: CoarseWork, state: State) -> int:
+    def _refine_self_contact(self, rt: CoarseWork, state: State) -> int:
         """Mark in rt.new the coarse cells holding a slaved crossing that self-collision found in contact
         (rt.self_contact); returns how many more cells are marked."""
         touching = rt.self_contact[:self.model.crossing_count]

@@ -51,7 +51,8 @@ from fraytool.collision.candidates import (
 )
 from fraytool.collision.narrow import ccd_pairs, ccd_pairs_all
 from fraytool.kinds import STRUCT_WARP, STRUCT_WEFT
-from fraytool.sim.kernels.self_collision import LEVER_MAX, freeze_pairs, mark_close_pairs, repel_close_pairs, respond_pairs
+from fraytool.sim.kernels.self_collision import (LEVER_MAX, freeze_pairs, mark_close_pairs, repel_close_pairs,
+                                                 respond_pairs)
 from fraytool.sim.model import Model
 from fraytool.sim.stages.base import POSITIONS, SELF_CONTACT, SLAVED, START_POSITIONS, TOPOLOGY
 
