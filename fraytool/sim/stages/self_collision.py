@@ -119,6 +119,8 @@ class SelfCollision:
         self._reached = np.zeros(0, np.int64)
         """The particles whose reach may be bounded (a superset of those with a bounded reach): the check tests
         these only."""
+        self._reached_mask = np.zeros(0, np.bool_)
+        """``_reached`` as a mask over particle slots (a re-box adds to it without sorting the list again)."""
         self._segments_at = None
         """State.topology_epoch when the check's segment part last passed (``_ensure_valid``)."""
         self._ends = None
@@ -263,11 +265,16 @@ class SelfCollision:
             if touched is not None:
                 update_reach(self._reach, touched, a, b, alive, self.yarn_segments, self._box_lo, self._box_hi,
                              self.slack_m)
-                self._reached = np.union1d(self._reached, np.flatnonzero(touched)).astype(np.int64)
+                if self._reached_mask.shape[0] < touched.shape[0]:
+                    self._reached_mask = np.concatenate(
+                        [self._reached_mask, np.zeros(touched.shape[0] - self._reached_mask.shape[0], np.bool_)])
+                self._reached_mask[:touched.shape[0]] |= touched
+                self._reached = np.flatnonzero(self._reached_mask).astype(np.int64)
                 return
         self._reach = particle_reach(a, b, alive, self.yarn_segments, self._box_lo, self._box_hi, self.slack_m,
                                      x.shape[0])
-        self._reached = np.flatnonzero(np.isfinite(self._reach).any(axis=1)).astype(np.int64)
+        self._reached_mask = np.isfinite(self._reach).any(axis=1)
+        self._reached = np.flatnonzero(self._reached_mask).astype(np.int64)
 
     def _proximity(self, state, prev_position_m) -> int:
         """The proximity pass over the candidates, in their order; when a correction moves a particle
