@@ -265,3 +265,61 @@ def test_a_piece_of_exactly_the_ineffective_length_may_be_left():
     tear(state, x.copy(), 2e-4)
     assert state.spring_broken[five_left] and state.spring_broken.sum() == 1
     assert four_left != five_left
+
+
+def test_first_over_length_finds_the_first_live_spring_past_its_limit():
+    """The per-step pre-scan (fraytool.sim.tearing.cut.first_over_length) against a NumPy reference, on random
+    strains with some springs dead: the first live spring, in list order, longer than (1 + limit) x its rest length."""
+    from fraytool.sim.tearing.cut import first_over_length
+    rng = np.random.default_rng(3)
+    p, s = 40, 60
+    x = rng.normal(size=(p, 3))
+    a = rng.integers(0, p, s).astype(np.int32)
+    b = rng.integers(0, p, s).astype(np.int32)
+    length = np.linalg.norm(x[b] - x[a], axis=1)
+    for trial in range(50):
+        limit = rng.uniform(0.0, 0.3, s)
+        rest = length / (1.0 + limit) * rng.uniform(0.97, 1.0, s)  # most within their limit, a few past it
+        rest[rng.random(s) < 0.05] *= 0.5
+        alive = rng.random(s) > 0.2
+        listed = rng.permutation(s)[: s - 10].astype(np.int32)
+        over = alive[listed] & (length[listed] > (1.0 + limit[listed]) * rest[listed] * (1 + 1e-12))
+        within = alive[listed] & (length[listed] < (1.0 + limit[listed]) * rest[listed] * (1 - 1e-12))
+        k = first_over_length(listed, limit, rest, a, b, alive, x)
+        if k < 0:
+            assert not over.any()
+        else:
+            assert alive[listed[k]] and not within[k], trial
+            assert not over[:k].any(), trial
+
+
+def test_a_cut_scan_started_at_the_first_spring_over_its_limit_cuts_what_a_whole_scan_does():
+    """YarnTearing starts cut_overstrained at first_over_length's index: the same springs break as in a scan of
+    every spring, on a cloth stretched so that several yarns are over their limits."""
+    from fraytool.sim.tearing.cut import cut_overstrained, first_over_length
+    from fraytool.sim.tearing.groups import state_groups
+    model, _, tear = make(yarn_level="false")
+    W, n = model.warp_yarns, model.crossing_count
+    top = np.arange(n) // W >= 3
+    results = []
+    for start in ("whole", "first"):
+        state = model.state()
+        x = state.particle_position_m
+        x[:n][top, 1] += 0.215 * model.spacing_m  # around the break strains: some warp springs of row 2/3 over
+        x[:n, 0] += 0.0005 * np.sin(np.arange(n))
+        tear(state, x.copy(), 2e-4)  # sets up the free-run and fragment scans of this topology
+        state = model.state()
+        x = state.particle_position_m
+        x[:n][top, 1] += 0.215 * model.spacing_m
+        x[:n, 0] += 0.0005 * np.sin(np.arange(n))
+        particles, _, springs = state_groups(state)
+        m = tear.model_scan
+        first = first_over_length(m.structural_springs, m.spring_break_strain, state.spring_rest_length_m,
+                                  state.spring_particle_a, state.spring_particle_b, state.spring_alive, x)
+        assert first > 0  # some springs before it are within their limits
+        k = 0 if start == "whole" else first
+        cut_overstrained(m, particles, springs, tear._weft_free, tear._warp_free, tear._fragment_left,
+                         tear._fragment_right, k)
+        results.append(state.spring_broken.copy())
+    assert results[0].sum() >= 2
+    assert (results[0] == results[1]).all()

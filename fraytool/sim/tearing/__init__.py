@@ -25,7 +25,7 @@ from fraytool.sim.model import Model, broken_cloth_springs
 from fraytool.kinds import STRUCT_WARP, STRUCT_WEFT
 from fraytool.sim.state import State
 from fraytool.sim.tearing.contact import disconnect_couple, project_couples, settle_crosses_yarns
-from fraytool.sim.tearing.cut import cut_overstrained, cut_structural
+from fraytool.sim.tearing.cut import cut_overstrained, cut_structural, first_over_length
 from fraytool.sim.tearing.yarn_runs import free_yarn_runs, yarn_fragments
 from fraytool.sim.tearing.fray import fray_lengths, fray_summary
 from fraytool.sim.tearing.groups import (TearCrossings, TearModel, TearParticles, TearSprings, state_groups,
@@ -84,6 +84,8 @@ class YarnTearing:
         self._yarn_segments = np.flatnonzero((model.spring_kind == STRUCT_WEFT) | (model.spring_kind == STRUCT_WARP))
         self._yarn_level_before = np.zeros(model.crossing_count, np.bool_)
         """Scratch: crossing_yarn_level before this step's transitions (which crossings just split)."""
+        self._transition_strain_of = np.full(model.spring_count, model.transition_strain)
+        """The transition strain for every spring slot, for the pre-scan (`first_over_length`)."""
         self.settle_reverts = 0
         """Settles undone because they would have carried a yarn segment through another."""
         cut_time = model.spring_cut_time_s
@@ -149,21 +151,31 @@ class YarnTearing:
         if self._scissored.size:
             self._scissor(state, dt_s)
         particles, crossings, springs = state_groups(state)
-        splits = 0
+        splits = cuts = 0
+        # Each scan first finds its first spring over the limit with plain arrays (first_over_length); the full
+        # kernel, and the free-run and fragment scans the cut rule reads, run only when there is one.
+        scanned = self.model_scan.structural_springs
+        lengths = (state.spring_rest_length_m, state.spring_particle_a, state.spring_particle_b, state.spring_alive,
+                   state.particle_position_m)
         if self.yarn_level:
-            np.copyto(self._yarn_level_before, state.crossing_yarn_level)  # no allocation per step
-            splits = transition_overstrained(self.model_scan, particles, crossings, springs, prev_position_m)
+            first = first_over_length(scanned, self._transition_strain_of, *lengths)
+            if first >= 0:
+                np.copyto(self._yarn_level_before, state.crossing_yarn_level)  # no allocation per step
+                splits = transition_overstrained(self.model_scan, particles, crossings, springs, prev_position_m,
+                                                 first)
             if splits:
                 self.settle(state, np.flatnonzero(state.crossing_yarn_level & ~self._yarn_level_before),
                             prev_position_m)
                 self._changed(state)
-        # the scans read spring_alive and crossing_yarn_level: topology
-        if state.topology_epoch != self._runs_at:
-            free_yarn_runs(self.model_in, crossings, springs, self._weft_free, self._warp_free)
-            yarn_fragments(self.model_in, springs, self._fragment_left, self._fragment_right)
-            self._runs_at = state.topology_epoch
-        _, cuts = cut_overstrained(self.model_scan, particles, springs, self._weft_free, self._warp_free,
-                                   self._fragment_left, self._fragment_right)
+        first = first_over_length(scanned, self.model_in.spring_break_strain, *lengths)
+        if first >= 0:
+            # the scans read spring_alive and crossing_yarn_level: topology
+            if state.topology_epoch != self._runs_at:
+                free_yarn_runs(self.model_in, crossings, springs, self._weft_free, self._warp_free)
+                yarn_fragments(self.model_in, springs, self._fragment_left, self._fragment_right)
+                self._runs_at = state.topology_epoch
+            _, cuts = cut_overstrained(self.model_scan, particles, springs, self._weft_free, self._warp_free,
+                                       self._fragment_left, self._fragment_right, first)
         if cuts:
             state.bump_topology()
         self.splits_last = int(splits)

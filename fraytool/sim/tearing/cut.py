@@ -61,14 +61,37 @@ def cut_structural(s, model_in, springs_inout):
 
 
 @nb.njit(cache=True, fastmath=False)
+def first_over_length(structural_springs, stretch_of, spring_rest_length_m, spring_particle_a, spring_particle_b,
+                      spring_alive, particle_position_m):
+    """Index k of the first live spring ``structural_springs[k]`` longer than ``(1 + stretch_of[s]) x`` its rest length
+    (the same expression and rounding as ``cut_overstrained``'s length test), or -1 if none is. Takes plain arrays:
+    the step's scans call it first and the full kernels, whose argument groups cost about 10 us a call to pass, only
+    from there on (most steps have no spring over its limit)."""
+    for k in range(structural_springs.shape[0]):
+        s = structural_springs[k]
+        if not spring_alive[s]:
+            continue
+        a = spring_particle_a[s]
+        b = spring_particle_b[s]
+        dx = particle_position_m[b, 0] - particle_position_m[a, 0]
+        dy = particle_position_m[b, 1] - particle_position_m[a, 1]
+        dz = particle_position_m[b, 2] - particle_position_m[a, 2]
+        bound = (1.0 + stretch_of[s]) * spring_rest_length_m[s]
+        if dx * dx + dy * dy + dz * dz > bound * bound:
+            return k
+    return -1
+
+
+@nb.njit(cache=True, fastmath=False)
 def cut_overstrained(model_in, particles_in, springs_inout, weft_free_in, warp_free_in, fragment_left_in,
-                     fragment_right_in):
+                     fragment_right_in, first=0):
     """Break, on each yarn, the live structural spring furthest over its break strain (ratio of
     length to break length; the lower slot on a tie), with its bend and shear springs: springs are
     cut one by one (docs/method.md §1), so a yarn under tension snaps at its weakest point and the rest
     of it relaxes before the next step instead of shattering into loose bits. Returns (structural
     springs broken, all springs cut). A spring within its limit costs one squared length and a
-    compare. Reads the positions, writes only spring_alive and spring_broken."""
+    compare. Reads the positions, writes only spring_alive and spring_broken. ``first``: the springs before
+    ``structural_springs[first]`` are within their limits (``first_over_length``), so the scan starts there."""
     structural_springs, structural_yarn = model_in.structural_springs, model_in.structural_yarn
     yarn_count = model_in.yarn_count
     spring_rest_length_m, spring_break_strain = springs_inout.spring_rest_length_m, model_in.spring_break_strain
@@ -81,15 +104,10 @@ def cut_overstrained(model_in, particles_in, springs_inout, weft_free_in, warp_f
     pick = np.full(yarn_count, -1, np.int64)
     yarn_cuts = 0
     total = 0
-    for k in range(structural_springs.shape[0]):
+    for k in range(first, structural_springs.shape[0]):
         s = structural_springs[k]
         if not spring_alive[s]:
             continue  # already cut
-        if fragment_left_in[s] < ineffective_length or fragment_right_in[s] < ineffective_length:
-            continue  # within the ineffective length of a free yarn end: friction has not built up tension
-        free = weft_free_in if spring_kind[s] == STRUCT_WEFT else warp_free_in
-        if free[spring_crossing_a[s]] or free[spring_crossing_b[s]]:
-            continue  # a yarn sliding free towards a loose end here: no tension held by the weave
         a = spring_particle_a[s]
         b = spring_particle_b[s]
         dx = particle_position_m[b, 0] - particle_position_m[a, 0]
@@ -98,7 +116,12 @@ def cut_overstrained(model_in, particles_in, springs_inout, weft_free_in, warp_f
         limit = (1.0 + spring_break_strain[s]) * spring_rest_length_m[s]
         d2 = dx * dx + dy * dy + dz * dz
         if d2 <= limit * limit:
-            continue
+            continue  # within its limit (first: the usual case, and the cheapest of the tests)
+        if fragment_left_in[s] < ineffective_length or fragment_right_in[s] < ineffective_length:
+            continue  # within the ineffective length of a free yarn end: friction has not built up tension
+        free = weft_free_in if spring_kind[s] == STRUCT_WEFT else warp_free_in
+        if free[spring_crossing_a[s]] or free[spring_crossing_b[s]]:
+            continue  # a yarn sliding free towards a loose end here: no tension held by the weave
         ratio = d2 / (limit * limit)
         y = structural_yarn[k]
         if ratio > worst[y]:

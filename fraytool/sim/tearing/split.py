@@ -336,10 +336,12 @@ def transition_spring(s, model_in, particles_inout, crossings_inout, springs_ino
 
 
 @nb.njit(cache=True, fastmath=False)
-def transition_overstrained(model_in, particles_inout, crossings_inout, springs_inout, prev_position_m_inout):
+def transition_overstrained(model_in, particles_inout, crossings_inout, springs_inout, prev_position_m_inout, first=0):
     """Transition every live structural spring whose strain exceeds `transition_strain`, in slot
     order; returns the number of crossings split. A spring within the threshold costs one squared
-    length and a compare. Writes what split_crossing writes."""
+    length and a compare. Writes what split_crossing writes. ``first``: the springs before
+    ``structural_springs[first]`` are within the threshold (fraytool.sim.tearing.cut.first_over_length), so the
+    scan starts there."""
     structural_springs = model_in.structural_springs
     spring_rest_length_m = springs_inout.spring_rest_length_m
     transition_strain = model_in.transition_strain
@@ -348,7 +350,7 @@ def transition_overstrained(model_in, particles_inout, crossings_inout, springs_
     spring_alive = springs_inout.spring_alive
     count = 0
     stretch = 1.0 + transition_strain
-    for k in range(structural_springs.shape[0]):
+    for k in range(first, structural_springs.shape[0]):
         s = structural_springs[k]
         if not spring_alive[s]:
             continue  # a cut yarn carries no strain
