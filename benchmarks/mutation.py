@@ -370,6 +370,12 @@ MUTATIONS = [
     M("self-collision", "the check skips the segments even after a change of topology",
       "fraytool/sim/stages/self_collision.py", "state.topology_epoch != self._segments_at", "False",
       ("tests/test_self_collision.py", "tests/test_tearing_scenes.py")),
+    M("tearing", "the cut scan starts one spring after the pre-scan's first", "fraytool/sim/tearing/__init__.py",
+      "self._fragment_left, self._fragment_right, first)", "self._fragment_left, self._fragment_right, first + 1)",
+      ("tests/test_tearing_cut.py",)),
+    M("tearing", "the pre-scan misses springs just over their limit", "fraytool/sim/tearing/cut.py",
+      "        if dx * dx + dy * dy + dz * dz > bound * bound:", "        if dx * dx + dy * dy + dz * dz > 1.01 * bound * bound:",
+      ("tests/test_tearing_cut.py", "tests/test_tearing_split.py")),
 ]
 
 
