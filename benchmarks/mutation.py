@@ -374,8 +374,13 @@ MUTATIONS = [
       "self._fragment_left, self._fragment_right, first)", "self._fragment_left, self._fragment_right, first + 1)",
       ("tests/test_tearing_cut.py",)),
     M("tearing", "the pre-scan misses springs just over their limit", "fraytool/sim/tearing/cut.py",
-      "        if dx * dx + dy * dy + dz * dz > bound * bound:", "        if dx * dx + dy * dy + dz * dz > 1.01 * bound * bound:",
+      "        if not dx * dx + dy * dy + dz * dz <= bound * bound:",
+      "        if not dx * dx + dy * dy + dz * dz <= 1.01 * bound * bound:",
       ("tests/test_tearing_cut.py", "tests/test_tearing_split.py")),
+    M("tearing", "the cut rule's scans marked current in a step that ran none", "fraytool/sim/tearing/__init__.py",
+      "        if first >= 0:\n            # the scans read spring_alive",
+      "        if first < 0:\n            self._runs_at = state.topology_epoch\n        if first >= 0:\n"
+      "            # the scans read spring_alive", ("tests/test_tearing_cut.py",)),
 ]
 
 

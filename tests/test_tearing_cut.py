@@ -294,8 +294,8 @@ def test_first_over_length_finds_the_first_live_spring_past_its_limit():
 
 
 def test_a_cut_scan_started_at_the_first_spring_over_its_limit_cuts_what_a_whole_scan_does():
-    """YarnTearing starts cut_overstrained at first_over_length's index: the same springs break as in a scan of
-    every spring, on a cloth stretched so that several yarns are over their limits."""
+    """cut_overstrained started at first_over_length's index (as YarnTearing calls it) breaks the same springs as
+    a scan of every spring, on a cloth stretched so that several yarns are over their limits."""
     from fraytool.sim.tearing.cut import cut_overstrained, first_over_length
     from fraytool.sim.tearing.groups import state_groups
     model, _, tear = make(yarn_level="false")
@@ -323,3 +323,23 @@ def test_a_cut_scan_started_at_the_first_spring_over_its_limit_cuts_what_a_whole
         results.append(state.spring_broken.copy())
     assert results[0].sum() >= 2
     assert (results[0] == results[1]).all()
+
+
+def test_the_cut_rule_reads_scans_of_a_topology_changed_in_a_step_with_nothing_to_cut():
+    """The free-run and fragment scans run only when the cut pass has a spring over its limit: after a cut made in
+    a step with nothing else over its limit (whose tearing pass ran no scan), a later stretch beside that cut is
+    judged on the scans of the cloth as it is now, so the ineffective-length rule holds the spring next to it."""
+    model, state, tear = make(yarn_level="false", spread=0.0, ineffective=5, warp_yarns=12)
+    x = state.particle_position_m
+    tear(state, x.copy(), 2e-4)  # nothing over its limit
+    tear.cut(state, int(model.weft_structural_spring[2, 3]))  # (3,2)-(4,2) cut: a new topology
+    tear(state, x.copy(), 2e-4)  # nothing over its limit again: no scan needed in this step
+    near_cut = int(model.weft_structural_spring[2, 5])  # (5,2)-(6,2): 2 crossings on the cut's side, 6 on the other
+    _stretch_weft(model, x, 2, 6, 0.5)
+    tear(state, x.copy(), 2e-4)
+    assert not state.spring_broken[near_cut]
+    # the same stretch without the cut breaks it: the rule, not the strain, held it
+    _, fresh, fresh_tear = make(yarn_level="false", spread=0.0, ineffective=5, warp_yarns=12)
+    _stretch_weft(model, fresh.particle_position_m, 2, 6, 0.5)
+    fresh_tear(fresh, fresh.particle_position_m.copy(), 2e-4)
+    assert fresh.spring_broken[near_cut]

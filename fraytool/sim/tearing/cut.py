@@ -64,7 +64,8 @@ def cut_structural(s, model_in, springs_inout):
 def first_over_length(structural_springs, stretch_of, spring_rest_length_m, spring_particle_a, spring_particle_b,
                       spring_alive, particle_position_m):
     """Index k of the first live spring ``structural_springs[k]`` longer than ``(1 + stretch_of[s]) x`` its rest length
-    (the same expression and rounding as ``cut_overstrained``'s length test), or -1 if none is. Takes plain arrays:
+    or of NaN length (the same expressions and rounding as the length tests of ``cut_overstrained`` and
+    fraytool.sim.tearing.split.transition_overstrained, which must stay in step with it), or -1. Takes plain arrays:
     the step's scans call it first and the full kernels, whose argument groups cost about 10 us a call to pass, only
     from there on (most steps have no spring over its limit)."""
     for k in range(structural_springs.shape[0]):
@@ -77,8 +78,8 @@ def first_over_length(structural_springs, stretch_of, spring_rest_length_m, spri
         dy = particle_position_m[b, 1] - particle_position_m[a, 1]
         dz = particle_position_m[b, 2] - particle_position_m[a, 2]
         bound = (1.0 + stretch_of[s]) * spring_rest_length_m[s]
-        if dx * dx + dy * dy + dz * dz > bound * bound:
-            return k
+        if not dx * dx + dy * dy + dz * dz <= bound * bound:
+            return k  # (NaN too: the transition kernel acts on a NaN length, as it skips only lengths within)
     return -1
 
 
@@ -116,7 +117,7 @@ def cut_overstrained(model_in, particles_in, springs_inout, weft_free_in, warp_f
         limit = (1.0 + spring_break_strain[s]) * spring_rest_length_m[s]
         d2 = dx * dx + dy * dy + dz * dz
         if d2 <= limit * limit:
-            continue  # within its limit (first: the usual case, and the cheapest of the tests)
+            continue  # within its limit (first: the usual case, and the cheapest; first_over_length matches it)
         if fragment_left_in[s] < ineffective_length or fragment_right_in[s] < ineffective_length:
             continue  # within the ineffective length of a free yarn end: friction has not built up tension
         free = weft_free_in if spring_kind[s] == STRUCT_WEFT else warp_free_in

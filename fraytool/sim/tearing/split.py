@@ -361,6 +361,6 @@ def transition_overstrained(model_in, particles_inout, crossings_inout, springs_
         dz = particle_position_m[b, 2] - particle_position_m[a, 2]
         limit = stretch * spring_rest_length_m[s]
         if dx * dx + dy * dy + dz * dz <= limit * limit:
-            continue
+            continue  # (fraytool.sim.tearing.cut.first_over_length matches this test)
         count += transition_spring(s, model_in, particles_inout, crossings_inout, springs_inout, prev_position_m_inout)
     return count
