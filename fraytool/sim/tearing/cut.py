@@ -60,11 +60,21 @@ def cut_structural(s, model_in, springs_inout):
     return count
 
 
+@nb.njit(cache=True, fastmath=False, inline="always")
+def squared_length(particle_position_m, a, b):
+    """|x_b - x_a|^2 [m^2]: the one expression the per-step length tests (``first_over_length``,
+    ``cut_overstrained``, fraytool.sim.tearing.split.transition_overstrained) share, so they round alike."""
+    dx = particle_position_m[b, 0] - particle_position_m[a, 0]
+    dy = particle_position_m[b, 1] - particle_position_m[a, 1]
+    dz = particle_position_m[b, 2] - particle_position_m[a, 2]
+    return dx * dx + dy * dy + dz * dz
+
+
 @nb.njit(cache=True, fastmath=False)
 def first_over_length(structural_springs, stretch_of, spring_rest_length_m, spring_particle_a, spring_particle_b,
                       spring_alive, particle_position_m):
     """Index k of the first live spring ``structural_springs[k]`` longer than ``(1 + stretch_of[s]) x`` its rest length
-    or of NaN length (the same expressions and rounding as the length tests of ``cut_overstrained`` and
+    or of NaN length (``squared_length``, as the length tests of ``cut_overstrained`` and
     fraytool.sim.tearing.split.transition_overstrained, which must stay in step with it), or -1. Takes plain arrays:
     the step's scans call it first and the full kernels, whose argument groups cost about 10 us a call to pass, only
     from there on (most steps have no spring over its limit)."""
@@ -72,13 +82,8 @@ def first_over_length(structural_springs, stretch_of, spring_rest_length_m, spri
         s = structural_springs[k]
         if not spring_alive[s]:
             continue
-        a = spring_particle_a[s]
-        b = spring_particle_b[s]
-        dx = particle_position_m[b, 0] - particle_position_m[a, 0]
-        dy = particle_position_m[b, 1] - particle_position_m[a, 1]
-        dz = particle_position_m[b, 2] - particle_position_m[a, 2]
         bound = (1.0 + stretch_of[s]) * spring_rest_length_m[s]
-        if not dx * dx + dy * dy + dz * dz <= bound * bound:
+        if not squared_length(particle_position_m, spring_particle_a[s], spring_particle_b[s]) <= bound * bound:
             return k  # (NaN too: the transition kernel acts on a NaN length, as it skips only lengths within)
     return -1
 
@@ -109,13 +114,8 @@ def cut_overstrained(model_in, particles_in, springs_inout, weft_free_in, warp_f
         s = structural_springs[k]
         if not spring_alive[s]:
             continue  # already cut
-        a = spring_particle_a[s]
-        b = spring_particle_b[s]
-        dx = particle_position_m[b, 0] - particle_position_m[a, 0]
-        dy = particle_position_m[b, 1] - particle_position_m[a, 1]
-        dz = particle_position_m[b, 2] - particle_position_m[a, 2]
         limit = (1.0 + spring_break_strain[s]) * spring_rest_length_m[s]
-        d2 = dx * dx + dy * dy + dz * dz
+        d2 = squared_length(particle_position_m, spring_particle_a[s], spring_particle_b[s])
         if d2 <= limit * limit:
             continue  # within its limit (first: the usual case, and the cheapest; first_over_length matches it)
         if fragment_left_in[s] < ineffective_length or fragment_right_in[s] < ineffective_length:

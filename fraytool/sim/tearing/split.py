@@ -50,6 +50,7 @@ import numba as nb
 import numpy as np
 
 from fraytool.kinds import BEND_WARP, SHEAR, STRUCT_WARP, STRUCT_WEFT
+from fraytool.sim.tearing.cut import squared_length
 
 
 @nb.njit(cache=True, fastmath=False)
@@ -354,13 +355,8 @@ def transition_overstrained(model_in, particles_inout, crossings_inout, springs_
         s = structural_springs[k]
         if not spring_alive[s]:
             continue  # a cut yarn carries no strain
-        a = spring_particle_a[s]
-        b = spring_particle_b[s]
-        dx = particle_position_m[b, 0] - particle_position_m[a, 0]
-        dy = particle_position_m[b, 1] - particle_position_m[a, 1]
-        dz = particle_position_m[b, 2] - particle_position_m[a, 2]
         limit = stretch * spring_rest_length_m[s]
-        if dx * dx + dy * dy + dz * dz <= limit * limit:
+        if squared_length(particle_position_m, spring_particle_a[s], spring_particle_b[s]) <= limit * limit:
             continue  # (fraytool.sim.tearing.cut.first_over_length matches this test)
         count += transition_spring(s, model_in, particles_inout, crossings_inout, springs_inout, prev_position_m_inout)
     return count
