@@ -45,6 +45,7 @@ class Mutation:
 M = Mutation
 MESH_TESTS = ("tests/test_mesh_magnitudes.py", "tests/test_mesh_check.py", "tests/test_mesh_bodies.py")
 CLEARANCE_TESTS = ("tests/test_mesh_clearance.py",)
+LEAF_CACHE_TESTS = ("tests/test_mesh_leaf_cache.py",)
 MULTIRES_MESH_TESTS = ("tests/test_multires_mesh.py",)
 MULTIRES_PANEL_TESTS = ("tests/test_multires_panels.py",)
 SEAM_TESTS = ("tests/test_seams.py",)
@@ -380,6 +381,16 @@ MUTATIONS = [
       "        if first >= 0:\n            # the scans read spring_alive",
       "        if first < 0:\n            self._runs_at = state.topology_epoch\n        if first >= 0:\n"
       "            # the scans read spring_alive", ("tests/test_tearing_cut.py",)),
+    M("mesh", "a leaf list used for a query reaching out of its cube", "fraytool/sim/kernels/mesh_leaf_cache.py",
+      "    return (query[0] >= centre_m[m, p, 0] - half_m and",
+      "    return (query[0] >= centre_m[m, p, 0] - 2.0 * half_m and", LEAF_CACHE_TESTS),
+    M("mesh", "a leaf list's leaves not tested against the query box", "fraytool/sim/kernels/mesh_leaf_cache.py",
+      "        if overlaps(box, node, query[0], query[1], query[2], query[3], query[4], query[5]):",
+      "        if True:", LEAF_CACHE_TESTS),
+    M("mesh", "a full leaf list read as its first leaves", "fraytool/sim/kernels/mesh_leaf_cache.py",
+      "    return n if n < FULL else -1", "    return min(n, CACHE_LEAVES)", LEAF_CACHE_TESTS),
+    M("mesh", "a refit that keeps the leaf lists", "fraytool/sim/mesh_geometry.py",
+      "        self.leaf_cache.count[m] = NO_LIST", "        pass", LEAF_CACHE_TESTS),
 ]
 
 

@@ -13,7 +13,7 @@ from fraytool.sim.builder import ModelBuilder
 from fraytool.sim.kernels.mesh_clearance import (SKIP_FACTOR, clearance_left, empty_clearance, empty_segment_clearance,
                                                   nearest_distance, segment_clearance, segment_clearance_left,
                                                   segment_distance)
-from fraytool.sim.kernels.mesh_contact import STACK
+from fraytool.sim.kernels.mesh_contact import NO_LEAVES, STACK
 from fraytool.sim.mesh_geometry import MeshGeometry
 from fraytool.sim.solver import SolverExplicitPBD
 
@@ -64,7 +64,7 @@ def test_a_bound_never_exceeds_the_true_distance_as_points_and_an_animated_mesh_
     steps = np.linspace(0.0, 0.02, 21)
     g.at_step(steps[0], steps[1])
     for p, x in enumerate(points):  # references at the first step's end
-        clear.clearance_m[0, p] = nearest_distance(0, meshes, x, clear.reach_m, stack)
+        clear.clearance_m[0, p] = nearest_distance(0, meshes, x, clear.reach_m, stack, NO_LEAVES, -1)
         clear.reference_m[0, p] = x
         clear.travel_at_m[0, p] = clear.travel_start_m[0]
     exact = np.array([_brute_distance(x, g.vertex_end_m, faces) for x in points])
@@ -185,7 +185,7 @@ def test_a_bound_counts_the_whole_path_not_only_its_end():
     meshes = g.meshes_in(model)
     ref = np.array([0.0, 0.035, 0.0])
     clear = g.clearance
-    clear.clearance_m[0, 0] = nearest_distance(0, meshes, ref, clear.reach_m, np.empty(STACK, np.int64))
+    clear.clearance_m[0, 0] = nearest_distance(0, meshes, ref, clear.reach_m, np.empty(STACK, np.int64), NO_LEAVES, -1)
     clear.reference_m[0, 0] = ref
     start = ref - (0.0, 0.003, 0.0)  # 3 mm nearer the ball
     bound = clearance_left(clear, 0, 0, *start, *ref)

@@ -14,6 +14,7 @@ from fraytool.kinds import STRUCT_WARP, STRUCT_WEFT
 from fraytool.sim.kernels import mesh_bvh
 from fraytool.sim.kernels.mesh_clearance import empty_clearance
 from fraytool.sim.kernels.mesh_contact import MeshesIn
+from fraytool.sim.kernels.mesh_leaf_cache import NO_LIST, empty_leaf_cache
 
 REACH_SPACINGS = 1.5
 """How far a clearance refresh looks (fraytool.sim.kernels.mesh_clearance), in yarn segment lengths (the
@@ -39,6 +40,9 @@ class MeshGeometry:
         self.edge_bvh = mesh_bvh.build(edge_centroids, [int(x) for x in t.edge_start[:-1]], median=False)
         self._refit_keys: list = [None] * t.count
         self.animated = [t.animated(m) for m in range(t.count)]
+        self.leaf_cache = empty_leaf_cache(t.count, model.particle_count)
+        """Per-mass lists of the triangle trees' leaves near it (fraytool.sim.kernels.mesh_leaf_cache), emptied
+        for a mesh at each of its refits."""
         for m in range(t.count):
             self._refit(m, self.vertex_start_m, self.vertex_start_m)
         self.clearance = empty_clearance(t.count, model.particle_count, self._coordinate_scales(), self._reach(model))
@@ -61,6 +65,7 @@ class MeshGeometry:
         t = self.table
         mesh_bvh.refit_mesh(self.tri_bvh, m, t.triangles, t.triangle_start, lo_vertices, hi_vertices)
         mesh_bvh.refit_mesh(self.edge_bvh, m, t.sharp_edges, t.edge_start, lo_vertices, hi_vertices)
+        self.leaf_cache.count[m] = NO_LIST  # the lists hold while the boxes do
 
     def at_step(self, t0_s: float, t1_s: float) -> None:
         """Animated meshes' vertices at t0_s and t1_s, their trees refitted for the keys around them, and

@@ -51,6 +51,7 @@ import numpy as np
 from fraytool.geometry.segments import segment_closest_params
 from fraytool.geometry.triangles import closest_on_triangle, triangle_normal
 from fraytool.sim.kernels.mesh_bvh import next_leaf, prim_overlaps
+from fraytool.sim.kernels.mesh_leaf_cache import next_query_leaf
 
 SKIP_FACTOR = 1.01
 """A mass or segment is skipped when its bound exceeds the margin by 1 % (and the edge CCD's spatial
@@ -119,18 +120,34 @@ def through_skip_m(clear, m, largest_coordinate_m):
 
 
 @nb.njit(cache=True, inline="always")
-def nearest_distance(m, meshes_in, l, reach_m, stack_out):
+def point_box(l, reach_m):
+    """The query box of a point l (3,) looking within reach_m: (lo x, y, z, hi x, y, z)."""
+    return l[0] - reach_m, l[1] - reach_m, l[2] - reach_m, l[0] + reach_m, l[1] + reach_m, l[2] + reach_m
+
+
+@nb.njit(cache=True, inline="always")
+def near_reach_m(clear, margin_m):
+    """How far a renewal looks first (NEAR_MARGINS margins, at most the reach)."""
+    return min(NEAR_MARGINS * margin_m, clear.reach_m)
+
+
+@nb.njit(cache=True, inline="always")
+def nearest_distance(m, meshes_in, l, reach_m, stack_out, leaves_in, leaf_count):
     """Distance [m] from body-frame point l (3,) to mesh m's surface at the step's end, or reach_m when no
-    triangle is nearer (every triangle within reach_m has its box inside the query box, so it is seen)."""
+    triangle is nearer (every triangle within reach_m has its box inside the query box, so it is seen). The
+    tree's leaves come from a cached list (leaf_count of leaves_in, for the query box `point_box(l,
+    reach_m)`: fraytool.sim.kernels.mesh_leaf_cache) or, leaf_count < 0, a walk."""
     vb = meshes_in.vertex_end_m
     tris = meshes_in.triangles
     best2 = reach_m * reach_m
-    lo0, lo1, lo2 = l[0] - reach_m, l[1] - reach_m, l[2] - reach_m
-    hi0, hi1, hi2 = l[0] + reach_m, l[1] + reach_m, l[2] + reach_m
+    query = point_box(l, reach_m)
+    lo0, lo1, lo2, hi0, hi1, hi2 = query
     stack_out[0] = meshes_in.tri_node_start[m]
     top = 1
+    k = 0
     while True:
-        node, top = next_leaf(stack_out, top, meshes_in.tri_child, meshes_in.tri_box, lo0, lo1, lo2, hi0, hi1, hi2)
+        node, k, top = next_query_leaf(leaves_in, leaf_count, k, stack_out, top,
+                                       (meshes_in.tri_child, meshes_in.tri_box), query)
         if node < 0:
             break
         for q in range(meshes_in.tri_range[node, 0], meshes_in.tri_range[node, 1]):
@@ -147,19 +164,20 @@ def nearest_distance(m, meshes_in, l, reach_m, stack_out):
 
 @nb.njit(cache=True, inline="always")
 def renew(clearance_m_inout, reference_m_inout, travel_at_m_inout, clear, which, meshes_in, l, touched, margin_m,
-          stack_out):
+          stack_out, near_leaves_in):
     """After particle p's pass against mesh m (which = (m, p)): a mass it moved gets no bound (it touches, it
     will be tested again); another one's distance from its end point l is taken afresh. The first three: the
     ClearanceInOut `clear`'s arrays (plain arrays: a parallel loop's writes through a tuple are lost, numba
-    issues 7135 and 10338)."""
+    issues 7135 and 10338). near_leaves_in: (leaves, count) for the near query's box (`nearest_distance`)."""
     m, p = which
     if touched:
         clearance_m_inout[m, p] = -1.0
         return
-    near = min(NEAR_MARGINS * margin_m, clear.reach_m)
-    d = nearest_distance(m, meshes_in, l, near, stack_out)  # a small box first: most renewals are near
+    near = near_reach_m(clear, margin_m)
+    leaves, count = near_leaves_in
+    d = nearest_distance(m, meshes_in, l, near, stack_out, leaves, count)  # a small box first: most are near
     if d >= near * (1.0 - 1e-9):
-        d = nearest_distance(m, meshes_in, l, clear.reach_m, stack_out)
+        d = nearest_distance(m, meshes_in, l, clear.reach_m, stack_out, leaves, -1)
     clearance_m_inout[m, p] = d
     reference_m_inout[m, p, 0] = l[0]
     reference_m_inout[m, p, 1] = l[1]

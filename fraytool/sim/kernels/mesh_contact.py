@@ -50,8 +50,10 @@ from fraytool.geometry.frames import rotate, to_body, to_world
 from fraytool.geometry.segments import segment_closest_params
 from fraytool.geometry.triangles import closest_on_triangle, triangle_normal
 from fraytool.sim.kernels.mesh_bvh import next_leaf, overlaps, prim_overlaps
-from fraytool.sim.kernels.mesh_clearance import (CCD_SCALE, SKIP_FACTOR, clearance_left, renew, segment_clearance,
-                                                  segment_clearance_left, segment_skip_m, through_skip_m)
+from fraytool.sim.kernels.mesh_clearance import (CCD_SCALE, SKIP_FACTOR, clearance_left, near_reach_m, point_box,
+                                                  renew, segment_clearance, segment_clearance_left, segment_skip_m,
+                                                  through_skip_m)
+from fraytool.sim.kernels.mesh_leaf_cache import CACHE_MARGINS, cached_leaves, next_query_leaf
 from fraytool.sim.kernels.rigid_contact import coulomb_friction
 
 PASSES = 3
@@ -67,6 +69,8 @@ STACK = 64
 Push = namedtuple("Push", ["moved", "x0", "x1", "x2", "nx", "ny", "nz", "depth", "triangle", "w0", "w1", "w2"])
 """A mass's push off a mesh in one pass (_resolve_point), body frame: moved, the new point (x0, x1, x2), the
 unit normal, the depth moved along it [m], the triangle and the barycentric weights of the touched point."""
+NO_LEAVES = np.zeros(0, np.int64)
+"""The leaf list of a query that walks the tree (fraytool.sim.kernels.mesh_leaf_cache)."""
 NO_PUSH = Push(False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1, 0.0, 0.0, 0.0)
 
 MeshesIn = namedtuple("MeshesIn", [
@@ -101,21 +105,27 @@ def _vertex(vertices, i):
 
 
 @nb.njit(cache=True, inline="always")
-def _resolve_point(m, meshes_in, l0, l1, margin_m, reach_m, stack_out):
+def _path_box(l0, l1, reach_m):
+    """The query box of a mass's pass from l0 to l1 looking within reach_m: (lo x, y, z, hi x, y, z)."""
+    pad = reach_m * (1.0 + 1e-9)
+    return (min(l0[0], l1[0]) - pad, min(l0[1], l1[1]) - pad, min(l0[2], l1[2]) - pad,
+            max(l0[0], l1[0]) + pad, max(l0[1], l1[1]) + pad, max(l0[2], l1[2]) + pad)
+
+
+@nb.njit(cache=True, inline="always")
+def _resolve_point(m, meshes_in, l0, l1, margin_m, reach_m, stack_out, leaves_in, leaf_count):
     """One pass for a mass going from l0 to l1 (body frame) against mesh m, looking for the nearest
     surface within reach_m (>= margin_m) of l1. Returns a Push: whether it moved, the new point, the unit
-    normal, the depth (how far it was moved along the normal), the triangle and its barycentric weights."""
+    normal, the depth (how far it was moved along the normal), the triangle and its barycentric weights.
+    The tree's leaves come from the mass's cached list (leaf_count of leaves_in, for the query box
+    `_path_box(l0, l1, reach_m)`: fraytool.sim.kernels.mesh_leaf_cache) or, leaf_count < 0, a walk."""
     va, vb = meshes_in.vertex_start_m, meshes_in.vertex_end_m
     tris = meshes_in.triangles
     box = meshes_in.tri_box
     closed = meshes_in.closed[m]
     pad = reach_m * (1.0 + 1e-9)
-    lo0 = min(l0[0], l1[0]) - pad
-    lo1 = min(l0[1], l1[1]) - pad
-    lo2 = min(l0[2], l1[2]) - pad
-    hi0 = max(l0[0], l1[0]) + pad
-    hi1 = max(l0[1], l1[1]) + pad
-    hi2 = max(l0[2], l1[2]) + pad
+    query = _path_box(l0, l1, reach_m)
+    lo0, lo1, lo2, hi0, hi1, hi2 = query
     best_t = 2.0
     cross_tri = -1
     cross_side = 0.0
@@ -126,8 +136,9 @@ def _resolve_point(m, meshes_in, l0, l1, margin_m, reach_m, stack_out):
     bw0 = bw1 = bw2 = 0.0
     stack_out[0] = meshes_in.tri_node_start[m]
     top = 1
+    k = 0
     while True:
-        node, top = next_leaf(stack_out, top, meshes_in.tri_child, box, lo0, lo1, lo2, hi0, hi1, hi2)
+        node, k, top = next_query_leaf(leaves_in, leaf_count, k, stack_out, top, (meshes_in.tri_child, box), query)
         if node < 0:
             break
         for q in range(meshes_in.tri_range[node, 0], meshes_in.tri_range[node, 1]):
@@ -256,21 +267,25 @@ def start_rotation(rot, omega, dt_s):
 
 
 @nb.njit(cache=True, inline="always")
-def _mesh_range(span, m, frame, meshes_in, margin_m, particles_in, particle_position_m_inout, clear,
-                clearance_m_inout, reference_m_inout, travel_at_m_inout, stack_out):
-    """Particles particles[lo:hi] against mesh m (span = (particles, lo, hi)); `frame` = (rotation (3, 3),
-    centre at the step's end (3), centre at its start (3), friction, rotation at the step's start (3, 3)). A
-    mass whose clearance bound (`clear`, fraytool.sim.kernels.mesh_clearance; its arrays the three after it,
-    which the pass renews) is over the margin is skipped; the others' bounds are renewed. Returns the number
-    of masses in contact."""
+def _mesh_range(span, frame, meshes_in, particles_in, particle_position_m_inout, clear, clearance_m_inout,
+                reference_m_inout, travel_at_m_inout, leaves_inout, leaf_count_inout, leaf_centre_m_inout):
+    """Particles particles[lo:hi] against mesh m (span = (particles, lo, hi)); `frame` = (m, margin [m],
+    rotation (3, 3), centre at the step's end (3), centre at its start (3), friction, rotation at the step's
+    start (3, 3)). A mass whose clearance bound (`clear`, fraytool.sim.kernels.mesh_clearance; its arrays the
+    three after it, which the pass renews) is over the margin is skipped; the others' bounds are renewed. The
+    last three: a LeafCacheInOut's arrays (fraytool.sim.kernels.mesh_leaf_cache), which the queries read and
+    renew. Returns the number of masses in contact."""
     particles, lo, hi = span
-    rot, c1, c0, friction, rot0 = frame
+    m, margin_m, rot, c1, c0, friction, rot0 = frame
     particle_inv_mass, prev_position_m = particles_in
     box = meshes_in.tri_box
     root = meshes_in.tri_node_start[m]
     pad = margin_m * (1.0 + 1e-9)
+    half_m = CACHE_MARGINS * margin_m
+    near_m = near_reach_m(clear, margin_m)
     va, vb = meshes_in.vertex_start_m, meshes_in.vertex_end_m
     tris = meshes_in.triangles
+    stack_out = np.empty(STACK, np.int64)
     l0 = np.empty(3)
     l1 = np.empty(3)
     pass_normal = np.empty((PASSES, 3))
@@ -294,7 +309,9 @@ def _mesh_range(span, m, frame, meshes_in, margin_m, particles_in, particle_posi
         passes = 0
         main_pass = 0
         for _ in range(PASSES):
-            push = _resolve_point(m, meshes_in, l0, l1, margin_m, margin_m, stack_out)
+            n = cached_leaves((m, p), meshes_in, _path_box(l0, l1, margin_m), half_m, leaves_inout, leaf_count_inout,
+                              leaf_centre_m_inout, stack_out)
+            push = _resolve_point(m, meshes_in, l0, l1, margin_m, margin_m, stack_out, leaves_inout[m, p], n)
             if not push.moved:
                 break
             l1[0], l1[1], l1[2] = push.x0, push.x1, push.x2
@@ -306,8 +323,10 @@ def _mesh_range(span, m, frame, meshes_in, margin_m, particles_in, particle_posi
             passes += 1
             touched = True
             depth += max(push.depth, 0.0)  # the push over every pass: a later pass may move it a rounding error only
+        n = -1 if touched else cached_leaves((m, p), meshes_in, point_box(l1, near_m), half_m, leaves_inout,
+                                             leaf_count_inout, leaf_centre_m_inout, stack_out)
         renew(clearance_m_inout, reference_m_inout, travel_at_m_inout, clear, (m, p), meshes_in, l1, touched, margin_m,
-              stack_out)
+              stack_out, (leaves_inout[m, p], n))
         if not touched:
             continue
         hits += 1
@@ -349,8 +368,9 @@ def collide_meshes(
     meshes_in, bodies_in, margin_m, dt_s,
     # state in
     particle_inv_mass, prev_position_m,
-    # state in/out: positions, and the clearance bounds (fraytool.sim.kernels.mesh_clearance.ClearanceInOut)
-    particle_position_m_inout, clear_inout,
+    # state in/out: positions, the clearance bounds (fraytool.sim.kernels.mesh_clearance.ClearanceInOut) and the
+    # leaf lists (fraytool.sim.kernels.mesh_leaf_cache.LeafCacheInOut)
+    particle_position_m_inout, clear_inout, leaf_cache_inout,
 ):
     """Masses against every colliding mesh body, with friction; returns the number of contacts. Each
     mass is independent of the others (a mesh is kinematic; its clearance bounds are its own): parallel
@@ -360,20 +380,20 @@ def collide_meshes(
     # the bounds' arrays out of their named tuple (numba drops a parallel loop's writes through a tuple: numba
     # issues 7135, 10338), so that the pass can be inlined into the loop (a call per unit costs twice the work)
     clearance_m, reference_m, travel_at_m = clear_inout.clearance_m, clear_inout.reference_m, clear_inout.travel_at_m
+    leaves, leaf_count, leaf_centre_m = leaf_cache_inout
     for m in range(meshes_in.body.shape[0]):
         k = meshes_in.body[m]
         if not bodies_in.collide[k]:
             continue
         c1 = bodies_in.position_m[k].copy()
         c0 = c1 - dt_s * bodies_in.velocity_m_s[k]
-        frame = (bodies_in.rotation[k], c1, c0, bodies_in.friction[k],
+        frame = (m, margin_m, bodies_in.rotation[k], c1, c0, bodies_in.friction[k],
                  start_rotation(bodies_in.rotation[k], bodies_in.angular_velocity_rad_s[k], dt_s))
         hits = np.zeros(unit_bounds.shape[0] - 1, np.int64)  # (per unit: a reduction over the inlined pass
         for u in nb.prange(unit_bounds.shape[0] - 1):        # does not compile)
-            stack = np.empty(STACK, np.int64)
-            hits[u] = _mesh_range((particles, unit_bounds[u], unit_bounds[u + 1]), m, frame, meshes_in, margin_m,
-                                  particles_in, particle_position_m_inout, clear_inout, clearance_m, reference_m,
-                                  travel_at_m, stack)
+            hits[u] = _mesh_range((particles, unit_bounds[u], unit_bounds[u + 1]), frame, meshes_in, particles_in,
+                                  particle_position_m_inout, clear_inout, clearance_m, reference_m, travel_at_m,
+                                  leaves, leaf_count, leaf_centre_m)
         contacts += hits.sum()
     return contacts
 
@@ -529,7 +549,7 @@ def _segment_through(m, meshes_in, seg_end_inout, inverse_masses, margin_m, stac
     sm = 0.5 * (first + last)
     deep = la1 + sm * (lb1 - la1)
     reach = 0.5 * (last - first) * math.sqrt(_dist2(la1, lb1)) + margin_m
-    push = _resolve_point(m, meshes_in, deep, deep, margin_m, reach, stack_out)
+    push = _resolve_point(m, meshes_in, deep, deep, margin_m, reach, stack_out, NO_LEAVES, -1)
     if not push.moved:
         return 0
     x0, x1, x2 = push.x0, push.x1, push.x2
@@ -801,7 +821,7 @@ def place_outside_meshes(
                 continue
             local[0], local[1], local[2] = to_body(rot, c, particle_position_m_inout[p, 0],
                                                    particle_position_m_inout[p, 1], particle_position_m_inout[p, 2])
-            push = _resolve_point(m, meshes_in, local, local, margin_m, margin_m, stack)
+            push = _resolve_point(m, meshes_in, local, local, margin_m, margin_m, stack, NO_LEAVES, -1)
             if push.moved:
                 particle_position_m_inout[p, 0], particle_position_m_inout[p, 1], particle_position_m_inout[p, 2] = \
                     to_world(rot, c, push.x0, push.x1, push.x2)

@@ -70,7 +70,7 @@ class MeshContact:
         margin = 0.5 * m.thickness_m
         clear = self.geometry.clearance
         hits = collide_meshes(*ctx.lists.free(state), meshes, bodies, margin, dt_s, state.particle_inv_mass,
-                              ctx.prev_position_m, state.particle_position_m, clear)
+                              ctx.prev_position_m, state.particle_position_m, clear, self.geometry.leaf_cache)
         if self.segments_too:
             segments = self.segments(state, ctx)
             segments_touching(segments, self._segment_units, meshes, bodies, margin, dt_s, state.particle_inv_mass,
