@@ -88,8 +88,10 @@ travelled) more than this many margins since it was taken: cloth at rest on a bo
 
 
 @nb.njit(cache=True, inline="always")
-def _dist(ax, ay, az, b, i):
-    return math.sqrt((ax - b[i, 0]) ** 2 + (ay - b[i, 1]) ** 2 + (az - b[i, 2]) ** 2)
+def _dist2(ax, ay, az, b, i):
+    """|(ax, ay, az) - b[i]|^2. The bounds below take the largest of several distances as the square root of
+    the largest square: the same number (a rounded square root never reverses an order), one root."""
+    return (ax - b[i, 0]) ** 2 + (ay - b[i, 1]) ** 2 + (az - b[i, 2]) ** 2
 
 
 @nb.njit(cache=True, inline="always")
@@ -101,7 +103,7 @@ def clearance_left(clear, m, p, x0, y0, z0, x1, y1, z1):
     if d < 0.0:
         return -1.0
     ref = clear.reference_m[m]
-    r = max(_dist(x0, y0, z0, ref, p), _dist(x1, y1, z1, ref, p))
+    r = math.sqrt(max(_dist2(x0, y0, z0, ref, p), _dist2(x1, y1, z1, ref, p)))
     return d - r - (clear.travel_m[m] - clear.travel_at_m[m, p])
 
 
@@ -194,9 +196,11 @@ def segment_clearance_left(seg_reference_m, seg_clearance_m, seg_travel_at_m, cl
     if d < 0.0:
         return -1.0
     ref = seg_reference_m[m, s]
-    r = 0.0
+    r2 = 0.0
     for e in range(2):
-        r = max(r, _dist(start[e, 0], start[e, 1], start[e, 2], ref, e), _dist(end[e, 0], end[e, 1], end[e, 2], ref, e))
+        r2 = max(r2, _dist2(start[e, 0], start[e, 1], start[e, 2], ref, e),
+                 _dist2(end[e, 0], end[e, 1], end[e, 2], ref, e))
+    r = math.sqrt(r2)
     return d - r - (clear.travel_m[m] - seg_travel_at_m[m, s])
 
 
@@ -271,7 +275,8 @@ def segment_clearance(seg_reference_m_inout, seg_clearance_m_inout, seg_travel_a
     taken = seg_clearance_m_inout[m, s]
     if taken >= 0.0:
         ref = seg_reference_m_inout[m, s]
-        moved = max(_dist(end[0, 0], end[0, 1], end[0, 2], ref, 0), _dist(end[1, 0], end[1, 1], end[1, 2], ref, 1))
+        moved = math.sqrt(max(_dist2(end[0, 0], end[0, 1], end[0, 2], ref, 0),
+                              _dist2(end[1, 0], end[1, 1], end[1, 2], ref, 1)))
         if moved + clear.travel_start_m[m] - seg_travel_at_m_inout[m, s] <= RENEW_MARGINS * margin_m:
             return left  # taken afresh, it would be about as low: what is left is the step's own sweep
     near = min(NEAR_MARGINS * margin_m, clear.reach_m)

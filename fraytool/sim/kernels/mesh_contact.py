@@ -624,54 +624,82 @@ def _largest_coordinate(start, end):
 
 
 @nb.njit(cache=True, inline="always")
-def _segment_clear(clear, m, a, b, start, end, skip_m):
-    """Whether a segment's ends' clearance bounds keep every point of it over skip_m (`segment_skip_m`) from
-    mesh m through the step (fraytool.sim.kernels.mesh_clearance: (D_a + D_b - L) / 2)."""
-    da = clearance_left(clear, m, a, start[0, 0], start[0, 1], start[0, 2], end[0, 0], end[0, 1], end[0, 2])
-    if da < 0.0:
-        return False
-    db = clearance_left(clear, m, b, start[1, 0], start[1, 1], start[1, 2], end[1, 0], end[1, 1], end[1, 2])
-    if db < 0.0:
+def _ends_clear(da, db, start, end, skip_m):
+    """Whether a segment's ends' clearance bounds over the step, da and db (`clearance_left`), keep every point of
+    it over skip_m (`segment_skip_m`) through the step (fraytool.sim.kernels.mesh_clearance: (D_a + D_b - L) / 2);
+    start and end: its end points at the step's start and end (2, 3)."""
+    if da < 0.0 or db < 0.0:
         return False
     length = math.sqrt(max(_dist2(start[0], start[1]), _dist2(end[0], end[1])))
     return 0.5 * (da + db - length) > skip_m
 
 
+@nb.njit(cache=True, inline="always")
+def _ends_in_body(ends, lo, hi, frame, clear, particles_in, end_body_m_out, end_left_m_out):
+    """Segment ends ends[lo:hi] in mesh m's body frame at the step's start and end (end_body_m_out[p, 0] and [p,
+    1], as `_segment_in_body` puts them) and their clearance bounds over the step (end_left_m_out[p],
+    `clearance_left`); frame = (m, rot, rot0, c0, c1)."""
+    m, rot, rot0, c0, c1 = frame
+    prev_position_m, particle_position_m = particles_in
+    for i in range(lo, hi):
+        p = ends[i]
+        end_body_m_out[p, 1, 0], end_body_m_out[p, 1, 1], end_body_m_out[p, 1, 2] = to_body(
+            rot, c1, particle_position_m[p, 0], particle_position_m[p, 1], particle_position_m[p, 2])
+        end_body_m_out[p, 0, 0], end_body_m_out[p, 0, 1], end_body_m_out[p, 0, 2] = to_body(
+            rot0, c0, prev_position_m[p, 0], prev_position_m[p, 1], prev_position_m[p, 2])
+        end_left_m_out[p] = clearance_left(clear, m, p, end_body_m_out[p, 0, 0], end_body_m_out[p, 0, 1],
+                                           end_body_m_out[p, 0, 2], end_body_m_out[p, 1, 0], end_body_m_out[p, 1, 1],
+                                           end_body_m_out[p, 1, 2])
+
+
 @nb.njit(cache=True, fastmath=False, parallel=True)
-def segments_touching(segments, unit_bounds, meshes_in, bodies_in, margin_m, dt_s, particle_inv_mass,
-                      prev_position_m, particle_position_m, clear, seg_clear_inout, touching_out):
+def segments_touching(segments_in, meshes_in, bodies_in, margin_m, dt_s, particles_in, clear, seg_clear_inout,
+                      touching_out, end_body_m_out, end_left_m_out):
     """touching_out[m, s]: whether segment s's first pass against colliding mesh m would move it, from the
-    positions as they are (nothing is written but the flags and the segments' bounds). `segments`: (S, 3) the end
-    particles and the spring slot of each (its row of the bounds). Parallel over the units of `segments`: the costly
-    part of collide_mesh_segments' first sweep, which then runs only the flagged segments and those at a mass moved
-    before them in the sweep; a segment neither flagged nor moved would have met nothing, so the result is the
-    serial sweep's, bit for bit, on any number of threads.
+    positions as they are (nothing is written but the flags, the segments' bounds and the ends' scratch).
+    segments_in = (segments (S, 3): the end particles and the spring slot of each (its row of the bounds), their
+    units, the segments' end particles (ascending, each once), their units); particles_in = (inverse masses,
+    start-of-step positions, positions). Parallel over the units: the costly part of collide_mesh_segments' first
+    sweep, which then runs only the flagged segments and those at a mass moved before them in the sweep; a segment
+    neither flagged nor moved would have met nothing, so the result is the serial sweep's, bit for bit, on any
+    number of threads.
     A segment whose ends' clearance bounds (`clear`) or its own (`seg_clear_inout`, renewed here: each
     segment's by one thread) keep all of it over the margin is not tested; one kept off the surface skips
-    the corner test (fraytool.sim.kernels.mesh_clearance)."""
+    the corner test (fraytool.sim.kernels.mesh_clearance). Each end's body-frame points and bound are taken
+    once per mesh, before the segments (end_body_m_out (P, 2, 3), end_left_m_out (P,), scratch): an end
+    belongs to up to four segments."""
+    segments, unit_bounds, ends, end_units = segments_in
+    particle_inv_mass, prev_position_m, particle_position_m = particles_in
     # the bounds' arrays taken out of their named tuple: numba drops writes made through a tuple in a
     # parallel loop (numba issues 7135, 10338)
     seg_reference_m, seg_clearance_m, seg_travel_at_m = seg_clear_inout
-    for u in nb.prange(unit_bounds.shape[0] - 1):
-        stack = np.empty(STACK, np.int64)
-        start = np.empty((2, 3))
-        end = np.empty((2, 3))
-        pad = margin_m * (1.0 + 1e-9)
-        for m in range(meshes_in.body.shape[0]):
-            if not bodies_in.collide[meshes_in.body[m]]:
-                continue
-            rot, rot0, c0, c1, sharp = _mesh_frame(m, meshes_in, bodies_in, dt_s)
+    pad = margin_m * (1.0 + 1e-9)
+    for m in range(meshes_in.body.shape[0]):
+        if not bodies_in.collide[meshes_in.body[m]]:
+            continue
+        rot, rot0, c0, c1, sharp = _mesh_frame(m, meshes_in, bodies_in, dt_s)
+        for u in nb.prange(end_units.shape[0] - 1):
+            _ends_in_body(ends, end_units[u], end_units[u + 1], (m, rot, rot0, c0, c1), clear,
+                          (prev_position_m, particle_position_m), end_body_m_out, end_left_m_out)
+        for u in nb.prange(unit_bounds.shape[0] - 1):
+            stack = np.empty(STACK, np.int64)
+            start = np.empty((2, 3))
+            end = np.empty((2, 3))
             for s in range(unit_bounds[u], unit_bounds[u + 1]):
                 touching_out[m, s] = False
                 inverse_masses = (particle_inv_mass[segments[s, 0]], particle_inv_mass[segments[s, 1]])
                 if inverse_masses[0] == 0.0 and inverse_masses[1] == 0.0:
                     continue
-                _segment_in_body(segments, s, rot, rot0, c0, c1, prev_position_m, particle_position_m, start, end)
+                for end_ in range(2):
+                    p = segments[s, end_]
+                    for c in range(3):
+                        start[end_, c] = end_body_m_out[p, 0, c]
+                        end[end_, c] = end_body_m_out[p, 1, c]
                 if not _segment_near(meshes_in.tri_box, meshes_in.tri_node_start[m], start, end, pad):
                     continue
                 largest = _largest_coordinate(start, end)
                 skip_m = segment_skip_m(clear, m, margin_m, largest)
-                if _segment_clear(clear, m, segments[s, 0], segments[s, 1], start, end, skip_m):
+                if _ends_clear(end_left_m_out[segments[s, 0]], end_left_m_out[segments[s, 1]], start, end, skip_m):
                     continue
                 left = segment_clearance(seg_reference_m, seg_clearance_m, seg_travel_at_m, clear, (m, segments[s, 2]),
                                          meshes_in, start, end, margin_m, skip_m, stack)

@@ -33,6 +33,12 @@ class MeshContact:
         self._segments_key = None
         self._segments = np.zeros((0, 3), np.int64)
         self._segment_units = even_units(0)
+        self._ends = (np.zeros(0, np.int64), even_units(0))
+        """The segments' end particles (ascending, each once) and their units."""
+        self._end_body_m = np.zeros((0, 2, 3))
+        self._end_left_m = np.zeros(0)
+        """segments_touching's scratch, a row per particle slot: each end's body-frame points at the step's start
+        and end, and its bound."""
         self._touching = np.zeros((0, 0), np.bool_)
         self.segment_clearance = empty_segment_clearance(geometry.table.body.shape[0], 0)
         """Each segment's own distance bound from each mesh (fraytool.sim.kernels.mesh_clearance), a row per
@@ -60,6 +66,10 @@ class MeshContact:
                                                            axis=1).astype(np.int64))
             self._segments_key = key
             self._segment_units = even_units(self._segments.shape[0])
+            is_end = np.zeros(state.particle_position_m.shape[0], np.bool_)
+            is_end[self._segments[:, :2]] = True
+            ends = np.flatnonzero(is_end)
+            self._ends = (ends, even_units(ends.shape[0]))
             self._touching = np.zeros((self.geometry.table.body.shape[0], self._segments.shape[0]), np.bool_)
         return self._segments
 
@@ -73,9 +83,12 @@ class MeshContact:
                               ctx.prev_position_m, state.particle_position_m, clear, self.geometry.leaf_cache)
         if self.segments_too:
             segments = self.segments(state, ctx)
-            segments_touching(segments, self._segment_units, meshes, bodies, margin, dt_s, state.particle_inv_mass,
-                              ctx.prev_position_m, state.particle_position_m, clear, self.segment_clearance,
-                              self._touching)
+            if self._end_left_m.shape[0] != state.particle_position_m.shape[0]:
+                self._end_body_m = np.zeros((state.particle_position_m.shape[0], 2, 3))
+                self._end_left_m = np.zeros(state.particle_position_m.shape[0])
+            segments_touching((segments, self._segment_units) + self._ends, meshes, bodies, margin, dt_s,
+                              (state.particle_inv_mass, ctx.prev_position_m, state.particle_position_m), clear,
+                              self.segment_clearance, self._touching, self._end_body_m, self._end_left_m)
             hits += collide_mesh_segments(segments, self._touching, meshes, bodies, margin, dt_s,
                                           state.particle_inv_mass, ctx.prev_position_m, state.particle_position_m,
                                           (clear, self.segment_clearance))
