@@ -70,6 +70,9 @@ class MeshContact:
             is_end[self._segments[:, :2]] = True
             ends = np.flatnonzero(is_end)
             self._ends = (ends, even_units(ends.shape[0]))
+            if self._end_left_m.shape[0] != is_end.shape[0]:
+                self._end_body_m = np.zeros((is_end.shape[0], 2, 3))
+                self._end_left_m = np.zeros(is_end.shape[0])
             self._touching = np.zeros((self.geometry.table.body.shape[0], self._segments.shape[0]), np.bool_)
         return self._segments
 
@@ -83,9 +86,6 @@ class MeshContact:
                               ctx.prev_position_m, state.particle_position_m, clear, self.geometry.leaf_cache)
         if self.segments_too:
             segments = self.segments(state, ctx)
-            if self._end_left_m.shape[0] != state.particle_position_m.shape[0]:
-                self._end_body_m = np.zeros((state.particle_position_m.shape[0], 2, 3))
-                self._end_left_m = np.zeros(state.particle_position_m.shape[0])
             segments_touching((segments, self._segment_units) + self._ends, meshes, bodies, margin, dt_s,
                               (state.particle_inv_mass, ctx.prev_position_m, state.particle_position_m), clear,
                               self.segment_clearance, self._touching, self._end_body_m, self._end_left_m)
